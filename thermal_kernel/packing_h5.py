@@ -1,0 +1,97 @@
+"""The one writer of the tdem packing format (``packing.h5``), shared by YADE and tdem.
+
+This file must import nothing but the standard library, numpy and h5py: the YADE generators load
+it by file path (``yade_scripts/tdem_dump.py``) and run it on Debian's own Python inside
+``yade -n -x``, where tdem's dependencies (numba, ...) are absent. ``thermal_kernel.packing``
+wraps it for the project side and holds the reader, which validates every file.
+The format is specified in ``docs/packing-format.md``.
+
+The file is written to ``<path>.tmp`` and renamed, so a killed run never leaves a half-written
+``packing.h5``.
+"""
+import os
+
+import h5py
+import numpy as np
+
+FORMAT = "tdem-packing"
+FORMAT_VERSION = 1
+
+WALL_KINDS = ("plane", "cylinder")
+
+
+def write_packing(path, position, radius, phase, pair, overlap, normal_force, branch,
+                  walls, wall_particle, wall_index, wall_overlap, wall_normal_force,
+                  domain_lo, domain_hi, periodic, attrs, contact_radius=None,
+                  wall_contact_radius=None, yade_id=None):
+    """Write one packing.
+
+    walls: list of dicts with keys name, kind ('plane'|'cylinder'), point (3,), normal (3,)
+    (the axis for a cylinder), radius (NaN for planes).
+    attrs: root attributes; must hold at least generator, seed, solid_fraction,
+    mean_coordination, pressure_pa, young_pa, poisson, density. Extra keys are kept.
+    """
+    position = np.ascontiguousarray(position, dtype=np.float64).reshape(-1, 3)
+    n = position.shape[0]
+    pair = np.asarray(pair, dtype=np.int64).reshape(-1, 2)
+    # Canonical contact order: i < j, rows sorted by (i, j); a reader may rely on it.
+    swap = pair[:, 0] > pair[:, 1]
+    branch = np.asarray(branch, dtype=np.float64).reshape(-1, 3).copy()
+    pair = pair.copy()
+    pair[swap] = pair[swap][:, ::-1]
+    branch[swap] *= -1.0
+    order = np.lexsort((pair[:, 1], pair[:, 0]))
+    pair = pair[order]
+    branch = branch[order]
+    overlap = np.asarray(overlap, dtype=np.float64)[order]
+    normal_force = np.asarray(normal_force, dtype=np.float64)[order]
+    if contact_radius is not None:
+        contact_radius = np.asarray(contact_radius, dtype=np.float64)[order]
+
+    tmp = str(path) + ".tmp"
+    with h5py.File(tmp, "w") as f:
+        f.attrs["format"] = FORMAT
+        f.attrs["format_version"] = FORMAT_VERSION
+        for key, value in attrs.items():
+            f.attrs[key] = value
+        g = f.create_group("particles")
+        g.create_dataset("position", data=position)
+        g.create_dataset("radius", data=np.asarray(radius, dtype=np.float64).reshape(n))
+        g.create_dataset("phase", data=np.asarray(phase, dtype=np.int32).reshape(n))
+        if yade_id is not None:
+            g.create_dataset("yade_id", data=np.asarray(yade_id, dtype=np.int64).reshape(n))
+        g.attrs["units"] = "position: m, radius: m, phase: -"
+        c = f.create_group("contacts")
+        c.create_dataset("pair", data=pair)
+        c.create_dataset("overlap", data=overlap)
+        c.create_dataset("normal_force", data=normal_force)
+        c.create_dataset("branch", data=branch)
+        if contact_radius is not None:
+            c.create_dataset("contact_radius", data=contact_radius)
+        c.attrs["units"] = "overlap: m, normal_force: N, branch: m, contact_radius: m"
+        w = f.create_group("walls")
+        strings = h5py.string_dtype(encoding="utf-8")
+        w.create_dataset("name", data=np.array([x["name"] for x in walls], dtype=object),
+                         dtype=strings)
+        w.create_dataset("kind", data=np.array([x["kind"] for x in walls], dtype=object),
+                         dtype=strings)
+        w.create_dataset("point", data=np.array([x["point"] for x in walls],
+                                                dtype=np.float64).reshape(-1, 3))
+        w.create_dataset("normal", data=np.array([x["normal"] for x in walls],
+                                                 dtype=np.float64).reshape(-1, 3))
+        w.create_dataset("radius", data=np.array([x.get("radius", np.nan) for x in walls],
+                                                 dtype=np.float64).reshape(-1))
+        wc = f.create_group("wall_contacts")
+        wc.create_dataset("particle", data=np.asarray(wall_particle, dtype=np.int64).reshape(-1))
+        wc.create_dataset("wall", data=np.asarray(wall_index, dtype=np.int32).reshape(-1))
+        wc.create_dataset("overlap", data=np.asarray(wall_overlap, dtype=np.float64).reshape(-1))
+        wc.create_dataset("normal_force",
+                          data=np.asarray(wall_normal_force, dtype=np.float64).reshape(-1))
+        if wall_contact_radius is not None:
+            wc.create_dataset("contact_radius",
+                              data=np.asarray(wall_contact_radius, dtype=np.float64).reshape(-1))
+        d = f.create_group("domain")
+        d.attrs["lo"] = np.asarray(domain_lo, dtype=np.float64).reshape(3)
+        d.attrs["hi"] = np.asarray(domain_hi, dtype=np.float64).reshape(3)
+        d.attrs["periodic"] = np.asarray(periodic, dtype=bool).reshape(3)
+    os.replace(tmp, str(path))
