@@ -1,0 +1,36 @@
+# tdem: `make demo` runs the main job on the default scene, `make test` runs the test suite.
+# Both first install what is missing: Debian's YADE and python3-h5py (apt), then tdem and its
+# Python dependencies in a virtualenv (.venv). YADE never runs inside the venv (tdem/yade.py).
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+APT_PACKAGES := yade python3-h5py python3-venv
+
+.PHONY: demo test deps apt validate bench clean
+
+demo: deps
+	$(BIN)/tdem demo
+
+test: deps
+	$(BIN)/python -m pytest -q
+
+deps: apt $(VENV)/.installed
+
+# Installs only when something is missing, so a second `make` costs nothing.
+apt:
+	@if ! command -v yade >/dev/null 2>&1 || ! /usr/bin/python3 -c "import h5py" >/dev/null 2>&1 \
+	    || ! $(PYTHON) -m venv --help >/dev/null 2>&1; then \
+	  echo "installing Debian packages: $(APT_PACKAGES)"; \
+	  $(SUDO) apt-get update && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y $(APT_PACKAGES); \
+	fi
+
+$(VENV)/.installed: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $@
+
+clean:
+	rm -rf $(VENV) runs/out .pytest_cache

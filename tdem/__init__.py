@@ -1,0 +1,4 @@
+"""tdem: thermal DEM on real packings (command line and orchestration)."""
+from thermal_kernel import __version__
+
+__all__ = ["__version__"]

@@ -1,0 +1,77 @@
+"""The ``tdem`` command line. Subcommands import their code lazily."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def _cmd_pack(args):
+    from .pack import build
+    build(Path(args.scene), Path(args.out) if args.out else None, threads=args.threads,
+          quiet=args.quiet)
+
+
+def _cmd_info(args):
+    from thermal_kernel.packing import format_statistics, packing_statistics, read_packing
+    packing = read_packing(args.packing)
+    print(f"{args.packing}: format {packing.attrs['format']} v{packing.attrs['format_version']},"
+          f" generator {packing.attrs['generator']}, seed {packing.attrs['seed']}")
+    print(format_statistics(packing_statistics(packing)))
+    if packing.wall_name:
+        print("  walls                " + ", ".join(
+            f"{n} ({k})" for n, k in zip(packing.wall_name, packing.wall_kind)))
+
+
+def _cmd_export(args):
+    from thermal_kernel.packing import read_packing
+    from .export import packing_to_vtk
+    packing = read_packing(args.packing)
+    out = Path(args.output) if args.output else Path(args.packing).with_suffix(".vtu")
+    packing_to_vtk(packing, out)
+    print(f"wrote {out} ({packing.n_particles} particles, {packing.n_contacts} contacts)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+    parser = argparse.ArgumentParser(
+        prog="tdem", description="Thermal DEM on real packings of spheres (YADE-made).")
+    parser.add_argument("--version", action="version", version=f"tdem {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("pack", help="build packing(s) with YADE from a scene's [pack] table")
+    p.add_argument("scene", help="scene TOML file with a [pack] table")
+    p.add_argument("--out", help="output folder (default: runs/out/<scene name>/ beside the scene)")
+    p.add_argument("--threads", type=int, default=1, help="YADE threads (-j), default 1")
+    p.add_argument("--quiet", action="store_true", help="do not stream YADE's output")
+    p.set_defaults(func=_cmd_pack)
+
+    p = sub.add_parser("info", help="validate a packing.h5 and print its statistics")
+    p.add_argument("packing")
+    p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser("export", help="export a packing to VTK (.vtu) for ParaView")
+    p.add_argument("packing")
+    p.add_argument("-o", "--output", help="output .vtu (default: beside the input)")
+    p.set_defaults(func=_cmd_export)
+    return parser
+
+
+def main(argv=None) -> int:
+    from thermal_kernel.packing import PackingError
+    from .errors import UserError
+    from .yade import YadeError
+    args = build_parser().parse_args(argv)
+    try:
+        args.func(args)
+    except (UserError, PackingError, YadeError) as e:
+        print(f"tdem: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("tdem: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,68 @@
+"""``tdem pack SCENE.toml``: build packings with YADE from a scene's ``[pack]`` table."""
+from __future__ import annotations
+
+import time
+import tomllib
+from pathlib import Path
+
+from thermal_kernel.packing import format_statistics, packing_statistics, read_packing
+
+from . import yade
+from .errors import UserError
+
+
+def read_pack_table(scene_path: Path) -> tuple[str, dict]:
+    """Return (generator, resolved params) of a scene's [pack] table; UserError names file+key."""
+    scene_path = Path(scene_path)
+    try:
+        with open(scene_path, "rb") as f:
+            scene = tomllib.load(f)
+    except FileNotFoundError:
+        raise UserError(f"{scene_path}: file not found") from None
+    except tomllib.TOMLDecodeError as e:
+        raise UserError(f"{scene_path}: not valid TOML ({e})") from None
+    table = scene.get("pack")
+    if not isinstance(table, dict):
+        raise UserError(f"{scene_path}: pack: missing [pack] table (a scene to build a packing "
+                        "needs [pack] with generator = \"dense\" or \"bed\")")
+    table = dict(table)
+    generator = table.pop("generator", None)
+    if generator not in yade.SCRIPTS:
+        raise UserError(f"{scene_path}: pack.generator: expected one of "
+                        f"{', '.join(yade.SCRIPTS)}, got {generator!r}")
+    if "output_dir" in table:
+        raise UserError(f"{scene_path}: pack.output_dir: not a scene key "
+                        "(outputs go to runs/out/<scene name>/, or use tdem pack --out DIR)")
+    try:
+        params = yade.resolve_params(generator, table)
+    except ValueError as e:
+        raise UserError(f"{scene_path}: pack.{e}") from None
+    return generator, params
+
+
+def default_out_dir(scene_path: Path) -> Path:
+    scene_path = Path(scene_path)
+    return scene_path.resolve().parent / "out" / scene_path.stem
+
+
+def build(scene_path: Path, out_dir: Path | None = None, *, threads: int = 1,
+          quiet: bool = False) -> list[Path]:
+    """Build the packing(s) of a scene and print their statistics; return the files made."""
+    generator, params = read_pack_table(scene_path)
+    out_dir = Path(out_dir) if out_dir else default_out_dir(scene_path)
+    print(f"tdem pack: {scene_path} -> {out_dir}/ (generator {generator}, "
+          f"YADE script yade_scripts/{yade.SCRIPTS[generator]}, {threads} thread(s))", flush=True)
+    start = time.time()
+    try:
+        wall = yade.run_generator(generator, params, out_dir, threads=threads, quiet=quiet)
+    except yade.YadeError as e:
+        raise UserError(str(e)) from None
+    made = sorted(p for p in out_dir.glob("packing*.h5") if p.stat().st_mtime >= start - 1)
+    if not made:
+        raise UserError(f"{scene_path}: YADE finished but wrote no packing*.h5 in {out_dir}")
+    for path in made:
+        packing = read_packing(path)
+        print(f"{path}:", flush=True)
+        print(format_statistics(packing_statistics(packing)), flush=True)
+    print(f"tdem pack: {len(made)} packing(s) in {wall:.1f} s", flush=True)
+    return made

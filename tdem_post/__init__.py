@@ -1,0 +1,1 @@
+"""tdem post-processing: profiles, analytical solutions, fits, ETC, plots."""

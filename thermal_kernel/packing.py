@@ -1,0 +1,340 @@
+"""The packing format (``packing.h5``): the validating reader, the project-side writer, statistics.
+
+Specification: ``docs/packing-format.md``. Every file is validated on load; a problem raises
+:class:`PackingError` whose one-line message names the file, the field and what was expected.
+The writer is :mod:`thermal_kernel.packing_h5` (shared with the YADE generators), so a packing
+written here and one written under YADE are the same bytes for the same arrays.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from . import packing_h5
+
+FORMAT = packing_h5.FORMAT
+FORMAT_VERSION = packing_h5.FORMAT_VERSION
+REQUIRED_ATTRS = ("generator", "seed", "solid_fraction", "mean_coordination", "pressure_pa",
+                  "young_pa", "poisson", "density")
+# Root attributes that may be NaN ("not applicable"); every other number must be finite.
+NAN_ALLOWED_ATTRS = ("pressure_pa",)
+
+
+class PackingError(ValueError):
+    """A packing file that does not follow the format. ``str(e)`` is one line."""
+
+
+@dataclass
+class Packing:
+    """A packing in memory: plain numpy arrays in SI units, particle indices 0..N-1."""
+    position: np.ndarray            # (N, 3) m
+    radius: np.ndarray              # (N,) m
+    phase: np.ndarray               # (N,) int32
+    pair: np.ndarray                # (M, 2) int64, i < j, sorted
+    overlap: np.ndarray             # (M,) m, negative = gap
+    normal_force: np.ndarray        # (M,) N
+    branch: np.ndarray              # (M, 3) m, centre i -> centre j (periodic image applied)
+    wall_name: list = field(default_factory=list)     # (W,) str
+    wall_kind: list = field(default_factory=list)     # (W,) 'plane' | 'cylinder'
+    wall_point: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    wall_normal: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    wall_radius: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    wall_particle: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    wall_index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    wall_overlap: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    wall_normal_force: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    domain_lo: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    domain_hi: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    periodic: np.ndarray = field(default_factory=lambda: np.zeros(3, bool))
+    attrs: dict = field(default_factory=dict)
+    contact_radius: np.ndarray | None = None        # (M,) m, optional
+    wall_contact_radius: np.ndarray | None = None   # (K,) m, optional
+    yade_id: np.ndarray | None = None               # (N,) optional
+    path: str = ""
+
+    @property
+    def n_particles(self) -> int:
+        return int(self.radius.shape[0])
+
+    @property
+    def n_contacts(self) -> int:
+        return int(self.pair.shape[0])
+
+    def wall_id(self, name: str) -> int:
+        """Index of the wall called ``name``; PackingError if there is none."""
+        try:
+            return self.wall_name.index(name)
+        except ValueError:
+            raise PackingError(f"{self.path}: walls/name: no wall named {name!r} "
+                               f"(walls: {', '.join(self.wall_name) or 'none'})") from None
+
+
+# ----------------------------------------------------------------------------- reading
+
+def _fail(path, fieldname, what):
+    raise PackingError(f"{path}: {fieldname}: {what}")
+
+
+def _dataset(f, path, name, dtype_kind, shape, optional=False):
+    """Read dataset ``name``; check its kind ('f', 'i', 'S') and shape (None = any length)."""
+    if name not in f:
+        if optional:
+            return None
+        _fail(path, name, "missing dataset")
+    obj = f[name]
+    if not isinstance(obj, h5py.Dataset):
+        _fail(path, name, "expected a dataset, found a group")
+    if dtype_kind == "S":
+        if h5py.check_string_dtype(obj.dtype) is None:
+            _fail(path, name, f"expected strings, got dtype {obj.dtype}")
+        data = [x.decode() if isinstance(x, bytes) else str(x) for x in obj[()].reshape(-1)]
+        got_shape = obj.shape
+    else:
+        if obj.dtype.kind not in (dtype_kind + ("u" if dtype_kind == "i" else "")):
+            expected = {"f": "floating point", "i": "integer"}[dtype_kind]
+            _fail(path, name, f"expected {expected} values, got dtype {obj.dtype}")
+        data = obj[()]
+        got_shape = data.shape
+    if len(got_shape) != len(shape) or any(s is not None and s != g
+                                           for s, g in zip(shape, got_shape)):
+        want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + \
+               ("," if len(shape) == 1 else "") + ")"
+        _fail(path, name, f"expected shape {want}, got {got_shape}")
+    if dtype_kind == "f" and not np.all(np.isfinite(data)) and name != "walls/radius":
+        bad = int(np.flatnonzero(~np.isfinite(np.asarray(data).reshape(-1)))[0])
+        _fail(path, name, f"non-finite value (NaN or inf) at flat index {bad}")
+    return data
+
+
+def _lengths_agree(path, names_arrays, length):
+    for name, arr in names_arrays:
+        if arr is not None and arr.shape[0] != length:
+            _fail(path, name, f"expected {length} rows (as many as its group's first dataset), "
+                              f"got {arr.shape[0]}")
+
+
+def read_packing(path) -> Packing:
+    """Read and validate ``packing.h5``. Raises PackingError with a one-line message."""
+    path = str(path)
+    if not Path(path).is_file():
+        raise PackingError(f"{path}: file not found")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as e:
+        raise PackingError(f"{path}: not an HDF5 file ({str(e).splitlines()[0]})") from None
+    with f:
+        fmt = f.attrs.get("format")
+        if isinstance(fmt, bytes):
+            fmt = fmt.decode()
+        if fmt != FORMAT:
+            _fail(path, "format", f"expected attribute format = {FORMAT!r}, got {fmt!r}")
+        version = f.attrs.get("format_version")
+        if isinstance(version, np.generic):
+            version = version.item()
+        if version is None or not np.issubdtype(np.asarray(version).dtype, np.integer) \
+                or int(version) != FORMAT_VERSION:
+            _fail(path, "format_version",
+                  f"unknown format version {version!r} (this tdem reads {FORMAT_VERSION})")
+        attrs = {}
+        for key, value in f.attrs.items():
+            if isinstance(value, bytes):
+                value = value.decode()
+            elif isinstance(value, np.generic):
+                value = value.item()
+            attrs[key] = value
+        for key in REQUIRED_ATTRS:
+            if key not in attrs:
+                _fail(path, key, "missing root attribute")
+        for key in REQUIRED_ATTRS[2:]:
+            value = attrs[key]
+            if isinstance(value, (bool, str)) or not isinstance(value, (int, float)):
+                _fail(path, key, f"expected a number, got {value!r}")
+            if key not in NAN_ALLOWED_ATTRS and not math.isfinite(value):
+                _fail(path, key, f"expected a finite number, got {value!r}")
+
+        position = _dataset(f, path, "particles/position", "f", (None, 3))
+        n = position.shape[0]
+        radius = _dataset(f, path, "particles/radius", "f", (n,))
+        phase = _dataset(f, path, "particles/phase", "i", (n,))
+        yade_id = _dataset(f, path, "particles/yade_id", "i", (n,), optional=True)
+        if n == 0:
+            _fail(path, "particles/position", "expected at least one particle")
+        if np.any(radius <= 0):
+            i = int(np.flatnonzero(radius <= 0)[0])
+            _fail(path, "particles/radius", f"particle {i} has radius {radius[i]!r}; "
+                                            "expected > 0")
+
+        pair = _dataset(f, path, "contacts/pair", "i", (None, 2))
+        m = pair.shape[0]
+        overlap = _dataset(f, path, "contacts/overlap", "f", (m,))
+        normal_force = _dataset(f, path, "contacts/normal_force", "f", (m,))
+        branch = _dataset(f, path, "contacts/branch", "f", (m, 3))
+        contact_radius = _dataset(f, path, "contacts/contact_radius", "f", (m,), optional=True)
+        _check_pairs(path, pair, n)
+        if np.any(normal_force < 0):
+            i = int(np.flatnonzero(normal_force < 0)[0])
+            _fail(path, "contacts/normal_force", f"contact {i} has a tensile (negative) force "
+                                                 f"{normal_force[i]!r}; expected >= 0")
+
+        wall_name = _dataset(f, path, "walls/name", "S", (None,))
+        w = len(wall_name)
+        wall_kind = _dataset(f, path, "walls/kind", "S", (w,))
+        wall_point = _dataset(f, path, "walls/point", "f", (w, 3))
+        wall_normal = _dataset(f, path, "walls/normal", "f", (w, 3))
+        wall_radius = _dataset(f, path, "walls/radius", "f", (w,))
+        for i, kind in enumerate(wall_kind):
+            if kind not in packing_h5.WALL_KINDS:
+                _fail(path, "walls/kind", f"wall {i} has kind {kind!r}; expected one of "
+                                          f"{', '.join(packing_h5.WALL_KINDS)}")
+            if kind == "cylinder" and not (np.isfinite(wall_radius[i]) and wall_radius[i] > 0):
+                _fail(path, "walls/radius", f"cylinder wall {i} has radius {wall_radius[i]!r}; "
+                                            "expected > 0")
+        if len(set(wall_name)) != w:
+            _fail(path, "walls/name", "duplicate wall name")
+        norms = np.linalg.norm(wall_normal, axis=1) if w else np.zeros(0)
+        if np.any(np.abs(norms - 1.0) > 1e-6):
+            i = int(np.flatnonzero(np.abs(norms - 1.0) > 1e-6)[0])
+            _fail(path, "walls/normal", f"wall {i} normal has length {norms[i]:.6g}; "
+                                        "expected a unit vector")
+
+        wall_particle = _dataset(f, path, "wall_contacts/particle", "i", (None,))
+        k = wall_particle.shape[0]
+        wall_index = _dataset(f, path, "wall_contacts/wall", "i", (k,))
+        wall_overlap = _dataset(f, path, "wall_contacts/overlap", "f", (k,))
+        wall_normal_force = _dataset(f, path, "wall_contacts/normal_force", "f", (k,))
+        wall_contact_radius = _dataset(f, path, "wall_contacts/contact_radius", "f", (k,),
+                                       optional=True)
+        _check_index(path, "wall_contacts/particle", wall_particle, n, "particle")
+        _check_index(path, "wall_contacts/wall", wall_index, w, "wall")
+        if np.any(wall_normal_force < 0):
+            _fail(path, "wall_contacts/normal_force", "tensile (negative) force; expected >= 0")
+
+        if "domain" not in f:
+            _fail(path, "domain", "missing group")
+        dattrs = f["domain"].attrs
+        dom = {}
+        for key, kind in (("lo", "f"), ("hi", "f"), ("periodic", "b")):
+            if key not in dattrs:
+                _fail(path, f"domain/{key}", "missing attribute")
+            value = np.asarray(dattrs[key])
+            if value.shape != (3,):
+                _fail(path, f"domain/{key}", f"expected 3 values, got shape {value.shape}")
+            if kind == "f" and not np.all(np.isfinite(value.astype(float))):
+                _fail(path, f"domain/{key}", "non-finite value")
+            dom[key] = value.astype(bool) if kind == "b" else value.astype(np.float64)
+        if np.any(dom["hi"] <= dom["lo"]):
+            _fail(path, "domain/hi", f"expected hi > lo, got lo={dom['lo']}, hi={dom['hi']}")
+
+    return Packing(position=position, radius=radius, phase=phase.astype(np.int32),
+                   pair=pair.astype(np.int64), overlap=overlap, normal_force=normal_force,
+                   branch=branch, wall_name=wall_name, wall_kind=wall_kind,
+                   wall_point=wall_point, wall_normal=wall_normal, wall_radius=wall_radius,
+                   wall_particle=wall_particle.astype(np.int64),
+                   wall_index=wall_index.astype(np.int32), wall_overlap=wall_overlap,
+                   wall_normal_force=wall_normal_force, domain_lo=dom["lo"],
+                   domain_hi=dom["hi"], periodic=dom["periodic"], attrs=attrs,
+                   contact_radius=contact_radius, wall_contact_radius=wall_contact_radius,
+                   yade_id=yade_id, path=path)
+
+
+def _check_index(path, name, index, n, what):
+    if index.size and (index.min() < 0 or index.max() >= n):
+        bad = int(np.flatnonzero((index < 0) | (index >= n))[0])
+        _fail(path, name, f"row {bad} refers to {what} {int(index[bad])}, "
+                          f"out of range 0..{n - 1}")
+
+
+def _check_pairs(path, pair, n):
+    _check_index(path, "contacts/pair", pair.reshape(-1), n, "particle")
+    if pair.shape[0] == 0:
+        return
+    self_rows = np.flatnonzero(pair[:, 0] == pair[:, 1])
+    if self_rows.size:
+        r = int(self_rows[0])
+        _fail(path, "contacts/pair", f"row {r} is a self contact ({pair[r, 0]}, {pair[r, 1]})")
+    bad_order = np.flatnonzero(pair[:, 0] > pair[:, 1])
+    if bad_order.size:
+        r = int(bad_order[0])
+        _fail(path, "contacts/pair", f"row {r} is ({pair[r, 0]}, {pair[r, 1]}); "
+                                     "expected i < j in every row")
+    key = pair[:, 0] * np.int64(n) + pair[:, 1]
+    order = np.argsort(key, kind="stable")
+    dup = np.flatnonzero(np.diff(key[order]) == 0)
+    if dup.size:
+        r = int(order[dup[0] + 1])
+        _fail(path, "contacts/pair", f"row {r} duplicates contact ({pair[r, 0]}, {pair[r, 1]})")
+
+
+# ----------------------------------------------------------------------------- writing
+
+def write_packing(path, packing: Packing) -> None:
+    """Write ``packing`` to ``path`` (via a temporary name, then renamed)."""
+    walls = [dict(name=nm, kind=kd, point=pt, normal=nr, radius=rd)
+             for nm, kd, pt, nr, rd in zip(packing.wall_name, packing.wall_kind,
+                                           packing.wall_point, packing.wall_normal,
+                                           packing.wall_radius)]
+    attrs = {k: v for k, v in packing.attrs.items() if k not in ("format", "format_version")}
+    packing_h5.write_packing(
+        path, packing.position, packing.radius, packing.phase, packing.pair, packing.overlap,
+        packing.normal_force, packing.branch, walls, packing.wall_particle, packing.wall_index,
+        packing.wall_overlap, packing.wall_normal_force, packing.domain_lo, packing.domain_hi,
+        packing.periodic, attrs, contact_radius=packing.contact_radius,
+        wall_contact_radius=packing.wall_contact_radius, yade_id=packing.yade_id)
+
+
+# ----------------------------------------------------------------------------- statistics
+
+def packing_statistics(packing: Packing) -> dict:
+    """Summary numbers printed by ``tdem pack`` and ``tdem info``.
+
+    Coordination counts particle–particle contacts with overlap > 0 (``mean_z``) and with the
+    neighbour gaps the file keeps (``mean_z_with_gaps``). A *rattler* here is a particle with no
+    touching contact at all (particle or wall): thermally isolated.
+    """
+    n = packing.n_particles
+    touching = packing.overlap > 0
+    pairs = packing.pair[touching]
+    count = np.bincount(pairs.reshape(-1), minlength=n)
+    wall_count = np.bincount(packing.wall_particle[packing.wall_overlap > 0], minlength=n)
+    r = packing.radius
+    solid_volume = float(np.sum(4.0 / 3.0 * np.pi * r ** 3))
+    return {
+        "n_particles": n,
+        "n_contacts": int(touching.sum()),
+        "n_gap_neighbours": int((~touching).sum()),
+        "n_wall_contacts": int((packing.wall_overlap > 0).sum()),
+        "solid_fraction": float(packing.attrs.get("solid_fraction", float("nan"))),
+        "mean_z": 2.0 * pairs.shape[0] / n,
+        "mean_z_with_gaps": 2.0 * packing.n_contacts / n,
+        "radius_mean_m": float(r.mean()),
+        "radius_std_m": float(r.std()),
+        "radius_std_over_mean": float(r.std() / r.mean()),
+        "rattler_fraction": float(np.mean((count + wall_count) == 0)),
+        "solid_volume_m3": solid_volume,
+        "pressure_pa": float(packing.attrs.get("pressure_pa", float("nan"))),
+        "mean_normal_force_n": float(packing.normal_force[touching].mean())
+        if touching.any() else 0.0,
+    }
+
+
+def format_statistics(stats: dict) -> str:
+    """The human-readable block printed by ``tdem pack`` / ``tdem info``."""
+    p = stats["pressure_pa"]
+    pressure = "none" if not math.isfinite(p) else f"{p:.4g} Pa ({p / 1e5:.4g} bar)"
+    return "\n".join([
+        f"  particles            {stats['n_particles']}",
+        f"  solid fraction       {stats['solid_fraction']:.4f}",
+        f"  mean Z (touching)    {stats['mean_z']:.3f}   "
+        f"({stats['n_contacts']} contacts, {stats['n_wall_contacts']} wall contacts)",
+        f"  mean Z (with gaps)   {stats['mean_z_with_gaps']:.3f}   "
+        f"({stats['n_gap_neighbours']} gap neighbours)",
+        f"  radius mean / std    {stats['radius_mean_m']:.4g} m / {stats['radius_std_m']:.3g} m"
+        f"   (std/mean {stats['radius_std_over_mean']:.3f})",
+        f"  rattlers (no contact) {100 * stats['rattler_fraction']:.2f} %",
+        f"  mean normal force    {stats['mean_normal_force_n']:.4g} N",
+        f"  pressure reached     {pressure}",
+    ])
