@@ -1,0 +1,328 @@
+"""Thermal scene files (TOML) parsed into frozen dataclasses.
+
+Reference: ``docs/scenes.md``. Every problem is a :class:`SceneError` whose one-line message
+names the file and the key (``runs/x.toml: solver.dt: expected a number > 0, got -1``):
+unknown keys, missing required keys, wrong types, unknown law names.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+
+class SceneError(ValueError):
+    """A bad scene file; ``str(e)`` is one line naming the file and the key."""
+
+
+BOUNDARY_KINDS = ("temperature", "flux", "wall_temperature", "source")
+SOURCE_SHAPES = ("cylinder", "sphere", "box")
+METHODS = ("explicit", "implicit", "steady")
+
+
+@dataclass(frozen=True)
+class Material:
+    conductivity: float      # W/m/K
+    density: float           # kg/m^3
+    heat_capacity: float     # J/kg/K
+
+
+@dataclass(frozen=True)
+class Boundary:
+    kind: str                # temperature | flux | wall_temperature | source
+    name: str                # label in outputs (default: kind:on)
+    on: str = ""             # wall name or domain face (xmin..zmax); unused for sources
+    value: float = math.nan  # K (temperature, wall_temperature), W/m^2 (flux), W/m^3 (source)
+    wall_conductivity: float = math.nan  # W/m/K of the wall (wall_temperature); NaN = particle's
+    # source geometry (000, Table 4: a cylinder of radius 4 mm, depth 2 mm moving at 3.3 mm/s)
+    shape: str = "cylinder"
+    centre_m: tuple = (0.0, 0.0, 0.0)      # position at t = 0
+    radius_m: float = math.nan
+    depth_m: float = math.inf              # cylinder length along its axis (centred on centre_m)
+    axis: tuple = (0.0, 0.0, 1.0)
+    half_size_m: tuple = (0.0, 0.0, 0.0)   # box
+    velocity_m_s: tuple = (0.0, 0.0, 0.0)
+    start_time: float = 0.0
+    stop_time: float = math.inf
+
+
+@dataclass(frozen=True)
+class SolverConfig:
+    method: str
+    end_time: float = math.nan
+    output_times: tuple = ()
+    dt: float = math.nan                   # NaN = from the stability bound (explicit) / required
+    safety: float = 0.9                    # explicit: dt = safety * exact bound
+    allow_unstable: bool = False
+    theta: float = 1.0                     # implicit: 1 backward Euler, 0.5 Crank-Nicolson
+
+
+@dataclass(frozen=True)
+class Scene:
+    path: Path
+    packing: Path | None                   # resolved path, or None when built from [pack]
+    pack: dict | None                      # the [pack] table, if the scene builds its packing
+    law: str
+    law_params: dict
+    materials: dict                        # phase id -> Material (0 holds the defaults)
+    young_pa: float                        # real modulus for force-based laws (NaN = packing's)
+    poisson: float
+    initial_temperature: float
+    boundaries: tuple
+    solver: SolverConfig
+    output: Path
+    text: str = field(default="", repr=False)   # the scene file as read (stored in outputs)
+
+    def material(self, phase: int) -> Material:
+        return self.materials.get(int(phase), self.materials[0])
+
+
+# ----------------------------------------------------------------------------- helpers
+
+class _Table:
+    """Reads keys out of one TOML table, then complains about whatever is left."""
+
+    def __init__(self, path, prefix, table):
+        self.path, self.prefix = path, prefix
+        if not isinstance(table, dict):
+            self.fail("", f"expected a table, got {type(table).__name__}")
+        self.table = dict(table)
+
+    def where(self, key):
+        return f"{self.prefix}.{key}" if self.prefix and key else (self.prefix or key)
+
+    def fail(self, key, what):
+        raise SceneError(f"{self.path}: {self.where(key)}: {what}")
+
+    def has(self, key):
+        return key in self.table
+
+    def number(self, key, default=None, minimum=None, positive=False):
+        if key not in self.table:
+            if default is None:
+                self.fail(key, "missing required key")
+            return default
+        value = self.table.pop(key)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not math.isfinite(value):
+            self.fail(key, f"expected a finite number, got {value!r}")
+        if positive and value <= 0:
+            self.fail(key, f"expected a number > 0, got {value!r}")
+        if minimum is not None and value < minimum:
+            self.fail(key, f"expected a number >= {minimum}, got {value!r}")
+        return float(value)
+
+    def string(self, key, default=None, choices=None):
+        if key not in self.table:
+            if default is None:
+                self.fail(key, "missing required key")
+            return default
+        value = self.table.pop(key)
+        if not isinstance(value, str):
+            self.fail(key, f"expected a string, got {value!r}")
+        if choices is not None and value not in choices:
+            self.fail(key, f"expected one of {', '.join(choices)}, got {value!r}")
+        return value
+
+    def boolean(self, key, default):
+        if key not in self.table:
+            return default
+        value = self.table.pop(key)
+        if not isinstance(value, bool):
+            self.fail(key, f"expected true or false, got {value!r}")
+        return value
+
+    def vector(self, key, default, length=3):
+        if key not in self.table:
+            return default
+        value = self.table.pop(key)
+        if not isinstance(value, list) or len(value) != length or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                for v in value):
+            self.fail(key, f"expected a list of {length} numbers, got {value!r}")
+        return tuple(float(v) for v in value)
+
+    def numbers(self, key, default=()):
+        if key not in self.table:
+            return default
+        value = self.table.pop(key)
+        if not isinstance(value, list) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                for v in value):
+            self.fail(key, f"expected a list of numbers, got {value!r}")
+        return tuple(float(v) for v in value)
+
+    def sub(self, key, required=False):
+        if key not in self.table:
+            if required:
+                self.fail(key, "missing required table")
+            return None
+        return _Table(self.path, self.where(key), self.table.pop(key))
+
+    def done(self):
+        if self.table:
+            key = sorted(self.table)[0]
+            self.fail(key, "unknown key")
+
+
+# ----------------------------------------------------------------------------- parsing
+
+def load_scene(path, known_laws=None, out_dir=None) -> Scene:
+    """Parse and check a scene file. ``known_laws``: names accepted for ``law`` (default: the
+    registry). ``out_dir``: folder for a relative ``[output] path`` (default
+    ``<scene folder>/out/<scene name>/``)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise SceneError(f"{path}: file not found") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(f"{path}: not valid TOML ({e})") from None
+    if known_laws is None:
+        from .laws import LAWS
+        known_laws = tuple(LAWS)
+    top = _Table(path, "", data)
+    base = path.resolve().parent
+    out_dir = Path(out_dir) if out_dir else base / "out" / path.stem
+
+    pack = None
+    packing = None
+    if top.has("packing") and top.has("pack"):
+        top.fail("pack", "give either packing = \"file.h5\" or a [pack] table, not both")
+    if top.has("pack"):
+        pack = top.table.pop("pack")
+        if not isinstance(pack, dict):
+            top.fail("pack", "expected a table")
+    else:
+        packing = base / top.string("packing")
+
+    law = top.string("law")
+    if law not in known_laws:
+        top.fail("law", f"unknown law {law!r} (known: {', '.join(known_laws)})")
+    law_params = top.table.pop("law_params", {})
+    if not isinstance(law_params, dict):
+        top.fail("law_params", "expected a table")
+
+    mat = top.sub("material", required=True)
+    phases = {}
+    for key in [k for k, v in mat.table.items() if isinstance(v, dict)]:
+        try:
+            phase_id = int(key)
+        except ValueError:
+            mat.fail(key, "expected a phase id (an integer, e.g. [material.1]) or a key "
+                          "conductivity | density | heat_capacity | young_pa | poisson")
+        phases[phase_id] = _Table(path, mat.where(key), mat.table.pop(key))
+    default = Material(conductivity=mat.number("conductivity", positive=True),
+                       density=mat.number("density", positive=True),
+                       heat_capacity=mat.number("heat_capacity", positive=True))
+    young = mat.number("young_pa", default=math.nan) if mat.has("young_pa") else math.nan
+    if mat.has("poisson"):
+        poisson = mat.number("poisson", minimum=-1.0)
+    else:
+        poisson = math.nan
+    if not math.isnan(young) and young <= 0:
+        mat.fail("young_pa", f"expected a number > 0, got {young!r}")
+    mat.done()
+    materials = {0: default}
+    for phase_id, t in phases.items():
+        materials[phase_id] = Material(
+            conductivity=t.number("conductivity", default=default.conductivity, positive=True),
+            density=t.number("density", default=default.density, positive=True),
+            heat_capacity=t.number("heat_capacity", default=default.heat_capacity,
+                                   positive=True))
+        t.done()
+
+    init = top.sub("initial", required=True)
+    initial_temperature = init.number("temperature", positive=True)
+    init.done()
+
+    raw_boundaries = top.table.pop("boundary", [])
+    if not isinstance(raw_boundaries, list):
+        top.fail("boundary", "expected [[boundary]] entries (an array of tables)")
+    boundaries = []
+    for k, raw in enumerate(raw_boundaries):
+        boundaries.append(_boundary(_Table(path, f"boundary[{k}]", raw)))
+    names = [b.name for b in boundaries]
+    if len(set(names)) != len(names):
+        top.fail("boundary", f"two boundaries share the name {sorted(n for n in names if names.count(n) > 1)[0]!r}"
+                             " (give each a distinct name = \"...\")")
+
+    sol = top.sub("solver", required=True)
+    method = sol.string("method", choices=METHODS)
+    if method == "steady":
+        end_time = sol.number("end_time", default=math.nan) if sol.has("end_time") else math.nan
+        output_times = ()
+    else:
+        end_time = sol.number("end_time", positive=True)
+        output_times = sol.numbers("output_times", default=(end_time,))
+        if not output_times:
+            sol.fail("output_times", "expected at least one time")
+        if any(b <= a for a, b in zip(output_times, output_times[1:])):
+            sol.fail("output_times", "expected increasing times")
+        if output_times[0] < 0 or output_times[-1] > end_time * (1 + 1e-12):
+            sol.fail("output_times", f"expected times in [0, end_time = {end_time}]")
+    dt = sol.number("dt", positive=True) if sol.has("dt") else math.nan
+    if method == "implicit" and math.isnan(dt):
+        sol.fail("dt", "missing required key (the implicit method needs a time step)")
+    solver = SolverConfig(
+        method=method, end_time=end_time, output_times=output_times, dt=dt,
+        safety=sol.number("safety", default=0.9, positive=True),
+        allow_unstable=sol.boolean("allow_unstable", False),
+        theta=sol.number("theta", default=1.0, minimum=0.5))
+    if solver.theta > 1.0:
+        sol.fail("theta", f"expected 0.5 <= theta <= 1, got {solver.theta}")
+    if solver.safety > 1.0 and not solver.allow_unstable:
+        sol.fail("safety", f"expected a number <= 1 (the bound is exact), got {solver.safety}")
+    sol.done()
+
+    output = out_dir / "thermal.h5"
+    outt = top.sub("output")
+    if outt is not None:
+        rel = outt.string("path", default="thermal.h5")
+        output = Path(rel) if Path(rel).is_absolute() else out_dir / rel
+        outt.done()
+    top.done()
+    return Scene(path=path, packing=packing, pack=pack, law=law, law_params=law_params,
+                 materials=materials, young_pa=young, poisson=poisson,
+                 initial_temperature=initial_temperature, boundaries=tuple(boundaries),
+                 solver=solver, output=output, text=text)
+
+
+def _boundary(t: _Table) -> Boundary:
+    kind = t.string("kind", choices=BOUNDARY_KINDS)
+    if kind == "source":
+        shape = t.string("shape", default="cylinder", choices=SOURCE_SHAPES)
+        b = Boundary(
+            kind=kind, name=t.string("name", default=f"source:{shape}"),
+            value=t.number("value"), shape=shape,
+            centre_m=t.vector("centre_m", (0.0, 0.0, 0.0)),
+            radius_m=t.number("radius_m", positive=True) if shape != "box" else math.nan,
+            depth_m=t.number("depth_m", default=math.inf, positive=True)
+            if t.has("depth_m") else math.inf,
+            axis=t.vector("axis", (0.0, 0.0, 1.0)),
+            half_size_m=t.vector("half_size_m", (0.0, 0.0, 0.0)) if shape == "box"
+            else (0.0, 0.0, 0.0),
+            velocity_m_s=t.vector("velocity_m_s", (0.0, 0.0, 0.0)),
+            start_time=t.number("start_time", default=0.0, minimum=0.0),
+            stop_time=t.number("stop_time", default=math.inf) if t.has("stop_time")
+            else math.inf)
+        if shape == "box" and min(b.half_size_m) <= 0:
+            t.fail("half_size_m", "expected three numbers > 0 for a box source")
+        if sum(a * a for a in b.axis) == 0:
+            t.fail("axis", "expected a non-zero vector")
+    else:
+        on = t.string("on")
+        value = t.number("value")
+        if kind in ("temperature", "wall_temperature") and value <= 0:
+            t.fail("value", f"expected a temperature > 0 K, got {value!r}")
+        b = Boundary(kind=kind, name=t.string("name", default=f"{kind}:{on}"), on=on,
+                     value=value,
+                     wall_conductivity=t.number("wall_conductivity", positive=True)
+                     if t.has("wall_conductivity") else math.nan)
+        if kind != "wall_temperature" and not math.isnan(b.wall_conductivity):
+            t.fail("wall_conductivity", "only for kind = \"wall_temperature\"")
+    t.done()
+    return b
