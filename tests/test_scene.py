@@ -1,0 +1,103 @@
+"""Scene files: a good one parses into the documented values; each mistake is a one-line error
+naming the file and the key."""
+import math
+
+import pytest
+
+from thermal_kernel.scene import SceneError, load_scene
+
+LAWS = ("haddad", "pipe")
+
+GOOD = """
+packing = "packing.h5"
+law = "haddad"
+[law_params]
+ct = 0.8
+[material]
+conductivity = 33.0
+density = 7800.0
+heat_capacity = 900.0
+[material.1]
+conductivity = 0.33
+[initial]
+temperature = 298.15
+[[boundary]]
+kind = "temperature"
+on = "ymin"
+value = 308.15
+[[boundary]]
+kind = "flux"
+on = "ymax"
+value = -1000.0
+[solver]
+method = "explicit"
+end_time = 0.2
+output_times = [0.05, 0.1, 0.2]
+[output]
+path = "t.h5"
+"""
+
+
+def _write(tmp_path, text, name="scene.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_good_scene(tmp_path):
+    scene = load_scene(_write(tmp_path, GOOD), known_laws=LAWS)
+    assert scene.packing == tmp_path / "packing.h5"
+    assert scene.law == "haddad" and scene.law_params == {"ct": 0.8}
+    assert scene.material(0).conductivity == 33.0
+    assert scene.material(1).conductivity == 0.33 and scene.material(1).density == 7800.0
+    assert scene.material(7) == scene.material(0)
+    assert [b.name for b in scene.boundaries] == ["temperature:ymin", "flux:ymax"]
+    assert scene.solver.output_times == (0.05, 0.1, 0.2)
+    assert math.isnan(scene.solver.dt) and scene.solver.safety == 0.9
+    assert scene.output == tmp_path / "out" / "scene" / "t.h5"
+    with pytest.raises(Exception):
+        scene.law = "pipe"   # frozen
+
+
+BAD = {
+    "unknown top key": (GOOD + "\nfoo = 1\n", "foo: unknown key"),
+    "unknown solver key": (GOOD.replace("end_time = 0.2", "end_time = 0.2\nend_tme = 3"),
+                           "solver.end_tme: unknown key"),
+    "missing law": (GOOD.replace('law = "haddad"', ""), "law: missing required key"),
+    "unknown law": (GOOD.replace('law = "haddad"', 'law = "magic"'),
+                    "law: unknown law 'magic' (known: haddad, pipe)"),
+    "wrong type": (GOOD.replace("conductivity = 33.0", 'conductivity = "high"'),
+                   "material.conductivity: expected a finite number"),
+    "negative": (GOOD.replace("conductivity = 33.0", "conductivity = -1.0"),
+                 "material.conductivity: expected a number > 0"),
+    "bad kind": (GOOD.replace('kind = "flux"', 'kind = "convection"'),
+                 "boundary[1].kind: expected one of temperature, flux"),
+    "bad method": (GOOD.replace('"explicit"', '"rk4"'), "solver.method: expected one of"),
+    "decreasing outputs": (GOOD.replace("[0.05, 0.1, 0.2]", "[0.1, 0.05]"),
+                           "solver.output_times: expected increasing times"),
+    "outputs past end": (GOOD.replace("[0.05, 0.1, 0.2]", "[0.1, 0.3]"),
+                         "solver.output_times: expected times in [0, end_time"),
+    "implicit without dt": (GOOD.replace('"explicit"', '"implicit"'),
+                            "solver.dt: missing required key"),
+    "missing initial": (GOOD.replace("[initial]\ntemperature = 298.15", ""),
+                        "initial: missing required table"),
+    "bad phase": (GOOD.replace("[material.1]", "[material.glass]"), "material.glass: expected"),
+    "safety above 1": (GOOD.replace("end_time = 0.2", "end_time = 0.2\nsafety = 1.5"),
+                       "solver.safety: expected a number <= 1"),
+    "not toml": ("law = = 3", "not valid TOML"),
+    "pack and packing": (GOOD + "\n[pack]\ngenerator = 'dense'\n", "pack: give either"),
+    "duplicate boundary names": (GOOD.replace('kind = "flux"\non = "ymax"\nvalue = -1000.0',
+                                              'kind = "temperature"\non = "ymin"\nvalue = 300.0'),
+                                 "two boundaries share the name"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_scene(tmp_path, case):
+    text, message = BAD[case]
+    path = _write(tmp_path, text)
+    with pytest.raises(SceneError) as info:
+        load_scene(path, known_laws=LAWS)
+    assert "\n" not in str(info.value)
+    assert str(info.value).startswith(f"{path}: ")
+    assert message in str(info.value), str(info.value)
