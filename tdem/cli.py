@@ -5,11 +5,20 @@ import argparse
 import sys
 from pathlib import Path
 
+RUNS = Path(__file__).resolve().parent.parent / "runs"
+
 
 def _cmd_pack(args):
     from .pack import build
     build(Path(args.scene), Path(args.out) if args.out else None, threads=args.threads,
           quiet=args.quiet)
+
+
+def _cmd_demo(args):
+    from .pack import build
+    scene = RUNS / "demo.toml"
+    print(f"tdem demo: the default scene {scene}")
+    build(scene, Path(args.out) if args.out else None, threads=args.threads, quiet=args.quiet)
 
 
 def _cmd_info(args):
@@ -45,6 +54,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--threads", type=int, default=1, help="YADE threads (-j), default 1")
     p.add_argument("--quiet", action="store_true", help="do not stream YADE's output")
     p.set_defaults(func=_cmd_pack)
+
+    p = sub.add_parser("demo", help="run the default scene (runs/demo.toml) end to end")
+    p.add_argument("--out", help="output folder (default: runs/out/demo/)")
+    p.add_argument("--threads", type=int, default=2, help="YADE threads, default 2")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=_cmd_demo)
 
     p = sub.add_parser("info", help="validate a packing.h5 and print its statistics")
     p.add_argument("packing")
