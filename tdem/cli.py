@@ -41,6 +41,15 @@ def _cmd_export(args):
     print(f"wrote {out} ({packing.n_particles} particles, {packing.n_contacts} contacts)")
 
 
+def _cmd_plot(args):
+    from thermal_kernel.packing import read_packing
+    from tdem_post.packing_plots import plot_packing
+    packing = read_packing(args.packing)
+    out = Path(args.output) if args.output else Path(args.packing).with_suffix(".png")
+    plot_packing(packing, out)
+    print(f"wrote {out}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
     parser = argparse.ArgumentParser(
@@ -69,6 +78,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("packing")
     p.add_argument("-o", "--output", help="output .vtu (default: beside the input)")
     p.set_defaults(func=_cmd_export)
+
+    p = sub.add_parser("plot", help="save a picture (PNG) of a packing: section and 3-D view")
+    p.add_argument("packing")
+    p.add_argument("-o", "--output", help="output .png (default: beside the input)")
+    p.set_defaults(func=_cmd_plot)
     return parser
 
 
