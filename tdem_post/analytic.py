@@ -1,0 +1,172 @@
+"""Analytical solutions of transient conduction used by tdem's tests, validation and plots.
+
+One module, one implementation of each; every series is summed until its remaining terms are
+bounded by ``tol`` (absolute, in units of the temperature difference), and each solution switches
+to its short-time (error-function, image) form when the Fourier series would need many terms, so
+values are right at t -> 0 as well as at t -> infinity. References: Carslaw & Jaeger (1959),
+*Conduction of Heat in Solids*, sec. 3.3 (slab) and 9.3 (sphere); the papers' own forms are
+cited where they are used.
+
+Symbols: alpha = k / (rho c_p) thermal diffusivity (m^2/s); lengths in m; times in s.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import erfc
+
+# Fourier series are used when alpha t / L^2 >= this; the image series below it. At the switch
+# both need only a handful of terms for 1e-12 accuracy.
+_SWITCH = 0.05
+
+
+def _unit_step_slab(x, t, length, alpha, tol):
+    """U(x, t): slab 0 <= x <= L, U(0) = 1, U(L) = 0, U(x, 0) = 0 (Carslaw & Jaeger 3.3)."""
+    x = np.asarray(x, dtype=float)
+    if t <= 0:
+        return np.where(x <= 0, 1.0, 0.0)
+    fo = alpha * t / length ** 2
+    if fo < _SWITCH:
+        # Images: U = sum_k erfc((2kL + x)/s) - erfc((2(k+1)L - x)/s), s = 2 sqrt(alpha t)
+        s = 2.0 * np.sqrt(alpha * t)
+        out = np.zeros_like(x)
+        k = 0
+        while True:
+            term = erfc((2 * k * length + x) / s) - erfc((2 * (k + 1) * length - x) / s)
+            out += term
+            if erfc(2 * (k + 1) * length / s) < tol:
+                return out
+            k += 1
+    # Fourier: U = 1 - x/L - sum_n 2/(n pi) sin(n pi x / L) exp(-n^2 pi^2 Fo)
+    out = 1.0 - x / length
+    n = 1
+    while True:
+        decay = np.exp(-(n * np.pi) ** 2 * fo)
+        out -= 2.0 / (n * np.pi) * np.sin(n * np.pi * x / length) * decay
+        # remaining terms: sum_{m>n} 2/(m pi) e^{-m^2 pi^2 Fo} < 2/pi * e^{-(n+1)^2 pi^2 Fo}/(1-e^{-pi^2 Fo})
+        if 2.0 / np.pi * np.exp(-((n + 1) * np.pi) ** 2 * fo) / (1 - np.exp(-np.pi ** 2 * fo)) < tol:
+            return out
+        n += 1
+
+
+def slab_temperature(x, t, length, alpha, t_bottom, t_top, t_initial, tol=1e-12):
+    """Slab 0 <= x <= L with T(0) = t_bottom, T(L) = t_top held from t = 0 and a uniform initial
+    temperature (Haddad 2021, 002 eq. 17; 003 Appendix A, eq. A5-A6). By superposition,
+    T = T_i + (T_b - T_i) U(x) + (T_t - T_i) U(L - x)."""
+    x = np.asarray(x, dtype=float)
+    return (t_initial + (t_bottom - t_initial) * _unit_step_slab(x, t, length, alpha, tol)
+            + (t_top - t_initial) * _unit_step_slab(length - x, t, length, alpha, tol))
+
+
+def slab_steady(x, length, t_bottom, t_top):
+    return t_bottom + (t_top - t_bottom) * np.asarray(x, dtype=float) / length
+
+
+def slab_mean_temperature(x0, x1, t, length, alpha, t_bottom, t_top, t_initial, tol=1e-12):
+    """Mean of the slab solution over x0 <= x <= x1 (what a binned profile measures), by
+    Gauss-Legendre quadrature exact to round-off for the smooth field (t > 0)."""
+    nodes, weights = np.polynomial.legendre.leggauss(32)
+    x0 = np.atleast_1d(np.asarray(x0, float))
+    x1 = np.atleast_1d(np.asarray(x1, float))
+    xs = 0.5 * (x1[:, None] - x0[:, None]) * nodes[None, :] + 0.5 * (x1 + x0)[:, None]
+    vals = slab_temperature(xs, t, length, alpha, t_bottom, t_top, t_initial, tol)
+    return 0.5 * vals @ weights
+
+
+def slab_characteristic_time(x, length, alpha, t_bottom, t_top, t_initial):
+    """tau(x) = int_0^inf (T_steady - T) dt / (T_steady - T_init) (003 eq. 41), in closed form.
+
+    D = T - T_steady solves D_t = alpha D_xx with D = 0 at both faces and D(x, 0) = T_i - T_s(x);
+    W(x) = int_0^inf D dt then solves alpha W'' = -(T_i - T_s(x)), W(0) = W(L) = 0, a cubic:
+    with T_s - T_i = a + b x, W = (a x^2/2 + b x^3/6 - (a L/2 + b L^2/6) x) / alpha and
+    tau = -W / (T_s - T_i). Undefined (NaN) where T_steady(x) = T_init."""
+    x = np.asarray(x, dtype=float)
+    a = t_bottom - t_initial
+    b = (t_top - t_bottom) / length
+    w = (a * x ** 2 / 2 + b * x ** 3 / 6 - (a * length / 2 + b * length ** 2 / 6) * x) / alpha
+    excess = a + b * x
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(excess != 0, -w / excess, np.nan)
+
+
+def rod_temperature(x, t, length, alpha, t_hot, t_initial, tol=1e-12):
+    """Rod 0 <= x <= L heated at x = 0 (held at t_hot), adiabatic at x = L, uniform initial
+    temperature (Terreros 2012, 000 eq. 8, whose x runs from the adiabatic end). Equal to the
+    slab of length 2L with both faces hot, by symmetry."""
+    x = np.asarray(x, dtype=float)
+    return slab_temperature(x, t, 2 * length, alpha, t_hot, t_hot, t_initial, tol)
+
+
+def sphere_temperature(r, t, radius, alpha, t_surface, t_initial, tol=1e-12):
+    """Sphere of radius R, uniform initial temperature, surface held at t_surface from t = 0
+    (Carslaw & Jaeger 9.3; Haddad 2021, 002 eq. 18, whose printed form swaps the roles of the
+    two temperatures). Uses v = r (T - T_s), which solves the slab problem on [0, R] with
+    v = 0 at both ends; the centre value is its limit r -> 0 (see sphere_centre_temperature)."""
+    r = np.asarray(r, dtype=float)
+    if t <= 0:
+        return np.where(r < radius, t_initial, t_surface) + 0.0 * r
+    theta = _sphere_theta(r, t, radius, alpha, tol)
+    return t_surface + (t_initial - t_surface) * theta
+
+
+def _sphere_theta(r, t, radius, alpha, tol):
+    fo = alpha * t / radius ** 2
+    rr = np.maximum(r, 1e-300)
+    if fo < _SWITCH:
+        # theta = 1 - (R/r) sum_k [erfc(((2k+1)R - r)/s) - erfc(((2k+1)R + r)/s)]
+        s = 2.0 * np.sqrt(alpha * t)
+        acc = np.zeros_like(r)
+        k = 0
+        while True:
+            a = (2 * k + 1) * radius
+            acc += erfc((a - r) / s) - erfc((a + r) / s)
+            if erfc((a + radius) / s) < tol * 1e-3:
+                break
+            k += 1
+        small = r < 1e-6 * radius
+        theta = 1.0 - radius / rr * acc
+        if np.any(small):
+            theta = np.where(small, _sphere_centre_theta(fo, tol), theta)
+        return theta
+    # theta = (2R/(pi r)) sum_n (-1)^{n+1}/n sin(n pi r/R) exp(-n^2 pi^2 Fo)
+    acc = np.zeros_like(r)
+    centre = np.zeros_like(r)
+    n = 1
+    while True:
+        decay = np.exp(-(n * np.pi) ** 2 * fo)
+        acc += (-1.0) ** (n + 1) / n * np.sin(n * np.pi * r / radius) * decay
+        centre += (-1.0) ** (n + 1) * decay
+        if np.exp(-((n + 1) * np.pi) ** 2 * fo) < tol * 1e-3:
+            break
+        n += 1
+    small = r < 1e-6 * radius
+    return np.where(small, 2.0 * centre, 2.0 * radius / (np.pi * rr) * acc)
+
+
+def _sphere_centre_theta(fo, tol):
+    if fo < _SWITCH:
+        # limit r -> 0 of the image form: theta_c = 1 - (2/sqrt(pi Fo)) sum_k e^{-(2k+1)^2/(4 Fo)}
+        total, k = 0.0, 0
+        while True:
+            term = np.exp(-(2 * k + 1) ** 2 / (4 * fo))
+            total += term
+            if term < tol * 1e-3:
+                break
+            k += 1
+        return 1.0 - 2.0 / np.sqrt(np.pi * fo) * total
+    total, n = 0.0, 1
+    while True:
+        term = np.exp(-(n * np.pi) ** 2 * fo)
+        total += (-1.0) ** (n + 1) * term
+        if term < tol * 1e-3:
+            break
+        n += 1
+    return 2.0 * total
+
+
+def sphere_centre_temperature(t, radius, alpha, t_surface, t_initial, tol=1e-12):
+    """Centre of the sphere (002 eq. 19, with the roles of the temperatures as in
+    sphere_temperature): T_c = T_s + 2 (T_i - T_s) sum_n (-1)^{n+1} exp(-n^2 pi^2 alpha t/R^2)."""
+    if t <= 0:
+        return float(t_initial)
+    return t_surface + (t_initial - t_surface) * _sphere_centre_theta(alpha * t / radius ** 2,
+                                                                      tol)
