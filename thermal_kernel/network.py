@@ -1,0 +1,421 @@
+"""The contact network the three solvers share: :class:`ThermalProblem` (what they receive) and
+:func:`assemble` (built once: adjacency CSR, graph Laplacian, per-particle boundary terms,
+clusters, explicit stability bound).
+
+Equations (SI units; p, q particles; H_pq >= 0 the contact conductance in W/K)::
+
+    C_p dT_p/dt = sum_q H_pq (T_q - T_p) + sum_k g_k (Tw_k - T_p) + P_p + S_p(t)
+                = -(L T)_p - g_p T_p + b_p + S_p(t)
+
+with L the graph Laplacian (L_pq = -H_pq, L_pp = sum_q H_pq), g_p = sum of the exchange
+conductances of the rows k on particle p, b_p = sum_k g_k Tw_k + P_p. Dirichlet particles are
+held at their temperature. See docs/solvers.md.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+
+class NetworkError(ValueError):
+    """A ThermalProblem that cannot be solved as given (bad shapes, values or indices)."""
+
+
+@dataclass(frozen=True)
+class ThermalProblem:
+    """Everything a solver needs, as plain arrays (built by :mod:`thermal_kernel.problem`)."""
+    capacity_j_k: np.ndarray        # (N,) C_p > 0
+    pair: np.ndarray                # (M,2) int64, i<j
+    conductance_w_k: np.ndarray     # (M,) H_ij >= 0
+    # Dirichlet: particles held at a temperature (rows), each belonging to boundary b
+    fixed_particle: np.ndarray      # (F,) int64, unique
+    fixed_temperature_k: np.ndarray  # (F,)
+    fixed_boundary: np.ndarray      # (F,) int32 in 0..B-1
+    # exchange with a reservoir (particle touching a wall of fixed temperature): g (T_w - T_p)
+    exchange_particle: np.ndarray   # (K,) int64 (a particle may appear several times)
+    exchange_w_k: np.ndarray        # (K,) g >= 0
+    exchange_temperature_k: np.ndarray  # (K,)
+    exchange_boundary: np.ndarray   # (K,) int32
+    # constant power injected into particles (prescribed heat flux on a face)
+    power_particle: np.ndarray      # (P,) int64
+    power_w: np.ndarray             # (P,)
+    power_boundary: np.ndarray      # (P,) int32
+    # time-dependent volumetric sources: source(t0, t1) -> (N,) mean power in W over [t0,t1]
+    source: Callable | None
+    source_boundary: int            # boundary index source heat is reported under (-1 if none)
+    boundary_names: tuple[str, ...]  # (B,)
+
+    @property
+    def n_particles(self) -> int:
+        return int(np.shape(self.capacity_j_k)[0])
+
+    @property
+    def n_boundaries(self) -> int:
+        return len(self.boundary_names)
+
+
+def make_problem(capacity_j_k, pair, conductance_w_k, *, fixed=(), exchange=(), power=(),
+                 source=None, source_boundary=-1, boundary_names=()) -> ThermalProblem:
+    """Convenience constructor (tests, examples): ``fixed`` = (particle, T, boundary),
+    ``exchange`` = (particle, g, Tw, boundary), ``power`` = (particle, W, boundary); each a
+    tuple of arrays or () for none."""
+    def rows(spec, kinds):
+        if len(spec) == 0:
+            return [np.zeros(0, k) for k in kinds]
+        return [np.atleast_1d(np.asarray(a, dtype=k)) for a, k in zip(spec, kinds)]
+    fp, ft, fb = rows(fixed, (np.int64, np.float64, np.int32))
+    ep, eg, et, eb = rows(exchange, (np.int64, np.float64, np.float64, np.int32))
+    pp, pw, pb = rows(power, (np.int64, np.float64, np.int32))
+    if not boundary_names:
+        nb = max([int(a.max()) + 1 for a in (fb, eb, pb) if a.size] + [source_boundary + 1, 0])
+        boundary_names = tuple(f"b{i}" for i in range(nb))
+    return ThermalProblem(
+        capacity_j_k=np.asarray(capacity_j_k, np.float64),
+        pair=np.asarray(pair, np.int64).reshape(-1, 2),
+        conductance_w_k=np.asarray(conductance_w_k, np.float64),
+        fixed_particle=fp, fixed_temperature_k=ft, fixed_boundary=fb,
+        exchange_particle=ep, exchange_w_k=eg, exchange_temperature_k=et, exchange_boundary=eb,
+        power_particle=pp, power_w=pw, power_boundary=pb, source=source,
+        source_boundary=int(source_boundary), boundary_names=tuple(boundary_names))
+
+
+@dataclass(frozen=True)
+class ClusterReport:
+    """Connected components of the H > 0 graph that no Dirichlet particle and no exchange row
+    with g > 0 ties to a reservoir. Rattlers are such components of one particle."""
+    n_components: int
+    label: np.ndarray               # (N,) int: component of each particle
+    floating_clusters: np.ndarray   # component ids of untied components with >= 2 particles
+    floating_sizes: np.ndarray      # their sizes
+    rattlers: np.ndarray            # particles alone in an untied component
+
+    @property
+    def n_floating(self) -> int:
+        return int(self.floating_clusters.size)
+
+    @property
+    def n_rattlers(self) -> int:
+        return int(self.rattlers.size)
+
+    def summary(self) -> str:
+        sizes = ", ".join(str(s) for s in self.floating_sizes[:10])
+        more = " ..." if self.floating_sizes.size > 10 else ""
+        return (f"{self.n_components} clusters; {self.n_floating} floating (not tied to a "
+                f"temperature or exchange boundary; sizes {sizes or '-'}{more}); "
+                f"{self.n_rattlers} rattlers (no conducting contact)")
+
+
+@dataclass(frozen=True, eq=False)
+class Network:
+    """The assembled network (see :func:`assemble`). Arrays are read-only views, shared by the
+    explicit, implicit and steady solvers.
+
+    ``adjacency`` is the symmetric CSR of H_pq > 0 without a diagonal (int32 indices when they
+    fit); the explicit kernel gathers along its rows. ``laplacian`` (built on first use, once)
+    is diag(degree) - adjacency.
+    """
+    problem: ThermalProblem
+    adjacency: sp.csr_matrix
+    degree_w_k: np.ndarray          # (N,) sum_q H_pq
+    n_active_contacts: int          # contacts with H > 0 (each counted once)
+    n_zero_contacts: int            # contacts with H = 0 (dropped from the graph)
+    held: np.ndarray                # (N,) bool, Dirichlet particle
+    held_temperature_k: np.ndarray  # (N,) the held temperature (NaN where free)
+    capacity_j_k: np.ndarray        # (N,) validated copies of the problem's rows:
+    fixed_particle: np.ndarray      # (F,) int64
+    fixed_boundary: np.ndarray      # (F,) int32
+    exchange_particle: np.ndarray   # (K,) int64
+    exchange_row_g_w_k: np.ndarray  # (K,)
+    exchange_row_temperature_k: np.ndarray  # (K,)
+    exchange_boundary: np.ndarray   # (K,) int32
+    power_by_boundary_w: np.ndarray  # (B,) constant power entering through each boundary
+    exchange_g_w_k: np.ndarray      # (N,) g_p = sum of exchange conductances on p
+    exchange_gt_w: np.ndarray       # (N,) sum g Tw on p
+    power_w: np.ndarray             # (N,) sum of constant power on p
+    clusters: ClusterReport
+    dt_max_s: float                 # exact positivity bound of forward Euler (inf if none)
+    dt_max_particle: int            # the particle that sets it (-1 if none)
+    dt_paper_s: float               # paper 002 eq. 15-16 in network form, for comparison
+    flags: tuple[str, ...] = field(default=())
+
+    @property
+    def n(self) -> int:
+        return self.problem.n_particles
+
+    @cached_property
+    def laplacian(self) -> sp.csr_matrix:
+        """Graph Laplacian L = diag(sum_q H_pq) - H (CSR, symmetric, built once on first use)."""
+        lap = sp.diags(self.degree_w_k, format="csr") - self.adjacency
+        lap.sort_indices()
+        return lap
+
+    @cached_property
+    def constant_rhs_w(self) -> np.ndarray:
+        """b_p = sum g Tw + P_p (constant part of the right-hand side)."""
+        return self.exchange_gt_w + self.power_w
+
+    @cached_property
+    def held_boundary(self) -> np.ndarray:
+        """(N,) int32: the Dirichlet boundary holding each particle, -1 where free."""
+        hb = np.full(self.n, -1, np.int32)
+        hb[self.fixed_particle] = self.fixed_boundary
+        return hb
+
+    @cached_property
+    def constant_boundary_flow_w(self) -> np.ndarray:
+        """(B,) the constant power of each power boundary, with the power that lands on held
+        particles moved (negatively) to the Dirichlet boundary that absorbs it."""
+        out = np.array(self.power_by_boundary_w, dtype=np.float64)
+        p = self.problem
+        pp = np.asarray(p.power_particle, np.int64)
+        on_held = self.held[pp]
+        if on_held.any():
+            out -= np.bincount(self.held_boundary[pp[on_held]],
+                               weights=np.asarray(p.power_w, np.float64)[on_held],
+                               minlength=out.size)
+        return out
+
+    @cached_property
+    def _fixed_rows(self) -> sp.csr_matrix:
+        return self.adjacency[self.fixed_particle]
+
+    def boundary_heat_flow(self, temperature_k, source_w=None) -> np.ndarray:
+        """(B,) heat entering the network through each boundary (W) at ``temperature_k``:
+        held particles give sum_q H_pq (T_p - T_q) minus what exchange, power and source put
+        into them; exchange rows give g (Tw - T_p); power rows their power; the source (if
+        ``source_w`` (N,) is given and source_boundary >= 0) its total under its column."""
+        t = np.asarray(temperature_k, dtype=np.float64)
+        nb = self.problem.n_boundaries
+        out = self.constant_boundary_flow_w.copy()
+        if self.fixed_particle.size:
+            fp = self.fixed_particle
+            flow = self.degree_w_k[fp] * t[fp] - self._fixed_rows @ t
+            out += np.bincount(self.fixed_boundary, weights=flow, minlength=nb)
+        if self.exchange_particle.size:
+            ep = self.exchange_particle
+            q = self.exchange_row_g_w_k * (self.exchange_row_temperature_k - t[ep])
+            out += np.bincount(self.exchange_boundary, weights=q, minlength=nb)
+            on_held = self.held[ep]
+            if on_held.any():
+                out -= np.bincount(self.held_boundary[ep[on_held]], weights=q[on_held],
+                                   minlength=nb)
+        if source_w is not None:
+            s = np.asarray(source_w, dtype=np.float64)
+            if self.problem.source_boundary >= 0:
+                out[self.problem.source_boundary] += s.sum()
+            if self.fixed_particle.size:
+                out -= np.bincount(self.fixed_boundary, weights=s[self.fixed_particle],
+                                   minlength=nb)
+        return out
+
+    @cached_property
+    def free(self) -> np.ndarray:
+        return np.flatnonzero(~self.held)
+
+    @cached_property
+    def has_exchange(self) -> bool:
+        return bool(np.any(self.exchange_g_w_k > 0))
+
+    @cached_property
+    def has_constant_rhs(self) -> bool:
+        return bool(np.any(self.constant_rhs_w != 0))
+
+
+def _as(name, a, dtype, shape):
+    a = np.asarray(a)
+    if a.ndim != len(shape) or any(s is not None and a.shape[k] != s for k, s in enumerate(shape)):
+        want = "(" + ", ".join("?" if s is None else str(s) for s in shape) + ")"
+        raise NetworkError(f"ThermalProblem.{name}: shape {a.shape}, expected {want}")
+    if np.issubdtype(dtype, np.integer) and a.size and not np.issubdtype(a.dtype, np.integer):
+        raise NetworkError(f"ThermalProblem.{name}: integer indices expected, got {a.dtype}")
+    return np.ascontiguousarray(a, dtype=dtype)
+
+
+def _check_finite(name, a, nonneg=False, positive=False):
+    bad = ~np.isfinite(a)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise NetworkError(f"ThermalProblem.{name}: {int(bad.sum())} non-finite values "
+                           f"(first at row {k}: {a[k]})")
+    if positive and a.size and (a <= 0).any():
+        k = int(np.flatnonzero(a <= 0)[0])
+        raise NetworkError(f"ThermalProblem.{name}: must be > 0; {int((a <= 0).sum())} values "
+                           f"are not (first at row {k}: {a[k]})")
+    if nonneg and a.size and (a < 0).any():
+        k = int(np.flatnonzero(a < 0)[0])
+        raise NetworkError(f"ThermalProblem.{name}: must be >= 0; {int((a < 0).sum())} values "
+                           f"are negative (first at row {k}: {a[k]})")
+
+
+def _check_index(name, idx, n, what="particle"):
+    if idx.size and (idx.min() < 0 or idx.max() >= n):
+        k = int(np.flatnonzero((idx < 0) | (idx >= n))[0])
+        raise NetworkError(f"ThermalProblem.{name}: {what} index {idx[k]} at row {k} is out of "
+                           f"range 0..{n - 1}")
+
+
+def validate(problem: ThermalProblem) -> dict:
+    """Check shapes, indices and values; return the arrays as contiguous, typed copies/views.
+    Raises :class:`NetworkError` (a ValueError) with a one-line message naming the field."""
+    c = _as("capacity_j_k", problem.capacity_j_k, np.float64, (None,))
+    n = c.shape[0]
+    _check_finite("capacity_j_k", c, positive=True)
+    pair = _as("pair", problem.pair, np.int64, (None, 2))
+    m = pair.shape[0]
+    h = _as("conductance_w_k", problem.conductance_w_k, np.float64, (m,))
+    _check_finite("conductance_w_k", h, nonneg=True)
+    _check_index("pair", pair.reshape(-1), n)
+    if m and not (pair[:, 0] < pair[:, 1]).all():
+        k = int(np.flatnonzero(pair[:, 0] >= pair[:, 1])[0])
+        raise NetworkError(f"ThermalProblem.pair: row {k} = {tuple(pair[k])} is not i < j")
+    nb = len(problem.boundary_names)
+    out = dict(capacity=c, pair=pair, conductance=h, n=n, m=m)
+    f = _as("fixed_particle", problem.fixed_particle, np.int64, (None,))
+    out["fixed_particle"] = f
+    out["fixed_temperature"] = _as("fixed_temperature_k", problem.fixed_temperature_k,
+                                   np.float64, (f.size,))
+    out["fixed_boundary"] = _as("fixed_boundary", problem.fixed_boundary, np.int32, (f.size,))
+    _check_index("fixed_particle", f, n)
+    if np.unique(f).size != f.size:
+        raise NetworkError(f"ThermalProblem.fixed_particle: {f.size - np.unique(f).size} "
+                           "particles are listed twice (each must be held by one boundary)")
+    _check_finite("fixed_temperature_k", out["fixed_temperature"])
+    k = _as("exchange_particle", problem.exchange_particle, np.int64, (None,))
+    out["exchange_particle"] = k
+    out["exchange_g"] = _as("exchange_w_k", problem.exchange_w_k, np.float64, (k.size,))
+    out["exchange_t"] = _as("exchange_temperature_k", problem.exchange_temperature_k,
+                            np.float64, (k.size,))
+    out["exchange_boundary"] = _as("exchange_boundary", problem.exchange_boundary, np.int32,
+                                   (k.size,))
+    _check_index("exchange_particle", k, n)
+    _check_finite("exchange_w_k", out["exchange_g"], nonneg=True)
+    _check_finite("exchange_temperature_k", out["exchange_t"])
+    p = _as("power_particle", problem.power_particle, np.int64, (None,))
+    out["power_particle"] = p
+    out["power"] = _as("power_w", problem.power_w, np.float64, (p.size,))
+    out["power_boundary"] = _as("power_boundary", problem.power_boundary, np.int32, (p.size,))
+    _check_index("power_particle", p, n)
+    _check_finite("power_w", out["power"])
+    for name in ("fixed_boundary", "exchange_boundary", "power_boundary"):
+        _check_index(name, out[name], nb, what="boundary")
+    sb = int(problem.source_boundary)
+    if not -1 <= sb < nb:
+        raise NetworkError(f"ThermalProblem.source_boundary: {sb} is not -1 or a boundary "
+                           f"index 0..{nb - 1}")
+    if problem.source is not None and not callable(problem.source):
+        raise NetworkError("ThermalProblem.source: must be callable source(t0, t1) or None")
+    return out
+
+
+def paper_critical_dt(d_min_m: float, diffusivity_m2_s: float, n_p: float, c_t: float) -> float:
+    """Critical time step of paper 002 (eq. 16): dt_cr = 2 d_min^2 / (3 alpha n_p C_t).
+
+    Derived there for a uniform packing (all particles of the mean radius, every contact like
+    the mean contact); it is an estimate, not a bound (see :func:`assemble`'s exact bound)."""
+    return 2.0 * d_min_m ** 2 / (3.0 * diffusivity_m2_s * n_p * c_t)
+
+
+def assemble(problem: ThermalProblem) -> Network:
+    """Validate ``problem`` and build, once, everything the solvers need.
+
+    - adjacency CSR of the H > 0 contacts (symmetric, sorted rows; the explicit kernel gathers
+      along rows, which is what makes its result independent of the thread count);
+    - degree sum_q H_pq, per-particle exchange g_p and sum g Tw, constant power;
+    - clusters: connected components of the H > 0 graph; those tied neither to a Dirichlet
+      particle nor to an exchange row with g > 0 are reported (floating clusters, rattlers);
+    - the exact forward-Euler positivity bound dt_max = min over free p of
+      C_p / (sum_q H_pq + g_p), and the paper-002 estimate C_mean / (n_max H_mean).
+    """
+    v = validate(problem)
+    n, m = v["n"], v["m"]
+    h, pair = v["conductance"], v["pair"]
+    active = h > 0
+    n_active = int(active.sum())
+    i, j, ha = pair[active, 0], pair[active, 1], h[active]
+    idx = np.int32 if n < 2 ** 31 - 1 else np.int64   # halves the peak memory of assembly
+    rows = np.concatenate([i, j]).astype(idx, copy=False)
+    cols = np.concatenate([j, i]).astype(idx, copy=False)
+    del i, j
+    # Counting sort into CSR (scipy, O(nnz)), then sorted column indices within each row: the
+    # order in which the explicit kernel sums a row is fixed by the data, not by the threads.
+    adjacency = sp.coo_matrix((np.concatenate([ha, ha]), (rows, cols)), shape=(n, n)).tocsr()
+    del rows, cols
+    adjacency.sum_duplicates()
+    adjacency.sort_indices()
+    if adjacency.nnz != 2 * n_active:
+        key = pair[active, 0] * n + pair[active, 1]
+        uniq, counts = np.unique(key, return_counts=True)
+        first = int(uniq[counts > 1][0])
+        raise NetworkError(f"ThermalProblem.pair: {int((counts - 1).sum())} contacts are listed "
+                           f"more than once (first: {first // n}-{first % n})")
+    indptr = adjacency.indptr
+    # Row sums, each row added in column order (deterministic).
+    degree = np.bincount(np.repeat(np.arange(n), np.diff(indptr)), weights=adjacency.data,
+                         minlength=n).astype(np.float64)
+
+    held = np.zeros(n, dtype=bool)
+    held[v["fixed_particle"]] = True
+    held_t = np.full(n, np.nan)
+    held_t[v["fixed_particle"]] = v["fixed_temperature"]
+    ep, eg = v["exchange_particle"], v["exchange_g"]
+    g_p = np.bincount(ep, weights=eg, minlength=n).astype(np.float64)
+    gt_p = np.bincount(ep, weights=eg * v["exchange_t"], minlength=n).astype(np.float64)
+    pw_p = np.bincount(v["power_particle"], weights=v["power"], minlength=n).astype(np.float64)
+
+    n_comp, label = connected_components(adjacency, directed=False)
+    tied = np.zeros(n_comp, dtype=bool)
+    tied[label[held]] = True
+    tied[label[g_p > 0]] = True
+    sizes = np.bincount(label, minlength=n_comp)
+    untied = np.flatnonzero(~tied)
+    floating = untied[sizes[untied] >= 2]
+    rattler_comp = untied[sizes[untied] == 1]
+    rattlers = np.flatnonzero(np.isin(label, rattler_comp)) if rattler_comp.size else \
+        np.zeros(0, np.int64)
+    clusters = ClusterReport(n_components=int(n_comp), label=label,
+                             floating_clusters=floating, floating_sizes=sizes[floating],
+                             rattlers=rattlers)
+
+    c = v["capacity"]
+    denom = degree + g_p
+    ok = (~held) & (denom > 0)
+    if ok.any():
+        ratio = np.full(n, np.inf)
+        ratio[ok] = c[ok] / denom[ok]
+        p_min = int(np.argmin(ratio))
+        dt_max = float(ratio[p_min])
+    else:
+        p_min, dt_max = -1, float("inf")
+    # Paper 002 eq. 15-16 in network form: every particle like the mean particle, every contact
+    # like the mean contact, the largest coordination number.
+    coord = np.diff(indptr)
+    if n_active:
+        dt_paper = float(np.mean(c) / (coord.max() * np.mean(ha)))
+    else:
+        dt_paper = float("inf")
+    flags = []
+    if m - n_active:
+        flags.append("zero_conductance_contacts_dropped")
+    if clusters.n_floating:
+        flags.append("floating_clusters")
+    if clusters.n_rattlers:
+        flags.append("rattlers")
+    for a in (adjacency.data, adjacency.indices, adjacency.indptr, degree, held, held_t, g_p,
+              gt_p, pw_p, label):   # our own arrays only, never the caller's
+        a.flags.writeable = False
+    return Network(problem=problem, adjacency=adjacency, degree_w_k=degree,
+                   n_active_contacts=n_active, n_zero_contacts=m - n_active, held=held,
+                   held_temperature_k=held_t, capacity_j_k=c, fixed_particle=v["fixed_particle"],
+                   fixed_boundary=v["fixed_boundary"], exchange_particle=ep,
+                   exchange_row_g_w_k=eg, exchange_row_temperature_k=v["exchange_t"],
+                   exchange_boundary=v["exchange_boundary"],
+                   power_by_boundary_w=np.bincount(v["power_boundary"], weights=v["power"],
+                                                   minlength=len(problem.boundary_names)),
+                   exchange_g_w_k=g_p, exchange_gt_w=gt_p, power_w=pw_p, clusters=clusters,
+                   dt_max_s=dt_max, dt_max_particle=p_min, dt_paper_s=dt_paper,
+                   flags=tuple(flags))

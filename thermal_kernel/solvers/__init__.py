@@ -1,0 +1,187 @@
+"""Explicit, implicit and steady solvers on one assembled network (docs/solvers.md).
+
+    run_explicit(problem, T0, times, ...)  forward Euler, numba, exact positivity bound
+    run_implicit(problem, T0, times, dt=..., theta=1.0 | 0.5, ...)  theta-scheme, any dt
+    solve_steady(problem, T0=None, ...)  one sparse solve
+
+``problem`` is a :class:`~thermal_kernel.network.ThermalProblem` or an already assembled
+:class:`~thermal_kernel.network.Network` (assemble once, run many). ``T0`` is an (N,) array or
+the ``state`` of a previous result, to resume. All return a :class:`ThermalResult`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..network import Network, ThermalProblem, assemble
+
+
+class UnstableTimeStepError(ValueError):
+    """A requested explicit time step above the positivity/stability bound."""
+
+
+@dataclass(frozen=True)
+class SolverState:
+    """What a transient run needs to continue bit for bit: temperatures, time, step count, and
+    the energy ledger (cumulative since the ledger's reference state)."""
+    temperature_k: np.ndarray          # (N,)
+    time_s: float
+    step: int
+    boundary_energy_j: np.ndarray      # (B,) cumulative heat in through each boundary
+    source_energy_j: float             # cumulative source heat
+    reference_temperature_k: np.ndarray  # (N,) T0 of the ledger: stored = sum C (T - T_ref)
+    dt_s: float                        # the requested/default dt (reused on resume if None)
+    method: str
+
+
+@dataclass(frozen=True)
+class ThermalResult:
+    """Output of any solver. Rows are output times.
+
+    boundary_heat_flow_w[k, b]: heat entering the network through boundary b at times[k] (W);
+    boundary_energy_j[k, b]: its time integral since the ledger's start (J); the column of the
+    source boundary (problem.source_boundary, if >= 0) holds the source heat, which
+    source_energy_j repeats. Ledger: stored_energy_j = sum_b boundary_energy_j (+ source_energy_j
+    when the source has no column); see :meth:`ledger_residual_j`.
+    contact_updates_per_second = active contacts (H > 0, each counted once) x steps / seconds
+    spent stepping (assembly, JIT compilation and factorisation excluded, see info)."""
+    method: str
+    times: np.ndarray                  # (K,) s
+    temperature_k: np.ndarray          # (K, N)
+    boundary_heat_flow_w: np.ndarray   # (K, B)
+    boundary_energy_j: np.ndarray      # (K, B)
+    source_energy_j: np.ndarray        # (K,)
+    stored_energy_j: np.ndarray        # (K,) sum_p C_p (T_p - T_ref,p)
+    boundary_names: tuple
+    source_boundary: int
+    dt: float                          # requested (or default) step; steps may be shorter
+    dt_max: float                      # explicit positivity bound (inf if no conduction)
+    dt_paper: float                    # paper 002 eq. 15-16 estimate, for comparison
+    steps: int
+    wall_seconds: float
+    contact_updates_per_second: float
+    flags: tuple = ()
+    info: dict = field(default_factory=dict)
+    state: SolverState | None = None
+
+    @property
+    def temperatures(self) -> np.ndarray:   # the brief's name
+        return self.temperature_k
+
+    def ledger_residual_j(self) -> np.ndarray:
+        """(K,) stored energy change minus the heat that came in (boundaries and source)."""
+        heat = self.boundary_energy_j.sum(axis=1)
+        if self.source_boundary < 0:
+            heat = heat + self.source_energy_j
+        return self.stored_energy_j - heat
+
+
+def as_network(problem) -> Network:
+    if isinstance(problem, Network):
+        return problem
+    if isinstance(problem, ThermalProblem):
+        return assemble(problem)
+    raise TypeError(f"expected a ThermalProblem or an assembled Network, got {type(problem)!r}")
+
+
+def check_times(times, t_start: float) -> np.ndarray:
+    times = np.atleast_1d(np.asarray(times, dtype=np.float64))
+    if times.ndim != 1 or times.size == 0:
+        raise ValueError("times: give at least one output time")
+    if not np.all(np.isfinite(times)):
+        raise ValueError("times: output times must be finite")
+    if times[0] < t_start:
+        raise ValueError(f"times: first output time {times[0]} is before t_start = {t_start}")
+    if times.size > 1 and np.any(np.diff(times) <= 0):
+        raise ValueError("times: output times must be strictly increasing")
+    return times
+
+
+def interval_steps(t_from: float, t_to: float, dt: float) -> tuple[int, float]:
+    """Steps for one output interval: n = ceil((t_to - t_from) / dt) equal steps of
+    (t_to - t_from) / n <= dt, so every output time falls on a step without a sliver step."""
+    span = t_to - t_from
+    if span <= 0:
+        return 0, 0.0
+    if not math.isfinite(dt):
+        return 1, span
+    n = max(1, math.ceil(span / dt))
+    h = span / n
+    while h > dt and n < 2 ** 62:      # division rounding: never exceed dt
+        n += 1
+        h = span / n
+    return n, h
+
+
+def start_state(net: Network, T0, t_start, method: str):
+    """(T, t, step, boundary_energy, source_energy, T_ref, dt or None) from an array or a
+    SolverState. From an array, held particles are set to their temperature and the energy this
+    takes, C_p (T_held - T0_p), is credited to their boundary at t_start."""
+    nb = net.problem.n_boundaries
+    if isinstance(T0, SolverState):
+        if t_start is not None and t_start != T0.time_s:
+            raise ValueError(f"t_start = {t_start} given with a state at t = {T0.time_s}")
+        T = np.array(T0.temperature_k, dtype=np.float64)
+        if T.shape != (net.n,):
+            raise ValueError(f"state: temperature has shape {T.shape}, expected ({net.n},)")
+        return (T, float(T0.time_s), int(T0.step),
+                np.array(T0.boundary_energy_j, dtype=np.float64), float(T0.source_energy_j),
+                np.asarray(T0.reference_temperature_k, dtype=np.float64), T0.dt_s)
+    T = np.array(T0, dtype=np.float64)
+    if T.ndim == 0:
+        T = np.full(net.n, float(T))
+    if T.shape != (net.n,):
+        raise ValueError(f"T0: shape {T.shape}, expected ({net.n},)")
+    if not np.all(np.isfinite(T)):
+        raise ValueError("T0: non-finite initial temperatures")
+    ref = T.copy()
+    energy = np.zeros(nb)
+    fp = net.fixed_particle
+    if fp.size:
+        jump = net.capacity_j_k[fp] * (net.held_temperature_k[fp] - T[fp])
+        energy += np.bincount(net.fixed_boundary, weights=jump, minlength=nb)
+        T[fp] = net.held_temperature_k[fp]
+    return T, float(0.0 if t_start is None else t_start), 0, energy, 0.0, ref, None
+
+
+class Recorder:
+    """Collects the output rows (and calls ``on_output`` if given)."""
+
+    def __init__(self, net: Network, times, ref, keep_temperatures=True, on_output=None):
+        self.net = net
+        k, nb = len(times), net.problem.n_boundaries
+        self.times = np.asarray(times, dtype=np.float64)
+        self.keep = keep_temperatures
+        self.T = np.empty((k, net.n) if keep_temperatures else (k, 0))
+        self.flow = np.empty((k, nb))
+        self.energy = np.empty((k, nb))
+        self.source = np.empty(k)
+        self.stored = np.empty(k)
+        self.ref = ref
+        self.on_output = on_output
+
+    def record(self, k, T, energy, source_energy, source_w=None):
+        if self.keep:
+            self.T[k] = T
+        self.flow[k] = self.net.boundary_heat_flow(T, source_w)
+        self.energy[k] = energy
+        self.source[k] = source_energy
+        self.stored[k] = float(np.dot(self.net.capacity_j_k, T - self.ref))
+        if self.on_output is not None:
+            self.on_output(k, float(self.times[k]), T)
+
+
+def instantaneous_source(problem: ThermalProblem, t: float):
+    if problem.source is None:
+        return None
+    return np.asarray(problem.source(t, t), dtype=np.float64)
+
+
+from .explicit import run_explicit, explicit_step_reference  # noqa: E402
+from .implicit import run_implicit  # noqa: E402
+from .steady import solve_steady  # noqa: E402
+
+__all__ = ["run_explicit", "run_implicit", "solve_steady", "explicit_step_reference",
+           "ThermalResult", "SolverState", "UnstableTimeStepError"]

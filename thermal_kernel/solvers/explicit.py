@@ -1,0 +1,282 @@
+"""Forward-Euler (explicit) transient solver: a numba kernel that gathers per particle.
+
+One step, for every free particle p (held particles keep their temperature)::
+
+    T_p' = T_p + dt / C_p [ sum_q H_pq (T_q - T_p) + b_p - g_p T_p + S_p ]
+
+b_p = sum g Tw + P_p and g_p (exchange) are constant and precomputed per particle by
+:func:`~thermal_kernel.network.assemble`; S_p is the source's mean power over the step.
+
+Each particle sums its own row of the adjacency CSR in column order and writes only its own
+new temperature: no atomics, no reduction across threads, so the result is bit-identical for
+any number of threads (YADE's ThermalEngine loses updates with 2 threads; FINDINGS.md).
+
+Exact positivity bound: written as T_p' = (1 - dt D_p / C_p) T_p + dt / C_p (sum_q H_pq T_q +
+b_p + S_p) with D_p = sum_q H_pq + g_p, the update is a non-negative combination of the old
+temperatures iff dt <= dt_max = min_free C_p / D_p; then the maximum principle holds. Since
+lambda_max(C^-1 (L + G)) lies in [max D/C, 2 max D/C], the stability (boundedness) limit lies in
+[dt_max, 2 dt_max]: above 2 dt_max the scheme always diverges.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from . import (Recorder, SolverState, ThermalResult, UnstableTimeStepError, as_network,
+               check_times, instantaneous_source, interval_steps, start_state)
+
+
+# ----------------------------------------------------------------------------- kernels
+@njit(parallel=True, cache=True, nogil=True)
+def _step_plain(indptr, indices, hval, inv_c, held, dt, t_old, t_new):
+    """Laplacian only (no exchange, power or source): T' = T + dt/C sum H (T_q - T_p)."""
+    n = t_old.shape[0]
+    for p in prange(n):
+        tp = t_old[p]
+        if held[p]:
+            t_new[p] = tp
+            continue
+        acc = 0.0
+        for k in range(indptr[p], indptr[p + 1]):
+            acc += hval[k] * (t_old[indices[k]] - tp)
+        t_new[p] = tp + (dt * inv_c[p]) * acc
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def _step_rhs(indptr, indices, hval, inv_c, held, g, rhs, dt, t_old, t_new):
+    """With the per-particle exchange g_p and right-hand side rhs_p = b_p (+ S_p)."""
+    n = t_old.shape[0]
+    for p in prange(n):
+        tp = t_old[p]
+        if held[p]:
+            t_new[p] = tp
+            continue
+        acc = 0.0
+        for k in range(indptr[p], indptr[p + 1]):
+            acc += hval[k] * (t_old[indices[k]] - tp)
+        t_new[p] = tp + (dt * inv_c[p]) * (acc + rhs[p] - g[p] * tp)
+
+
+@njit(cache=True, nogil=True)
+def _boundary_flows(indptr, indices, hval, t, fixed_p, fixed_b, ex_p, ex_g, ex_t, ex_b,
+                    held_b, flows):
+    """Heat entering through each boundary at temperatures t (W), serial and in a fixed order:
+    held p gives sum_q H_pq (T_p - T_q) minus the exchange heat it receives; exchange rows give
+    g (Tw - T_p). Constant power and the source are added by the caller."""
+    for b in range(flows.shape[0]):
+        flows[b] = 0.0
+    for r in range(fixed_p.shape[0]):
+        p = fixed_p[r]
+        tp = t[p]
+        acc = 0.0
+        for k in range(indptr[p], indptr[p + 1]):
+            acc += hval[k] * (tp - t[indices[k]])
+        flows[fixed_b[r]] += acc
+    for r in range(ex_p.shape[0]):
+        p = ex_p[r]
+        q = ex_g[r] * (ex_t[r] - t[p])
+        flows[ex_b[r]] += q
+        if held_b[p] >= 0:
+            flows[held_b[p]] -= q
+
+
+@njit(cache=True, nogil=True)
+def _advance(n_steps, dt, use_rhs, indptr, indices, hval, inv_c, held, g, rhs, fixed_p,
+             fixed_b, ex_p, ex_g, ex_t, ex_b, held_b, const_b, ta, tb, energy, flows):
+    """n_steps forward-Euler steps of size dt; the ledger (energy, J) is advanced with the
+    boundary flows at the start of each step, i.e. exactly the fluxes the step uses.
+    Returns (latest, other) buffers."""
+    for s in range(n_steps):
+        _boundary_flows(indptr, indices, hval, ta, fixed_p, fixed_b, ex_p, ex_g, ex_t, ex_b,
+                        held_b, flows)
+        for b in range(energy.shape[0]):
+            energy[b] += dt * (flows[b] + const_b[b])
+        if use_rhs:
+            _step_rhs(indptr, indices, hval, inv_c, held, g, rhs, dt, ta, tb)
+        else:
+            _step_plain(indptr, indices, hval, inv_c, held, dt, ta, tb)
+        ta, tb = tb, ta
+    return ta, tb
+
+
+# ----------------------------------------------------------------------------- helpers
+class _Arrays:
+    """The kernel's arrays, built once per run from the assembled network (no per-step work)."""
+
+    def __init__(self, net, use_rhs):
+        a = net.adjacency
+        # Unsigned views of scipy's (non-negative) signed indices, no copy: numba then skips the
+        # negative-index wrap-around test on every gather, 1.4x faster (bench/bench_explicit.py).
+        self.indptr, self.indices, self.hval = _unsigned(a.indptr), _unsigned(a.indices), a.data
+        self.inv_c = 1.0 / net.capacity_j_k
+        self.held = net.held
+        self.g = np.ascontiguousarray(net.exchange_g_w_k)
+        self.b = np.ascontiguousarray(net.constant_rhs_w)
+        self.rhs = self.b.copy() if use_rhs else self.b
+        self.fixed_p, self.fixed_b = net.fixed_particle, net.fixed_boundary
+        self.ex_p, self.ex_g = net.exchange_particle, net.exchange_row_g_w_k
+        self.ex_t, self.ex_b = net.exchange_row_temperature_k, net.exchange_boundary
+        self.held_b = net.held_boundary
+        self.const_b = np.ascontiguousarray(net.constant_boundary_flow_w, dtype=np.float64)
+        self.flows = np.zeros(net.problem.n_boundaries)
+        self.use_rhs = use_rhs
+
+    def advance(self, n_steps, dt, ta, tb, energy):
+        return _advance(n_steps, dt, self.use_rhs, self.indptr, self.indices, self.hval,
+                        self.inv_c, self.held, self.g, self.rhs, self.fixed_p, self.fixed_b,
+                        self.ex_p, self.ex_g, self.ex_t, self.ex_b, self.held_b, self.const_b,
+                        ta, tb, energy, self.flows)
+
+
+def _unsigned(a: np.ndarray) -> np.ndarray:
+    return a.view(np.uint32 if a.dtype == np.int32 else np.uint64)
+
+
+def explicit_step_reference(problem, T, dt, source_w=None) -> np.ndarray:
+    """Plain NumPy forward-Euler step, T + dt/C (-L T - g T + b + S) with held particles kept:
+    the reference the numba kernel is tested against."""
+    net = as_network(problem)
+    T = np.asarray(T, dtype=np.float64)
+    rhs = -(net.laplacian @ T) - net.exchange_g_w_k * T + net.constant_rhs_w
+    if source_w is not None:
+        rhs = rhs + source_w
+    out = T + dt / net.capacity_j_k * rhs
+    out[net.held] = T[net.held]
+    return out
+
+
+def explicit_step(problem, T, dt, source_w=None) -> np.ndarray:
+    """One numba step (no ledger): the kernel :func:`run_explicit` uses, for tests."""
+    net = as_network(problem)
+    use_rhs = source_w is not None or net.has_exchange or net.has_constant_rhs
+    arr = _Arrays(net, use_rhs)
+    if source_w is not None:
+        np.add(arr.b, source_w, out=arr.rhs)
+    ta = np.array(T, dtype=np.float64)
+    tb = np.empty_like(ta)
+    energy = np.zeros(net.problem.n_boundaries)
+    ta, tb = arr.advance(1, float(dt), ta, tb, energy)
+    return ta
+
+
+def check_dt(net, dt, allow_unstable: bool):
+    """Refuse dt above the exact bound unless allow_unstable; return the flags."""
+    if not dt > 0:
+        raise ValueError(f"dt = {dt}: the time step must be > 0")
+    if dt > net.dt_max_s:
+        if not allow_unstable:
+            raise UnstableTimeStepError(
+                f"dt = {dt:.6g} s exceeds the explicit bound dt_max = {net.dt_max_s:.6g} s "
+                f"(C_p / (sum_q H_pq + g_p) at particle {net.dt_max_particle}); use dt <= dt_max "
+                "or allow_unstable=True")
+        return ("dt_above_bound",)
+    return ()
+
+
+# ----------------------------------------------------------------------------- driver
+def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
+                 allow_unstable=False, progress=None, threads=None, keep_temperatures=True,
+                 on_output=None) -> ThermalResult:
+    """Forward Euler from ``T0`` (array, or a previous result's ``state`` to resume) at
+    ``t_start`` (default 0, or the state's time) to each of ``times``.
+
+    dt: default ``safety * dt_max`` (dt_max the exact positivity bound, see module doc); a dt
+    above dt_max raises :class:`UnstableTimeStepError` unless ``allow_unstable`` (then the
+    result is flagged ``dt_above_bound``). Each output interval is cut into
+    n = ceil(interval / dt) equal steps (<= dt), so output times are hit exactly. Resuming from
+    ``result.state`` reproduces the single run bit for bit when the split time was one of its
+    output times. ``progress(step, n_steps, t)`` is called every ~0.1 s of work;
+    ``threads`` sets numba's thread count for this run (result independent of it);
+    ``on_output(k, t, T)`` is called at each output time."""
+    net = as_network(problem)
+    prob = net.problem
+    T, t, step0, energy, src_energy, ref, state_dt = start_state(net, T0, t_start, "explicit")
+    times = check_times(times, t)
+    if dt is None:
+        dt = state_dt if state_dt is not None else safety * net.dt_max_s
+        if not 0 < safety <= 1:
+            raise ValueError(f"safety = {safety}: must be in (0, 1]")
+    dt = float(dt)
+    flags = list(net.flags) + list(check_dt(net, dt, allow_unstable))
+    use_rhs = prob.source is not None or net.has_exchange or net.has_constant_rhs
+    arr = _Arrays(net, use_rhs)
+    sb = prob.source_boundary
+    rec = Recorder(net, times, ref, keep_temperatures, on_output)
+    plan = []
+    t_prev = t
+    for tk in times:
+        plan.append(interval_steps(t_prev, float(tk), dt))
+        t_prev = float(tk)
+    n_total = sum(n for n, _ in plan)
+    chunk = max(1, int(2e7 // (net.adjacency.nnz + net.n + 1))) if progress else None
+
+    old_threads = numba.get_num_threads()
+    if threads is not None:
+        numba.set_num_threads(int(threads))
+    ta, tb = T, np.empty_like(T)
+    arr.advance(0, dt if math.isfinite(dt) else 1.0, ta, tb, energy)   # compile outside timing
+    step_seconds = 0.0
+    done = 0
+    wall0 = time.perf_counter()
+    try:
+        t_prev = t
+        for k, (tk, (n, h)) in enumerate(zip(times, plan)):
+            tk = float(tk)
+            if prob.source is None:
+                s = 0
+                while s < n:
+                    m = n - s if chunk is None else min(chunk, n - s)
+                    c0 = time.perf_counter()
+                    ta, tb = arr.advance(m, h, ta, tb, energy)
+                    step_seconds += time.perf_counter() - c0
+                    s += m
+                    done += m
+                    if progress is not None:
+                        progress(done, n_total, t_prev + s * h if s < n else tk)
+            else:
+                for s in range(n):
+                    t0 = t_prev + s * h
+                    t1 = tk if s == n - 1 else t_prev + (s + 1) * h
+                    c0 = time.perf_counter()
+                    sw = np.asarray(prob.source(t0, t1), dtype=np.float64)
+                    np.add(arr.b, sw, out=arr.rhs)
+                    q = h * float(sw.sum())
+                    src_energy += q
+                    if sb >= 0:
+                        energy[sb] += q
+                    if net.fixed_particle.size:
+                        energy -= h * np.bincount(net.fixed_boundary,
+                                                  weights=sw[net.fixed_particle],
+                                                  minlength=energy.size)
+                    ta, tb = arr.advance(1, h, ta, tb, energy)
+                    step_seconds += time.perf_counter() - c0
+                    done += 1
+                    if progress is not None and (done % (chunk or 1) == 0 or s == n - 1):
+                        progress(done, n_total, t1)
+            t_prev = tk
+            rec.record(k, ta, energy, src_energy, instantaneous_source(prob, tk))
+    finally:
+        if threads is not None:
+            numba.set_num_threads(old_threads)
+    wall = time.perf_counter() - wall0
+    if not np.all(np.isfinite(ta)):
+        flags.append("non_finite")
+    state = SolverState(temperature_k=ta.copy(), time_s=float(times[-1]), step=step0 + done,
+                        boundary_energy_j=energy.copy(), source_energy_j=src_energy,
+                        reference_temperature_k=ref, dt_s=dt, method="explicit")
+    cups = net.n_active_contacts * done / step_seconds if step_seconds > 0 else float("nan")
+    return ThermalResult(
+        method="explicit", times=times, temperature_k=rec.T, boundary_heat_flow_w=rec.flow,
+        boundary_energy_j=rec.energy, source_energy_j=rec.source, stored_energy_j=rec.stored,
+        boundary_names=prob.boundary_names, source_boundary=sb, dt=dt, dt_max=net.dt_max_s,
+        dt_paper=net.dt_paper_s, steps=done, wall_seconds=wall,
+        contact_updates_per_second=cups, flags=tuple(flags),
+        info=dict(step_seconds=step_seconds, threads=numba.get_num_threads()
+                  if threads is None else int(threads), clusters=net.clusters.summary(),
+                  steps_per_interval=[n for n, _ in plan],
+                  dt_per_interval=[h for _, h in plan], dt_max_particle=net.dt_max_particle),
+        state=state)

@@ -1,0 +1,184 @@
+"""Theta-scheme (implicit) transient solver: backward Euler (theta = 1), Crank-Nicolson (0.5).
+
+Free particles f, held particles d (T_d fixed), K = L_ff + diag(g_f)::
+
+    (C/dt + theta K) (T^{n+1} - T^n) = F(T^n),   F(T) = -K T_f - L_fd T_d + b_f + S_f
+
+which is the theta-scheme C (T^{n+1} - T^n)/dt = -theta K T^{n+1} - (1-theta) K T^n + ...
+written for the increment: the matrix M = C/dt + theta K is symmetric positive definite (the
+Dirichlet rows are eliminated, not overwritten), and a relative tolerance on the increment's
+right-hand side F stays meaningful as the run approaches steady state.
+
+Solver for M, chosen by size (``method="auto"``): a direct sparse LU (SuperLU with the
+symmetric MMD_AT_PLUS_A ordering), factorised once per distinct dt and reused for every step,
+for up to ``DIRECT_MAX`` free particles; above that, conjugate gradients preconditioned by a
+smoothed-aggregation AMG hierarchy (pyamg, built once per dt), warm-started from zero, relative
+residual ``tol``.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from . import (Recorder, SolverState, ThermalResult, as_network, check_times,
+               instantaneous_source, interval_steps, start_state)
+
+DIRECT_MAX = 150_000    # free particles; see docs/solvers.md for the measurement behind it
+
+
+class SpdSolver:
+    """Solve M x = r for a fixed SPD matrix M: direct (SuperLU) or AMG-preconditioned CG."""
+
+    def __init__(self, m: sp.csr_matrix, method: str = "auto", tol: float = 1e-10,
+                 maxiter: int = 1000):
+        n = m.shape[0]
+        if method == "auto":
+            method = "direct" if n <= DIRECT_MAX else "amg"
+        if method not in ("direct", "amg"):
+            raise ValueError(f"method = {method!r}: use 'auto', 'direct' or 'amg'")
+        self.method, self.tol, self.maxiter = method, tol, maxiter
+        self.iterations = []
+        self.m = m
+        if n == 0:
+            self.method = "empty"
+        elif method == "direct":
+            self.lu = splu(m.tocsc(), permc_spec="MMD_AT_PLUS_A",
+                           options=dict(SymmetricMode=True))
+        else:
+            import pyamg
+            self.ml = pyamg.smoothed_aggregation_solver(m.tocsr(), symmetry="symmetric",
+                                                        max_coarse=500)
+
+    def solve(self, r: np.ndarray, x0=None) -> np.ndarray:
+        if self.method == "empty":
+            return np.zeros(0)
+        if self.method == "direct":
+            return self.lu.solve(r)
+        res = []
+        x = self.ml.solve(r, x0=x0, tol=self.tol, accel="cg", maxiter=self.maxiter,
+                          residuals=res)
+        self.iterations.append(len(res) - 1)
+        nr = np.linalg.norm(r)
+        if nr > 0 and np.linalg.norm(r - self.m @ x) > 10 * self.tol * nr:
+            raise RuntimeError(f"AMG-CG did not reach the relative residual {self.tol} in "
+                               f"{self.maxiter} iterations")
+        return x
+
+
+def _split(net):
+    """L_ff + diag(g_f), L_fd T_d term, and the free capacities (built once per run)."""
+    free = net.free
+    lap = net.laplacian
+    k_ff = (lap[free][:, free] + sp.diags(net.exchange_g_w_k[free])).tocsr()
+    t_d = np.where(net.held, net.held_temperature_k, 0.0)
+    r_d = -(lap[free] @ t_d) if net.fixed_particle.size else np.zeros(free.size)
+    return free, k_ff, r_d
+
+
+def run_implicit(problem, T0, times, *, dt, theta=1.0, t_start=None, method="auto", tol=1e-10,
+                 progress=None, keep_temperatures=True, on_output=None) -> ThermalResult:
+    """Theta-scheme from ``T0`` (array or a previous result's ``state``) to each of ``times``,
+    steps <= ``dt`` (each output interval cut into ceil(interval/dt) equal steps). ``theta``
+    1 = backward Euler (L-stable, first order), 0.5 = Crank-Nicolson (second order, may ring
+    for dt far above dt_max). One factorisation (or AMG hierarchy) per distinct step size;
+    step sizes within 1e-9 relative of a factorised one reuse it (and that dt)."""
+    if not 0.0 <= theta <= 1.0:
+        raise ValueError(f"theta = {theta}: must be in [0, 1]")
+    net = as_network(problem)
+    prob = net.problem
+    T, t, step0, energy, src_energy, ref, state_dt = start_state(net, T0, t_start, "implicit")
+    times = check_times(times, t)
+    dt = float(dt)
+    if not dt > 0:
+        raise ValueError(f"dt = {dt}: the time step must be > 0")
+    flags = list(net.flags)
+    c0 = time.perf_counter()
+    free, k_ff, r_d = _split(net)
+    b_f = net.constant_rhs_w[free]
+    c_f = net.capacity_j_k[free]
+    const_b = net.constant_boundary_flow_w
+    sb = prob.source_boundary
+    setup_seconds = time.perf_counter() - c0
+    factor_seconds = 0.0
+    cache: dict[float, SpdSolver] = {}
+
+    def solver_for(h):
+        nonlocal factor_seconds
+        for h0, s in cache.items():
+            if abs(h - h0) <= 1e-9 * h0:
+                return h0, s
+        f0 = time.perf_counter()
+        m = (sp.diags(c_f / h) + theta * k_ff).tocsr()
+        s = SpdSolver(m, method, tol)
+        factor_seconds += time.perf_counter() - f0
+        cache[h] = s
+        return h, s
+
+    rec = Recorder(net, times, ref, keep_temperatures, on_output)
+    plan, t_prev = [], t
+    for tk in times:
+        plan.append(interval_steps(t_prev, float(tk), dt))
+        t_prev = float(tk)
+    n_total = sum(n for n, _ in plan)
+    done = 0
+    wall0 = time.perf_counter()
+    step_seconds = 0.0
+    t_theta = np.empty_like(T)
+    t_prev = t
+    last_report = wall0
+    for k, (tk, (n, h)) in enumerate(zip(times, plan)):
+        tk = float(tk)
+        if n:
+            h, solver = solver_for(h)
+        for s in range(n):
+            t0 = t_prev + s * h
+            t1 = tk if s == n - 1 else t_prev + (s + 1) * h
+            s0 = time.perf_counter()
+            rhs = r_d + b_f - k_ff @ T[free]
+            sw = None
+            if prob.source is not None:
+                sw = np.asarray(prob.source(t0, t1), dtype=np.float64)
+                rhs += sw[free]
+            inc = solver.solve(rhs)
+            # Ledger with the theta-weighted temperatures: the fluxes this step used.
+            np.copyto(t_theta, T)
+            t_theta[free] += theta * inc
+            flow = net.boundary_heat_flow(t_theta, sw)
+            energy += h * flow
+            if sw is not None:
+                src_energy += h * float(sw.sum())
+            T[free] += inc
+            step_seconds += time.perf_counter() - s0
+            done += 1
+            if progress is not None and (time.perf_counter() - last_report > 0.1 or
+                                         done == n_total):
+                last_report = time.perf_counter()
+                progress(done, n_total, t1)
+        t_prev = tk
+        rec.record(k, T, energy, src_energy, instantaneous_source(prob, tk))
+    wall = time.perf_counter() - wall0
+    if not np.all(np.isfinite(T)):
+        flags.append("non_finite")
+    state = SolverState(temperature_k=T.copy(), time_s=float(times[-1]), step=step0 + done,
+                        boundary_energy_j=energy.copy(), source_energy_j=src_energy,
+                        reference_temperature_k=ref, dt_s=dt, method="implicit")
+    solvers = list(cache.values())
+    loop = step_seconds
+    return ThermalResult(
+        method=f"implicit(theta={theta:g})", times=times, temperature_k=rec.T,
+        boundary_heat_flow_w=rec.flow, boundary_energy_j=rec.energy,
+        source_energy_j=rec.source, stored_energy_j=rec.stored,
+        boundary_names=prob.boundary_names, source_boundary=sb, dt=dt, dt_max=net.dt_max_s,
+        dt_paper=net.dt_paper_s, steps=done, wall_seconds=wall + setup_seconds,
+        contact_updates_per_second=(net.n_active_contacts * done / loop if loop > 0
+                                    else float("nan")),
+        flags=tuple(flags),
+        info=dict(theta=theta, linear_solver=solvers[0].method if solvers else "none",
+                  factorisations=len(solvers), factor_seconds=factor_seconds,
+                  setup_seconds=setup_seconds, step_seconds=step_seconds, tol=tol,
+                  cg_iterations=[i for s in solvers for i in getattr(s, "iterations", [])],
+                  steps_per_interval=[n for n, _ in plan], clusters=net.clusters.summary()),
+        state=state)

@@ -1,0 +1,138 @@
+"""Steady state: one sparse solve of (L + G) T = b with the held particles eliminated.
+
+Unknowns u: free particles of clusters tied to a reservoir (a held particle or an exchange row
+with g > 0). For them K_uu = L_uu + diag(g_u) is symmetric positive definite and
+
+    K_uu (T_u - T_ref) = b_u + S_u - L_ud T_d - T_ref K_uu 1
+
+is solved for the deviation from T_ref (the mean prescribed temperature), which keeps the
+right-hand side free of the large common part. Direct (SuperLU) up to DIRECT_MAX unknowns,
+else CG with a smoothed-aggregation AMG preconditioner (pyamg) to relative residual ``tol``.
+
+Floating clusters (not tied to any reservoir: singular) and rattlers are not solved for: each
+keeps the capacity-weighted mean of its initial temperatures (the long-time limit of the
+transient, energy-preserving); if power is injected into one, its zero-net part is solved for
+on top of that mean, and a net power (no steady state exists) is flagged. Never a NaN.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
+
+from . import ThermalResult, as_network
+from .implicit import SpdSolver
+
+DIRECT_MAX = 150_000    # unknowns; see docs/solvers.md
+
+
+def solve_steady(problem, T0=None, *, method="auto", tol=1e-12, source_interval=None,
+                 maxiter=2000) -> ThermalResult:
+    """Steady temperatures. ``T0`` (N,) only matters for floating clusters and rattlers (which
+    keep their capacity-weighted mean); without it they take the mean prescribed temperature
+    (flag ``floating_without_T0``). ``source_interval=(t0, t1)`` includes the source's mean
+    power over that interval; by default a source is ignored (flag ``source_ignored``).
+    ``info['heat_balance_w']``: sum of the heat entering through all boundaries (and the
+    source), which is zero at steady state up to the solver's tolerance."""
+    net = as_network(problem)
+    prob = net.problem
+    n = net.n
+    flags = list(net.flags)
+    wall0 = time.perf_counter()
+    held_t = net.held_temperature_k
+    prescribed = np.concatenate([held_t[net.fixed_particle],
+                                 net.exchange_row_temperature_k[net.exchange_row_g_w_k > 0]])
+    t_ref = float(prescribed.mean()) if prescribed.size else 0.0
+    if T0 is not None:
+        T0 = np.array(T0, dtype=np.float64)
+        if T0.ndim == 0:
+            T0 = np.full(n, float(T0))
+        if T0.shape != (n,) or not np.all(np.isfinite(T0)):
+            raise ValueError(f"T0: expected ({n},) finite temperatures, got shape {T0.shape}")
+    b = net.constant_rhs_w.copy()
+    sw = None
+    if prob.source is not None:
+        if source_interval is None:
+            flags.append("source_ignored")
+        else:
+            sw = np.asarray(prob.source(*source_interval), dtype=np.float64)
+            b += sw
+
+    label = net.clusters.label
+    untied = np.concatenate([net.clusters.floating_clusters,
+                             np.unique(label[net.clusters.rattlers])]).astype(np.int64)
+    is_untied_comp = np.zeros(net.clusters.n_components, dtype=bool)
+    is_untied_comp[untied] = True
+    in_untied = is_untied_comp[label]
+    u = np.flatnonzero(~net.held & ~in_untied)
+
+    T = np.where(net.held, held_t, 0.0)
+    lap = net.laplacian
+    k_uu = (lap[u][:, u] + sp.diags(net.exchange_g_w_k[u])).tocsr()
+    t_d = np.where(net.held, held_t - t_ref, 0.0)
+    rhs = b[u] - lap[u] @ t_d - t_ref * net.exchange_g_w_k[u]
+    # (L 1 = 0, so shifting by t_ref only leaves the exchange term -g T_ref on the right.)
+    if method == "auto":
+        method = "direct" if u.size <= DIRECT_MAX else "amg"
+    solver = SpdSolver(k_uu, method, tol, maxiter)
+    T[u] = t_ref + solver.solve(rhs)
+
+    # Floating clusters and rattlers: capacity-weighted mean of T0 (+ zero-net power part).
+    no_steady = []
+    if untied.size:
+        if T0 is None:
+            flags.append("floating_without_T0")
+            base = np.full(n, t_ref)
+        else:
+            base = T0
+        c = net.capacity_j_k
+        sel = np.flatnonzero(in_untied)
+        lab = label[sel]
+        csum = np.bincount(lab, weights=c[sel], minlength=net.clusters.n_components)
+        ctsum = np.bincount(lab, weights=c[sel] * base[sel], minlength=net.clusters.n_components)
+        T[sel] = ctsum[lab] / csum[lab]
+        powered = np.unique(lab[b[sel] != 0])
+        for comp in powered:
+            members = sel[lab == comp]
+            members = members[~net.held[members]]
+            net_power = float(b[members].sum())
+            scale = float(np.abs(b[members]).sum())
+            if abs(net_power) > 1e-9 * scale:
+                no_steady.append((int(comp), net_power))
+                continue
+            if members.size < 2:
+                continue
+            # Singular but compatible: pin the first member, then restore the cluster's mean.
+            sub = lap[members][:, members].tocsr()
+            x = np.zeros(members.size)
+            x[1:] = spsolve(sub[1:, 1:].tocsc(), b[members][1:])
+            x -= np.dot(c[members], x) / c[members].sum()
+            T[members] += x
+        if no_steady:
+            flags.append("no_steady_state_in_floating_cluster")
+    wall = time.perf_counter() - wall0
+    flow = net.boundary_heat_flow(T, sw)
+    total_in = float(flow.sum()) + (float(sw.sum()) if sw is not None and
+                                    prob.source_boundary < 0 else 0.0)
+    scale = float(np.abs(flow).sum()) or 1.0
+    nb = prob.n_boundaries
+    times = np.array([np.inf])
+    return ThermalResult(
+        method="steady", times=times, temperature_k=T[None, :],
+        boundary_heat_flow_w=flow[None, :], boundary_energy_j=np.full((1, nb), np.nan),
+        source_energy_j=np.full(1, np.nan),
+        stored_energy_j=np.array([np.dot(net.capacity_j_k, T - T0) if T0 is not None
+                                  else np.nan]),
+        boundary_names=prob.boundary_names, source_boundary=prob.source_boundary,
+        dt=np.inf, dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=0, wall_seconds=wall,
+        contact_updates_per_second=float("nan"), flags=tuple(flags),
+        info=dict(linear_solver=solver.method, tol=tol, unknowns=int(u.size), t_ref=t_ref,
+                  cg_iterations=solver.iterations, heat_balance_w=total_in,
+                  heat_balance_relative=total_in / scale,
+                  floating_clusters=net.clusters.n_floating,
+                  floating_sizes=net.clusters.floating_sizes.tolist(),
+                  rattlers=net.clusters.n_rattlers, no_steady_state=no_steady,
+                  clusters=net.clusters.summary()),
+        state=None)
