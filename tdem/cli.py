@@ -5,6 +5,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from .errors import UserError
+
 RUNS = Path(__file__).resolve().parent.parent / "runs"
 
 
@@ -12,6 +14,32 @@ def _cmd_pack(args):
     from .pack import build
     build(Path(args.scene), Path(args.out) if args.out else None, threads=args.threads,
           quiet=args.quiet)
+
+
+def _cmd_run(args):
+    from thermal_kernel.run import run_scene
+    from thermal_kernel.scene import load_scene
+    scene = load_scene(args.scene, out_dir=Path(args.out) if args.out else None)
+    packing = Path(args.packing) if args.packing else None
+    if packing is None and scene.pack is not None:
+        from .pack import build, default_out_dir
+        made = build(Path(args.scene), Path(args.out) if args.out else default_out_dir(
+            Path(args.scene)), quiet=args.quiet)
+        if len(made) != 1:
+            raise UserError(f"{args.scene}: pack: the [pack] table made {len(made)} packings; "
+                            "a scene runs on one (use `tdem campaign` for a pressure series)")
+        packing = made[0]
+    run_scene(scene, packing, quiet=args.quiet, threads=args.threads)
+
+
+def _cmd_laws(args):
+    from thermal_kernel.laws import LAWS
+    width = max(len(n) for n in LAWS)
+    for name, law in LAWS.items():
+        params = ", ".join(f"{k} = {v!r}" for k, v in law.defaults.items())
+        print(f"{name:<{width}}  {law.formula}")
+        print(f"{'':<{width}}  source: {law.reference}" + (f"; parameters: {params}"
+                                                          if params else ""))
 
 
 def _cmd_demo(args):
@@ -64,6 +92,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="do not stream YADE's output")
     p.set_defaults(func=_cmd_pack)
 
+    p = sub.add_parser("run", help="run a thermal scene (TOML) and write thermal.h5")
+    p.add_argument("scene")
+    p.add_argument("--packing", help="packing.h5 to use instead of the scene's")
+    p.add_argument("--out", help="output folder (default: runs/out/<scene name>/)")
+    p.add_argument("--threads", type=int, default=None, help="numba threads (default: all)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("laws", help="list the conductance laws with formula and reference")
+    p.set_defaults(func=_cmd_laws)
+
     p = sub.add_parser("demo", help="run the default scene (runs/demo.toml) end to end")
     p.add_argument("--out", help="output folder (default: runs/out/demo/)")
     p.add_argument("--threads", type=int, default=2, help="YADE threads, default 2")
@@ -87,13 +126,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    from thermal_kernel.network import NetworkError
     from thermal_kernel.packing import PackingError
-    from .errors import UserError
+    from thermal_kernel.scene import SceneError
     from .yade import YadeError
     args = build_parser().parse_args(argv)
     try:
         args.func(args)
-    except (UserError, PackingError, YadeError) as e:
+    except (UserError, PackingError, YadeError, SceneError, NetworkError) as e:
         print(f"tdem: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
