@@ -12,7 +12,7 @@ right-hand side F stays meaningful as the run approaches steady state.
 Solver for M, chosen by size (``method="auto"``): a direct sparse LU (SuperLU with the
 symmetric MMD_AT_PLUS_A ordering), factorised once per distinct dt and reused for every step,
 for up to ``DIRECT_MAX`` free particles; above that, conjugate gradients preconditioned by a
-smoothed-aggregation AMG hierarchy (pyamg, built once per dt), warm-started from zero, relative
+smoothed-aggregation AMG hierarchy (pyamg, built once per dt), started from zero, relative
 residual ``tol``.
 """
 from __future__ import annotations
@@ -23,20 +23,25 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from . import (Recorder, SolverState, ThermalResult, as_network, check_times,
+from . import (blas_threads, Recorder, SolverState, ThermalResult, as_network, check_times,
                instantaneous_source, interval_steps, start_state)
 
-DIRECT_MAX = 150_000    # free particles; see docs/solvers.md for the measurement behind it
+# Free particles up to which the implicit solver factorises (SuperLU) instead of AMG-CG.
+# Measured (docs/solvers.md, random packing-like networks, Z ~ 6): factorisation 1.4 s at 1e5,
+# 5.3 s at 2e5, 110 s at 4e5 (fill-in), then 0.02 / 0.04 / 0.2 s per step; AMG-CG 0.2 / 0.5 /
+# 1.4 s setup and 0.18 / 0.32 / 0.94 s per step. Direct pays off after ~20 steps at 2e5 but
+# only after ~150 steps at 4e5.
+DIRECT_MAX = 200_000
 
 
 class SpdSolver:
     """Solve M x = r for a fixed SPD matrix M: direct (SuperLU) or AMG-preconditioned CG."""
 
     def __init__(self, m: sp.csr_matrix, method: str = "auto", tol: float = 1e-10,
-                 maxiter: int = 1000):
+                 maxiter: int = 1000, direct_max: int = DIRECT_MAX):
         n = m.shape[0]
         if method == "auto":
-            method = "direct" if n <= DIRECT_MAX else "amg"
+            method = "direct" if n <= direct_max else "amg"
         if method not in ("direct", "amg"):
             raise ValueError(f"method = {method!r}: use 'auto', 'direct' or 'amg'")
         self.method, self.tol, self.maxiter = method, tol, maxiter
@@ -79,12 +84,23 @@ def _split(net):
 
 
 def run_implicit(problem, T0, times, *, dt, theta=1.0, t_start=None, method="auto", tol=1e-10,
-                 progress=None, keep_temperatures=True, on_output=None) -> ThermalResult:
+                 progress=None, keep_temperatures=True, on_output=None,
+                 blas=1) -> ThermalResult:
     """Theta-scheme from ``T0`` (array or a previous result's ``state``) to each of ``times``,
     steps <= ``dt`` (each output interval cut into ceil(interval/dt) equal steps). ``theta``
     1 = backward Euler (L-stable, first order), 0.5 = Crank-Nicolson (second order, may ring
     for dt far above dt_max). One factorisation (or AMG hierarchy) per distinct step size;
-    step sizes within 1e-9 relative of a factorised one reuse it (and that dt)."""
+    step sizes within 1e-9 relative of a factorised one reuse it (and that dt). ``method``
+    'auto' | 'direct' | 'amg'; ``tol`` the AMG-CG relative residual; ``blas`` the OpenBLAS
+    thread count during the run (1: see :class:`~thermal_kernel.solvers.blas_threads`)."""
+    with blas_threads(blas):
+        return _run_implicit(problem, T0, times, dt=dt, theta=theta, t_start=t_start,
+                             method=method, tol=tol, progress=progress,
+                             keep_temperatures=keep_temperatures, on_output=on_output)
+
+
+def _run_implicit(problem, T0, times, *, dt, theta, t_start, method, tol, progress,
+                  keep_temperatures, on_output) -> ThermalResult:
     if not 0.0 <= theta <= 1.0:
         raise ValueError(f"theta = {theta}: must be in [0, 1]")
     net = as_network(problem)
@@ -142,7 +158,7 @@ def run_implicit(problem, T0, times, *, dt, theta=1.0, t_start=None, method="aut
             if prob.source is not None:
                 sw = np.asarray(prob.source(t0, t1), dtype=np.float64)
                 rhs += sw[free]
-            inc = solver.solve(rhs)
+            inc = solver.solve(rhs)     # from zero: the previous increment measured no better
             # Ledger with the theta-weighted temperatures: the fluxes this step used.
             np.copyto(t_theta, T)
             t_theta[free] += theta * inc

@@ -22,20 +22,29 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
-from . import ThermalResult, as_network
+from . import ThermalResult, as_network, blas_threads
 from .implicit import SpdSolver
 
-DIRECT_MAX = 150_000    # unknowns; see docs/solvers.md
+# Unknowns up to which the steady solve is direct (SuperLU). Measured (docs/solvers.md): direct
+# 0.09 / 1.6 / 5.6 / 106 s at 2e4 / 1e5 / 2e5 / 4e5 unknowns, AMG-CG (tol 1e-12) 0.18 / 0.7 /
+# 1.5 / 4.1 s: they cross near 5e4.
+DIRECT_MAX = 50_000
 
 
 def solve_steady(problem, T0=None, *, method="auto", tol=1e-12, source_interval=None,
-                 maxiter=2000) -> ThermalResult:
+                 maxiter=2000, blas=1) -> ThermalResult:
     """Steady temperatures. ``T0`` (N,) only matters for floating clusters and rattlers (which
     keep their capacity-weighted mean); without it they take the mean prescribed temperature
     (flag ``floating_without_T0``). ``source_interval=(t0, t1)`` includes the source's mean
     power over that interval; by default a source is ignored (flag ``source_ignored``).
     ``info['heat_balance_w']``: sum of the heat entering through all boundaries (and the
     source), which is zero at steady state up to the solver's tolerance."""
+    with blas_threads(blas):
+        return _solve_steady(problem, T0, method=method, tol=tol,
+                             source_interval=source_interval, maxiter=maxiter)
+
+
+def _solve_steady(problem, T0, *, method, tol, source_interval, maxiter) -> ThermalResult:
     net = as_network(problem)
     prob = net.problem
     n = net.n
@@ -74,9 +83,7 @@ def solve_steady(problem, T0=None, *, method="auto", tol=1e-12, source_interval=
     t_d = np.where(net.held, held_t - t_ref, 0.0)
     rhs = b[u] - lap[u] @ t_d - t_ref * net.exchange_g_w_k[u]
     # (L 1 = 0, so shifting by t_ref only leaves the exchange term -g T_ref on the right.)
-    if method == "auto":
-        method = "direct" if u.size <= DIRECT_MAX else "amg"
-    solver = SpdSolver(k_uu, method, tol, maxiter)
+    solver = SpdSolver(k_uu, method, tol, maxiter, direct_max=DIRECT_MAX)
     T[u] = t_ref + solver.solve(rhs)
 
     # Floating clusters and rattlers: capacity-weighted mean of T0 (+ zero-net power part).
