@@ -177,31 +177,33 @@ def bench(n: int, steps: int, threads=(1, 2)):
     return rows
 
 
-def memory(n: int, what: str):
-    """Peak RSS (bytes) of generating + assembling + one explicit run or one steady solve."""
-    x, pair, h, c = packing_like(n)
-    lo = np.flatnonzero(x[:, 0] < 0.02)
-    hi = np.flatnonzero(x[:, 0] > 0.98)
-    prob = make_problem(c, pair, h, fixed=(np.r_[lo, hi], np.r_[np.full(lo.size, 300.0),
-                                                                 np.full(hi.size, 400.0)],
-                                           np.r_[np.zeros(lo.size), np.ones(hi.size)]),
-                        boundary_names=("cold", "hot"))
-    del x, pair, h
-    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    net = assemble(prob)
+def _rss_now() -> int:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def memory(path: str, what: str):
+    """Peak RSS of assembling + one explicit run (20 steps, no stored temperatures) or one
+    steady AMG solve, on a problem saved by the parent (so generation is not counted)."""
+    d = np.load(path)
+    n = d["c"].size
+    fixed = d["fixed"]
+    prob = make_problem(d["c"], d["pair"], d["h"],
+                        fixed=(fixed, d["fixed_t"], d["fixed_b"]), boundary_names=("cold", "hot"))
+    from thermal_kernel.solvers import run_explicit, solve_steady   # imports before baseline
+    base = _rss_now()
     t0 = time.perf_counter()
+    net = assemble(prob)
     if what == "explicit":
-        from thermal_kernel.solvers import run_explicit
         run_explicit(net, 300.0, [net.dt_max_s * 20], keep_temperatures=False)
     else:
-        from thermal_kernel.solvers import solve_steady
         r = solve_steady(net, 300.0, method="amg")
-        print(f"steady: {r.info['linear_solver']} iterations {r.info['cg_iterations']} "
-              f"balance {r.info['heat_balance_relative']:.1e}")
+        print(f"steady: AMG-CG iterations {r.info['cg_iterations']}, heat balance "
+              f"{r.info['heat_balance_relative']:.1e}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    print(f"{what}: N = {n:,}  peak RSS {peak / 1e9:.2f} GB, of which before assembly "
-          f"{base / 1e9:.2f} GB (problem arrays + interpreter); {time.perf_counter() - t0:.1f} s")
-    print(f"MEM {what} {n} {peak} {base}")
+    print(f"{what}: N = {n:,}, M = {prob.pair.shape[0]:,}: problem arrays + interpreter "
+          f"{base / 1e9:.2f} GB; peak {peak / 1e9:.2f} GB; solver side {(peak - base) / n:.0f} "
+          f"B/particle, all {peak / n:.0f} B/particle; {time.perf_counter() - t0:.1f} s")
 
 
 def main(argv=None):
@@ -211,14 +213,26 @@ def main(argv=None):
     ap.add_argument("--memory", type=float, default=None,
                     help="measure peak memory at this N (runs each case in a subprocess)")
     ap.add_argument("--memory-case", choices=("explicit", "steady"), default=None)
+    ap.add_argument("--memory-file", default=None)
     args = ap.parse_args(argv)
     if args.memory_case:
-        memory(int(args.memory), args.memory_case)
+        memory(args.memory_file, args.memory_case)
         return
     if args.memory:
-        for case in ("explicit", "steady"):
-            subprocess.run([sys.executable, __file__, "--memory", str(args.memory),
-                            "--memory-case", case], check=True)
+        import tempfile
+        n = int(args.memory)
+        x, pair, h, c = packing_like(n)
+        lo = np.flatnonzero(x[:, 0] < 0.02)
+        hi = np.flatnonzero(x[:, 0] > 0.98)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "problem.npz")
+            np.savez(path, c=c, pair=pair, h=h, fixed=np.r_[lo, hi],
+                     fixed_t=np.r_[np.full(lo.size, 300.0), np.full(hi.size, 400.0)],
+                     fixed_b=np.r_[np.zeros(lo.size), np.ones(hi.size)])
+            del x, pair, h, c
+            for case in ("explicit", "steady"):
+                subprocess.run([sys.executable, __file__, "--memory-file", path,
+                                "--memory-case", case], check=True)
         return
     print(f"numba {numba.__version__}, threading layer after first parallel call below; "
           f"{os.cpu_count()} CPUs; load average {os.getloadavg()}")

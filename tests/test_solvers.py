@@ -477,3 +477,21 @@ def test_progress_callback_and_zero_conductance_contacts():
                                                        p.fixed_particle)], np.full(
         p.capacity_j_k.size - p.fixed_particle.size, 300.0))
     assert r.contact_updates_per_second > 0
+
+
+def test_no_conduction_only_power_is_exact():
+    """No contact conducts (dt_max = inf): one step per output interval, exact for constant
+    power; all particles are rattlers."""
+    c = np.array([1.0, 2.0, 4.0])
+    prob = make_problem(c, np.zeros((0, 2)), np.zeros(0), power=([0, 2], [1.0, 2.0], [0, 0]))
+    net = assemble(prob)
+    assert net.dt_max_s == np.inf and net.clusters.n_rattlers == 3
+    r = run_explicit(net, 300.0, [1.0, 3.0])
+    np.testing.assert_allclose(r.temperature_k[-1], [303.0, 300.0, 301.5], rtol=1e-15)
+    assert r.steps == 2
+    np.testing.assert_allclose(r.ledger_residual_j(), 0.0, atol=1e-12)
+    st = solve_steady(net, 300.0)
+    # powered rattlers heat for ever: flagged, kept at T0 (never a NaN)
+    assert "no_steady_state_in_floating_cluster" in st.flags
+    assert [c for c, _ in st.info["no_steady_state"]] != []
+    assert np.all(st.temperature_k == 300.0)

@@ -61,21 +61,31 @@ def _step_rhs(indptr, indices, hval, inv_c, held, g, rhs, dt, t_old, t_new):
         t_new[p] = tp + (dt * inv_c[p]) * (acc + rhs[p] - g[p] * tp)
 
 
-@njit(cache=True, nogil=True)
-def _boundary_flows(indptr, indices, hval, t, fixed_p, fixed_b, ex_p, ex_g, ex_t, ex_b,
-                    held_b, flows):
-    """Heat entering through each boundary at temperatures t (W), serial and in a fixed order:
-    held p gives sum_q H_pq (T_p - T_q) minus the exchange heat it receives; exchange rows give
-    g (Tw - T_p). Constant power and the source are added by the caller."""
-    for b in range(flows.shape[0]):
-        flows[b] = 0.0
-    for r in range(fixed_p.shape[0]):
+@njit(parallel=True, cache=True, nogil=True)
+def _held_rows(indptr, indices, hval, t, fixed_p, out):
+    """out[r] = sum_q H_pq (T_p - T_q) for the held particle p = fixed_p[r] (parallel over rows,
+    each row summed in column order by one thread)."""
+    for r in prange(fixed_p.shape[0]):
         p = fixed_p[r]
         tp = t[p]
         acc = 0.0
         for k in range(indptr[p], indptr[p + 1]):
             acc += hval[k] * (tp - t[indices[k]])
-        flows[fixed_b[r]] += acc
+        out[r] = acc
+
+
+@njit(cache=True, nogil=True)
+def _boundary_flows(indptr, indices, hval, t, fixed_p, fixed_b, ex_p, ex_g, ex_t, ex_b,
+                    held_b, held_out, flows):
+    """Heat entering through each boundary at temperatures t (W), summed serially in a fixed
+    order: held p gives sum_q H_pq (T_p - T_q) minus the exchange heat it receives; exchange
+    rows give g (Tw - T_p). Constant power and the source are added by the caller."""
+    for b in range(flows.shape[0]):
+        flows[b] = 0.0
+    if fixed_p.shape[0]:
+        _held_rows(indptr, indices, hval, t, fixed_p, held_out)
+        for r in range(fixed_p.shape[0]):
+            flows[fixed_b[r]] += held_out[r]
     for r in range(ex_p.shape[0]):
         p = ex_p[r]
         q = ex_g[r] * (ex_t[r] - t[p])
@@ -86,13 +96,13 @@ def _boundary_flows(indptr, indices, hval, t, fixed_p, fixed_b, ex_p, ex_g, ex_t
 
 @njit(cache=True, nogil=True)
 def _advance(n_steps, dt, use_rhs, indptr, indices, hval, inv_c, held, g, rhs, fixed_p,
-             fixed_b, ex_p, ex_g, ex_t, ex_b, held_b, const_b, ta, tb, energy, flows):
+             fixed_b, ex_p, ex_g, ex_t, ex_b, held_b, const_b, ta, tb, energy, held_out, flows):
     """n_steps forward-Euler steps of size dt; the ledger (energy, J) is advanced with the
     boundary flows at the start of each step, i.e. exactly the fluxes the step uses.
     Returns (latest, other) buffers."""
     for s in range(n_steps):
         _boundary_flows(indptr, indices, hval, ta, fixed_p, fixed_b, ex_p, ex_g, ex_t, ex_b,
-                        held_b, flows)
+                        held_b, held_out, flows)
         for b in range(energy.shape[0]):
             energy[b] += dt * (flows[b] + const_b[b])
         if use_rhs:
@@ -123,13 +133,14 @@ class _Arrays:
         self.held_b = net.held_boundary
         self.const_b = np.ascontiguousarray(net.constant_boundary_flow_w, dtype=np.float64)
         self.flows = np.zeros(net.problem.n_boundaries)
+        self.held_out = np.zeros(self.fixed_p.size)
         self.use_rhs = use_rhs
 
     def advance(self, n_steps, dt, ta, tb, energy):
         return _advance(n_steps, dt, self.use_rhs, self.indptr, self.indices, self.hval,
                         self.inv_c, self.held, self.g, self.rhs, self.fixed_p, self.fixed_b,
                         self.ex_p, self.ex_g, self.ex_t, self.ex_b, self.held_b, self.const_b,
-                        ta, tb, energy, self.flows)
+                        ta, tb, energy, self.held_out, self.flows)
 
 
 def _unsigned(a: np.ndarray) -> np.ndarray:
