@@ -1,0 +1,60 @@
+# Parameters of yade_scripts/dense_packing.py (checked by yade_scripts/params.py).
+# Imports nothing: loaded by file path on Debian's Python and on tdem's side.
+PARAMS = {
+    "shape": dict(kind="str", default="box", choices=["box", "periodic", "cylinder", "sphere"],
+                  help="domain: box (6 plane walls), periodic cell, cylinder (beam along z), sphere"),
+    "n_particles": dict(kind="int", default=2000, minimum=20,
+                        help="particles in the periodic cell that is compressed; a walled shape "
+                             "is cut from it and keeps about this many"),
+    "radius_mean_m": dict(kind="float", default=1e-3, minimum=1e-12, help="mean radius, m"),
+    "radius_distribution": dict(kind="str", default="gaussian", choices=["uniform", "gaussian"],
+                                help="uniform in mean*(1 +- spread) or truncated Gaussian"),
+    "radius_spread": dict(kind="float", default=0.2, minimum=0.0,
+                          help="uniform: relative half-width of the radius range, -"),
+    "radius_sigma_over_mean": dict(kind="float", default=0.3, minimum=0.0,
+                                   help="gaussian: sigma/mean of the radius, -"),
+    "radius_truncation_sigmas": dict(kind="float", default=2.0, minimum=0.5,
+                                     help="gaussian: radii kept within mean +- this many sigma "
+                                          "(and > 0.1 mean)"),
+    "aspect": dict(kind="floats", default=[1.0, 1.0, 1.0], minimum=0.05,
+                   help="relative side lengths x:y:z of the cell (cylinder: z is the axis, "
+                        "length/diameter = z/x)"),
+    "confining_pressure_pa": dict(kind="float", default=1e5, minimum=1.0,
+                                  help="isotropic stress the periodic cell is compressed to, Pa"),
+    "compaction_friction": dict(kind="float", default=0.0, minimum=0.0,
+                                help="friction coefficient while compressing (0 gives the densest "
+                                     "random packing, phi ~0.64; more gives a looser one)"),
+    "friction": dict(kind="float", default=0.3, minimum=0.0,
+                     help="friction coefficient of the material recorded in the dump"),
+    "young_pa": dict(kind="float", default=2.1e11, minimum=1.0, help="Young's modulus, Pa (real)"),
+    "poisson": dict(kind="float", default=0.3, minimum=0.0, help="Poisson ratio"),
+    "density": dict(kind="float", default=7800.0, minimum=1e-9, help="density, kg/m^3 (real)"),
+    "density_scaling": dict(kind="float", default=1e4, minimum=1.0,
+                            help="mass factor used while compressing (no gravity: the static end "
+                                 "state does not depend on it; dt grows by its square root)"),
+    "unbalanced_force_target": dict(kind="float", default=1e-3, minimum=1e-9,
+                                    help="compression ends below this unbalanced-force ratio"),
+    "gap_tolerance": dict(kind="float", default=0.0, minimum=0.0,
+                          help="neighbour criterion: pairs with centre distance < "
+                               "(1 + gap_tolerance)(r_i + r_j) are dumped as contacts (gaps "
+                               "have negative overlap and zero force); 0 = touching only"),
+    "wall_gap_tolerance": dict(kind="float", default=0.1, minimum=0.0,
+                               help="a particle is a wall contact when its distance to the wall "
+                                    "< (1 + this) r"),
+    "inclusions": dict(kind="list", default=[],
+                       help="spherical inclusions: list of {centre = [fx, fy, fz] (fractions of "
+                            "the domain box), radius = f (fraction of the smallest side), "
+                            "phase = int}"),
+    "inclusion_volume_fraction": dict(kind="float", default=0.0, minimum=0.0,
+                                      help="random dispersion: volume fraction of the domain "
+                                           "covered by non-overlapping spherical inclusions"),
+    "inclusion_radius_over_mean": dict(kind="float", default=3.0, minimum=0.5,
+                                       help="random dispersion: inclusion radius / mean particle "
+                                            "radius"),
+    "inclusion_phase": dict(kind="int", default=1, minimum=1,
+                            help="random dispersion: phase id of particles inside inclusions"),
+    "seed": dict(kind="int", default=1, minimum=0, help="random seed"),
+    "max_seconds": dict(kind="float", default=3600.0, minimum=1.0,
+                        help="give up (exit 3) if compression takes longer, s"),
+    "output_dir": dict(kind="str", default=".", help="folder for packing.h5 (set by tdem pack)"),
+}
