@@ -39,7 +39,7 @@ class Packing:
     normal_force: np.ndarray        # (M,) N
     branch: np.ndarray              # (M, 3) m, centre i -> centre j (periodic image applied)
     wall_name: list = field(default_factory=list)     # (W,) str
-    wall_kind: list = field(default_factory=list)     # (W,) 'plane' | 'cylinder'
+    wall_kind: list = field(default_factory=list)     # (W,) 'plane' | 'cylinder' | 'sphere'
     wall_point: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     wall_normal: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     wall_radius: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -190,8 +190,9 @@ def read_packing(path) -> Packing:
             if kind not in packing_h5.WALL_KINDS:
                 _fail(path, "walls/kind", f"wall {i} has kind {kind!r}; expected one of "
                                           f"{', '.join(packing_h5.WALL_KINDS)}")
-            if kind == "cylinder" and not (np.isfinite(wall_radius[i]) and wall_radius[i] > 0):
-                _fail(path, "walls/radius", f"cylinder wall {i} has radius {wall_radius[i]!r}; "
+            if kind in ("cylinder", "sphere") and not (np.isfinite(wall_radius[i])
+                                                       and wall_radius[i] > 0):
+                _fail(path, "walls/radius", f"{kind} wall {i} has radius {wall_radius[i]!r}; "
                                             "expected > 0")
         if len(set(wall_name)) != w:
             _fail(path, "walls/name", "duplicate wall name")

@@ -17,7 +17,7 @@ import numpy as np
 FORMAT = "tdem-packing"
 FORMAT_VERSION = 1
 
-WALL_KINDS = ("plane", "cylinder")
+WALL_KINDS = ("plane", "cylinder", "sphere")
 
 
 def write_packing(path, position, radius, phase, pair, overlap, normal_force, branch,
@@ -26,8 +26,9 @@ def write_packing(path, position, radius, phase, pair, overlap, normal_force, br
                   wall_contact_radius=None, yade_id=None):
     """Write one packing.
 
-    walls: list of dicts with keys name, kind ('plane'|'cylinder'), point (3,), normal (3,)
-    (the axis for a cylinder), radius (NaN for planes).
+    walls: list of dicts with keys name, kind ('plane'|'cylinder'|'sphere'), point (3,) (a point
+    of the plane, of the cylinder's axis, or the sphere's centre), normal (3,) (the axis for a
+    cylinder; unused for a sphere), radius (NaN for planes).
     attrs: root attributes; must hold at least generator, seed, solid_fraction,
     mean_coordination, pressure_pa, young_pa, poisson, density. Extra keys are kept.
     """

@@ -3,15 +3,23 @@
 #   yade -n -j1 -x yade_scripts/dense_packing.py params.json
 #
 # params.json: see dense_params.py (tdem pack writes it from a scene's [pack] table).
-# Steps: a random cloud of spheres (radii uniform or truncated Gaussian) in a periodic cell is
-# compressed isotropically with Hertz-Mindlin contacts at the REAL modulus (frictionless by
-# default, which gives the densest random packing, phi ~0.64) until the confining stress is
-# reached and the unbalanced-force ratio is below the target. Masses are scaled up meanwhile
-# (no gravity, so the static end state does not depend on them). Box, cylinder and sphere
-# domains are cut from the periodic packing (spheres wholly inside the region are kept) and get
-# walls. Contacts: every touching pair (YADE's own normal force) plus, with gap_tolerance > 0,
-# the near neighbours within (1 + gap_tolerance)(r_i + r_j) (negative overlap, zero force), so
-# that the neighbour criterion sets the coordination number (Haddad uses Z ~ 7.5).
+# Steps:
+# 1. Seeded radii (uniform mean(1 +- spread), or Gaussian sigma/mean truncated) and a random
+#    sequential addition of them, shrunk to solid fraction 0.25, into a fixed domain: periodic
+#    cell, box (6 plane walls), cylinder along z (plane caps + a facet mantle) or sphere (facet
+#    container). The domain is sized for the final solid fraction expected for its shape.
+# 2. Compression by uniform radius growth at fixed domain (like YADE's internal compaction)
+#    with frictionless Hertz-Mindlin contacts, until YADE's mean stress equals the confining
+#    pressure and the unbalanced-force ratio is small. Speed: the first stage uses a softened
+#    modulus; E is then raised tenfold per stage to the real modulus, re-relaxing under the
+#    same stress at each (softening changes the network, so the network must be the one of the
+#    real modulus - FINDINGS.md). Masses are scaled (no gravity: the static state does not
+#    depend on them).
+# 3. Dump: contacts are rebuilt from the final radii and positions and their forces computed
+#    once with the integrator off, so that overlaps, branches and YADE's forces describe the
+#    same geometry exactly. With gap_tolerance > 0 the near neighbours within
+#    (1 + gap_tolerance)(r_i + r_j) are dumped too (negative overlap, zero force): the neighbour
+#    criterion that sets the coordination number (Haddad uses Z ~ 7.5).
 # Imports: yade, numpy, h5py and the standard library only.
 import math
 import os
@@ -21,12 +29,13 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.abspath(sys.argv[0])))
 
 import numpy as np  # noqa: E402
-from yade import O, pack, utils  # noqa: E402
-from yade.wrapper import (FrictMat, ForceResetter, InsertionSortCollider, Bo1_Sphere_Aabb,  # noqa: E402
-                          InteractionLoop, Ig2_Sphere_Sphere_ScGeom,
-                          Ip2_FrictMat_FrictMat_MindlinPhys, Law2_ScGeom_MindlinPhys_Mindlin,
-                          PeriTriaxController, NewtonIntegrator)
-from yade.minieigenHP import Matrix3, Vector3  # noqa: E402
+from yade import O, geom, utils  # noqa: E402
+from yade.wrapper import (FrictMat, ForceResetter, InsertionSortCollider,  # noqa: E402
+                          Bo1_Sphere_Aabb, Bo1_Wall_Aabb, Bo1_Facet_Aabb, InteractionLoop,
+                          Ig2_Sphere_Sphere_ScGeom, Ig2_Wall_Sphere_ScGeom,
+                          Ig2_Facet_Sphere_ScGeom, Ip2_FrictMat_FrictMat_MindlinPhys,
+                          Law2_ScGeom_MindlinPhys_Mindlin, NewtonIntegrator, Sphere)
+from yade.minieigenHP import Matrix3  # noqa: E402
 
 import params as P  # noqa: E402
 from neighbours import neighbour_pairs  # noqa: E402
@@ -59,80 +68,242 @@ def draw_radii(p):
     return rm * out[:n]
 
 
+class Container:
+    """The domain the packing fills: a periodic cell, a box, a cylinder along z or a sphere.
+    Sized so that the requested spheres fill it at the expected final solid fraction."""
+
+    def __init__(self, shape, volume, aspect):
+        self.shape = shape
+        a = np.asarray(aspect, dtype=float)
+        if shape in ("box", "periodic"):
+            self.size = (volume / a.prod()) ** (1.0 / 3.0) * a
+            self.radius = float("nan")
+        elif shape == "cylinder":
+            # aspect z/x is length/diameter: volume = pi R^2 * (2 R * ratio)
+            ratio = a[2] / a[0]
+            self.radius = (volume / (2.0 * math.pi * ratio)) ** (1.0 / 3.0)
+            self.size = np.array([2 * self.radius, 2 * self.radius, 2 * self.radius * ratio])
+        else:
+            self.radius = (3.0 * volume / (4.0 * math.pi)) ** (1.0 / 3.0)
+            self.size = np.full(3, 2 * self.radius)
+        self.centre = self.size / 2
+        self.volume = volume
+
+    def inside(self, c, r):
+        """True where a sphere of radius r centred at c lies wholly inside (walled shapes)."""
+        if self.shape == "periodic":
+            return np.ones(len(np.atleast_2d(c)), bool)
+        c = np.atleast_2d(c)
+        r = np.broadcast_to(r, len(c))
+        if self.shape == "box":
+            return np.all((c - r[:, None] >= 0) & (c + r[:, None] <= self.size), axis=1)
+        if self.shape == "cylinder":
+            rad = np.hypot(c[:, 0] - self.centre[0], c[:, 1] - self.centre[1])
+            return (rad + r <= self.radius) & (c[:, 2] - r >= 0) & (c[:, 2] + r <= self.size[2])
+        return np.linalg.norm(c - self.centre, axis=1) + r <= self.radius
+
+    def walls(self):
+        walls = []
+        if self.shape in ("box", "cylinder"):
+            axes = "xyz" if self.shape == "box" else "z"
+            for name in axes:
+                axis = "xyz".index(name)
+                for sign, suffix in ((+1.0, "min"), (-1.0, "max")):
+                    point = self.centre.copy() if self.shape == "cylinder" else np.zeros(3)
+                    point[axis] = 0.0 if sign > 0 else self.size[axis]
+                    normal = np.zeros(3)
+                    normal[axis] = sign
+                    walls.append(dict(name=name + suffix, kind="plane", point=point,
+                                      normal=normal, radius=float("nan")))
+        if self.shape == "cylinder":
+            walls.append(dict(name="cylinder", kind="cylinder",
+                              point=np.array([self.centre[0], self.centre[1], 0.0]),
+                              normal=np.array([0.0, 0.0, 1.0]), radius=self.radius))
+        if self.shape == "sphere":
+            walls.append(dict(name="surface", kind="sphere", point=self.centre.copy(),
+                              normal=np.array([0.0, 0.0, 1.0]), radius=self.radius))
+        return walls
+
+    def distance_to_wall(self, wall, position):
+        """Distance from each centre to a wall, positive inside the domain."""
+        if wall["kind"] == "plane":
+            return (position - wall["point"]) @ wall["normal"]
+        if wall["kind"] == "cylinder":
+            return wall["radius"] - np.hypot(position[:, 0] - wall["point"][0],
+                                             position[:, 1] - wall["point"][1])
+        return wall["radius"] - np.linalg.norm(position - wall["point"], axis=1)
+
+
+EXPECTED_SOLID_FRACTION = {"periodic": 0.64, "box": 0.60, "cylinder": 0.60, "sphere": 0.60}
+CLOUD_SOLID_FRACTION = 0.25
+
+
 def make_cloud(p):
-    """Random sequential addition of the radii (largest first) into a periodic cell of the
-    requested aspect at solid fraction 0.25: a loose, overlap-free, seeded start."""
+    """Seeded radii and a random sequential addition of them (largest first, shrunk so that
+    they fill the container at solid fraction 0.25): a loose, overlap-free start. The
+    container is sized for the final solid fraction expected for its shape; the radii grow
+    back during compression to whatever size the confining pressure gives."""
     radii = np.sort(draw_radii(p))[::-1]
     n = radii.size
-    a = np.asarray(p["aspect"], dtype=float)
-    if a.shape != (3,):
+    if np.asarray(p["aspect"], dtype=float).shape != (3,):
         fail("aspect: expected 3 numbers")
-    volume = np.sum(4.0 / 3.0 * np.pi * radii ** 3) / 0.25
-    side = (volume / a.prod()) ** (1.0 / 3.0) * a
-    if 2.2 * radii[0] > side.min() / 2:
-        fail("n_particles: too few particles for this aspect (the cell must be wider than "
-             "four diameters)")
+    volume = np.sum(4.0 / 3.0 * np.pi * radii ** 3) / EXPECTED_SOLID_FRACTION[p["shape"]]
+    box = Container(p["shape"], volume, p["aspect"])
+    if 2.2 * radii[0] > box.size.min() / 2:
+        fail("n_particles: too few particles for this shape and aspect (the domain must be "
+             "wider than four diameters)")
+    shrink = (CLOUD_SOLID_FRACTION / EXPECTED_SOLID_FRACTION[p["shape"]]) ** (1.0 / 3.0)
+    small = radii * shrink
     rng = np.random.default_rng(p["seed"] + 1)
     centres = np.empty((n, 3))
+    periodic = p["shape"] == "periodic"
     for k in range(n):
         for _ in range(100000):
-            c = rng.random(3) * side
+            c = rng.random(3) * box.size
+            if not box.inside(c, small[k])[0]:
+                continue
             d = centres[:k] - c
-            d -= np.round(d / side) * side
-            if k == 0 or np.min(np.einsum("ij,ij->i", d, d) - (radii[:k] + radii[k]) ** 2) > 0:
+            if periodic:
+                d -= np.round(d / box.size) * box.size
+            if k == 0 or np.min(np.einsum("ij,ij->i", d, d) - (small[:k] + small[k]) ** 2) > 0:
                 centres[k] = c
                 break
         else:
             fail("n_particles: could not place the initial cloud", code=3)
-    sp = pack.SpherePack([((float(c[0]), float(c[1]), float(c[2])), float(r))
-                          for c, r in zip(centres, radii)])
-    return sp, side
+    return centres, small, box, radii
 
 
-def compress(p, sp, side):
+def stiffness_stages(p):
+    """Young's moduli of the compression stages: a softened start (overlaps ~1 % of the radius
+    at the confining stress) raised tenfold per stage to the real modulus. Softening is only
+    for speed (steps to jam scale with sqrt(E)); every stage re-relaxes under the same stress,
+    so the dumped network is the one of the real modulus (FINDINGS: softening changes the
+    network, not only the overlaps)."""
+    real = p["young_pa"]
+    soft = min(real, p["softening_factor"] * p["confining_pressure_pa"])
+    stages = [soft]
+    while stages[-1] * 10.0 < real:
+        stages.append(stages[-1] * 10.0)
+    if stages[-1] < real:
+        stages.append(real)
+    return stages
+
+
+def build_scene(p, centres, radii, box, young):
+    """YADE scene: spheres, container walls (infinite planes; facet polygons for the cylinder
+    mantle and the spherical container), frictionless Hertz-Mindlin contacts."""
     O.reset()
-    O.periodic = True
-    O.cell.hSize = Matrix3(side[0], 0, 0, 0, side[1], 0, 0, 0, side[2])
     mat = O.materials.append(FrictMat(
-        young=p["young_pa"], poisson=p["poisson"],
-        density=p["density"] * p["density_scaling"],
+        young=young, poisson=p["poisson"], density=p["density"] * p["density_scaling"],
         frictionAngle=math.atan(p["compaction_friction"])))
-    sp.toSimulation(material=mat)
-    state = {"done": False}
-    pc = p["confining_pressure_pa"]
-    rate = 0.5   # 1/s: maximum strain rate of the cell (mass-scaled time)
-
-    def done():
-        state["done"] = True
-        O.pause()
-    globals()["tdem_compression_done"] = done
+    wall_of_body = {}
+    if box.shape == "periodic":
+        O.periodic = True
+        O.cell.hSize = Matrix3(box.size[0], 0, 0, 0, box.size[1], 0, 0, 0, box.size[2])
+    for w, wall in enumerate(box.walls()):
+        if wall["kind"] == "plane":
+            axis = int(np.argmax(np.abs(wall["normal"])))
+            ids = [O.bodies.append(utils.wall(tuple(float(x) for x in wall["point"]), axis=axis,
+                                              material=mat))]
+        elif wall["kind"] == "cylinder":
+            ids = O.bodies.append(geom.facetCylinder(
+                center=tuple(float(x) for x in box.centre), radius=wall["radius"],
+                height=box.size[2], segmentsNumber=p["wall_segments"], wallMask=4, material=mat))
+        else:
+            ids = O.bodies.append(geom.facetSphere(
+                center=tuple(float(x) for x in box.centre), radius=wall["radius"],
+                thetaResolution=p["wall_segments"], phiResolution=p["wall_segments"] // 2,
+                material=mat))
+        for i in ids:
+            wall_of_body[i] = w
+    collider = InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb()])
+    sphere_ids = [O.bodies.append(utils.sphere(tuple(float(x) for x in c), float(r), material=mat))
+                  for c, r in zip(centres, radii)]
     O.engines = [
         ForceResetter(),
-        InsertionSortCollider([Bo1_Sphere_Aabb()]),
-        InteractionLoop([Ig2_Sphere_Sphere_ScGeom()], [Ip2_FrictMat_FrictMat_MindlinPhys()],
+        collider,
+        InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom(),
+                         Ig2_Facet_Sphere_ScGeom()],
+                        [Ip2_FrictMat_FrictMat_MindlinPhys()],
                         [Law2_ScGeom_MindlinPhys_Mindlin()]),
-        PeriTriaxController(goal=Vector3(-pc, -pc, -pc), stressMask=7, dynCell=True,
-                            maxStrainRate=Vector3(rate, rate, rate),
-                            maxUnbalanced=p["unbalanced_force_target"], relStressTol=1e-3,
-                            doneHook="tdem_compression_done()", label="compressor"),
         NewtonIntegrator(damping=0.5),
     ]
-    O.dt = 0.5 * utils.PWaveTimeStep()
+    return mat, np.array(sphere_ids), wall_of_body, collider
+
+
+def mean_stress(box):
+    stress = utils.getStress() if box.shape == "periodic" else utils.getStress(box.volume)
+    return -(stress[0, 0] + stress[1, 1] + stress[2, 2]) / 3.0
+
+
+def compress(p, centres, radii, box):
+    """Fixed container; the radii grow (or shrink) uniformly until the mean stress equals the
+    confining pressure and the unbalanced-force ratio is below the target, at each stiffness
+    stage. The controller uses Hertz's law: overlaps scale as stress^(2/3), so the radius
+    change that brings the stress to its target is ~ delta/R ((p_t/p)^(2/3) - 1)."""
+    stages = stiffness_stages(p)
+    mat, sphere_ids, wall_of_body, collider = build_scene(p, centres, radii, box, stages[0])
+    p_target = p["confining_pressure_pa"]
     start = time.time()
-    last = 0.0
-    while not state["done"]:
-        O.run(500, True)
-        now = time.time() - start
-        if now - last > 3.0 or state["done"]:
-            last = now
-            cell_volume = O.cell.volume
-            solid = sum(4.0 / 3.0 * math.pi * b.shape.radius ** 3 for b in O.bodies)
-            log(f"compress: step {O.iter}, phi {solid / cell_volume:.4f}, "
-                f"unbalanced {utils.unbalancedForce():.3g}, {now:.0f} s")
-        if now > p["max_seconds"]:
-            fail(f"max_seconds: compression not finished after {now:.0f} s "
-                 f"(unbalanced {utils.unbalancedForce():.3g})", code=3)
-    return time.time() - start
+    last = -10.0
+    young_now = stages[0]
+    every = 50
+    for k, young in enumerate(stages):
+        if young != young_now:
+            if k == 1:
+                # the soft stage grew the radii a lot: rebuild every contact so that its
+                # Hertz constant uses the current radii, then scale them stage by stage
+                O.interactions.clear()
+                collider.doSort = True
+            factor = young / young_now
+            O.materials[mat].young = young
+            for i in O.interactions:
+                if i.isReal:
+                    i.phys.kno *= factor
+                    i.phys.kso *= factor
+            young_now = young
+        final = k == len(stages) - 1
+        unbalanced_target = p["unbalanced_force_target"] if final else \
+            max(p["unbalanced_force_target"], 1e-2)
+        e_star = young / (2.0 * (1.0 - p["poisson"] ** 2))
+        overlap_scale = (p_target / e_star) ** (2.0 / 3.0)   # typical delta/R at the target
+        O.dt = 0.5 * utils.PWaveTimeStep()
+        settled = 0
+        while True:
+            O.run(every, True)
+            pressure = mean_stress(box)
+            unbalanced = utils.unbalancedForce()
+            ratio = pressure / p_target
+            if pressure <= 0:
+                grow = 2e-3
+            else:
+                grow = 0.5 * overlap_scale * (ratio ** (-2.0 / 3.0) - 1.0)
+                grow = min(2e-3, max(-2e-3, grow))
+            if abs(ratio - 1.0) < p["pressure_tolerance"] and unbalanced < unbalanced_target:
+                settled += 1
+                if settled >= 2:
+                    break
+            else:
+                settled = 0
+                utils.growParticles(1.0 + grow, updateMass=False, dynamicOnly=True)
+            now = time.time() - start
+            if now - last > 3.0:
+                last = now
+                log(f"compress: E {young:.3g} Pa ({k + 1}/{len(stages)}), step {O.iter}, "
+                    f"phi {solid_fraction(box):.4f}, stress/target {ratio:.3f}, "
+                    f"unbalanced {unbalanced:.3g}, {now:.0f} s")
+            if now > p["max_seconds"]:
+                fail(f"max_seconds: compression not finished after {now:.0f} s "
+                     f"(stress/target {ratio:.3f}, unbalanced {unbalanced:.3g})", code=3)
+        log(f"compress: E {young:.3g} Pa ({k + 1}/{len(stages)}) relaxed at step {O.iter}: "
+            f"phi {solid_fraction(box):.4f}, stress/target {ratio:.4f}, unbalanced "
+            f"{unbalanced:.3g}, {time.time() - start:.0f} s")
+    return time.time() - start, sphere_ids, wall_of_body, collider
+
+
+def solid_fraction(box):
+    return sum(4.0 / 3.0 * math.pi * b.shape.radius ** 3 for b in O.bodies
+               if isinstance(b.shape, Sphere)) / box.volume
 
 
 def main():
@@ -149,164 +320,174 @@ def main():
                 or "centre" not in inc or "radius" not in inc:
             fail(f"inclusions[{k}]: expected {{centre = [fx, fy, fz], radius = f, phase = id}}")
     t0 = time.time()
-    sp, side = make_cloud(p)
-    log(f"cloud: {len(sp)} spheres in a periodic cell {side[0]:.4g} x {side[1]:.4g} x "
-        f"{side[2]:.4g} m (seed {p['seed']})")
-    compress_seconds = compress(p, sp, side)
-    O.step()   # interactions and forces consistent with the final positions
+    centres, radii0, box, radii_drawn = make_cloud(p)
+    log(f"cloud: {len(radii0)} spheres in a {box.shape} domain {box.size[0]:.4g} x "
+        f"{box.size[1]:.4g} x {box.size[2]:.4g} m (seed {p['seed']})")
+    compress_seconds, sphere_ids, wall_of_body, collider = compress(p, centres, radii0, box)
+    # Rebuild every contact from the final radii and positions and step once: the dumped
+    # forces are then YADE's Hertz-Mindlin forces of exactly the dumped geometry (the
+    # compression's contacts were created at other radii and stiffnesses).
+    # The integrator is switched off for that step so that the dumped positions are exactly
+    # the ones the forces were computed from.
+    O.interactions.clear()
+    collider.doSort = True
+    O.engines[-1].dead = True
+    O.step()
     unbalanced = utils.unbalancedForce()
-    stress = utils.getStress()
-    pressure_cell = -(stress[0, 0] + stress[1, 1] + stress[2, 2]) / 3.0
-    L = np.array([O.cell.hSize[0, 0], O.cell.hSize[1, 1], O.cell.hSize[2, 2]])
-    ids = np.array([b.id for b in O.bodies])
-    radius = np.array([b.shape.radius for b in O.bodies])
-    raw = np.array([[b.state.pos[0], b.state.pos[1], b.state.pos[2]] for b in O.bodies])
-    position = raw - np.floor(raw / L) * L       # wrapped into the cell [0, L)
+    pressure = mean_stress(box)
+    periodic = box.shape == "periodic"
+    index_of = {int(b): k for k, b in enumerate(sphere_ids)}
+    radius = np.array([O.bodies[int(b)].shape.radius for b in sphere_ids])
+    raw = np.array([[O.bodies[int(b)].state.pos[j] for j in range(3)] for b in sphere_ids])
+    position = raw - np.floor(raw / box.size) * box.size if periodic else raw
+    n = len(radius)
     force = {}
+    walls = box.walls()
+    wall_touch = {}
     for i in O.interactions:
-        if i.isReal:
-            a, b = sorted((i.id1, i.id2))
-            force[(a, b)] = i.phys.normalForce.norm()
-    phi_cell = float(np.sum(4.0 / 3.0 * np.pi * radius ** 3) / np.prod(L))
-    log(f"compressed in {compress_seconds:.1f} s: phi {phi_cell:.4f}, mean stress "
-        f"{pressure_cell:.4g} Pa, unbalanced {unbalanced:.3g}")
+        if not i.isReal:
+            continue
+        a, b = i.id1, i.id2
+        if a in index_of and b in index_of:
+            key = tuple(sorted((index_of[a], index_of[b])))
+            force[key] = i.phys.normalForce.norm()
+        else:
+            particle, body = (index_of[b], a) if b in index_of else (index_of[a], b)
+            w = wall_of_body[body]
+            # several facets of one curved wall may touch a sphere: keep the deepest
+            key = (particle, w)
+            depth = i.geom.penetrationDepth
+            if key not in wall_touch or depth > wall_touch[key][0]:
+                wall_touch[key] = (depth, i.phys.normalForce.norm())
+    log(f"compressed in {compress_seconds:.1f} s: phi {solid_fraction(box):.4f}, mean stress "
+        f"{pressure:.4g} Pa, unbalanced {unbalanced:.3g}")
 
-    shape = p["shape"]
-    centre = L / 2
-    walls = []
-    if shape == "periodic":
-        keep = np.ones(len(radius), bool)
-        region_volume = float(np.prod(L))
-        lo, hi = np.zeros(3), L.copy()
-    elif shape == "box":
-        keep = np.all((position - radius[:, None] >= 0) & (position + radius[:, None] <= L), axis=1)
-        region_volume = float(np.prod(L))
-        lo, hi = np.zeros(3), L.copy()
-        for axis, name in enumerate("xyz"):
-            for side_sign, suffix in ((+1, "min"), (-1, "max")):
-                point = np.zeros(3)
-                point[axis] = 0.0 if side_sign > 0 else L[axis]
-                normal = np.zeros(3)
-                normal[axis] = side_sign
-                walls.append(dict(name=name + suffix, kind="plane", point=point, normal=normal,
-                                  radius=float("nan")))
-    elif shape == "cylinder":
-        R = min(L[0], L[1]) / 2
-        rad = np.hypot(position[:, 0] - centre[0], position[:, 1] - centre[1])
-        keep = (rad + radius <= R) & (position[:, 2] - radius >= 0) & \
-               (position[:, 2] + radius <= L[2])
-        region_volume = math.pi * R ** 2 * L[2]
-        lo = np.array([centre[0] - R, centre[1] - R, 0.0])
-        hi = np.array([centre[0] + R, centre[1] + R, L[2]])
-        walls = [dict(name="cylinder", kind="cylinder", point=np.array([centre[0], centre[1], 0.0]),
-                      normal=np.array([0.0, 0.0, 1.0]), radius=R),
-                 dict(name="zmin", kind="plane", point=np.zeros(3),
-                      normal=np.array([0.0, 0.0, 1.0]), radius=float("nan")),
-                 dict(name="zmax", kind="plane", point=np.array([0.0, 0.0, L[2]]),
-                      normal=np.array([0.0, 0.0, -1.0]), radius=float("nan"))]
-    else:  # sphere
-        R = float(L.min()) / 2
-        dist = np.linalg.norm(position - centre, axis=1)
-        keep = dist + radius <= R
-        region_volume = 4.0 / 3.0 * math.pi * R ** 3
-        lo, hi = centre - R, centre + R
-        walls = [dict(name="surface", kind="sphere", point=centre.copy(),
-                      normal=np.array([0.0, 0.0, 1.0]), radius=R)]
-
-    index = np.flatnonzero(keep)
-    position, radius, ids = position[index], radius[index], ids[index]
-    n = len(index)
-    periodic = shape == "periodic"
     pair, branch = neighbour_pairs(position, radius, p["gap_tolerance"],
-                                   L if periodic else None)
+                                   box.size if periodic else None)
     distance = np.linalg.norm(branch, axis=1)
     overlap = radius[pair[:, 0]] + radius[pair[:, 1]] - distance
     r_star = radius[pair[:, 0]] * radius[pair[:, 1]] / (radius[pair[:, 0]] + radius[pair[:, 1]])
-    e_star = p["young_pa"] / (2.0 * (1.0 - p["poisson"] ** 2))
     normal_force = np.zeros(len(pair))
-    n_formula = 0
+    n_untracked = 0
     for k, (a, b) in enumerate(pair):
         if overlap[k] > 0:
-            key = tuple(sorted((int(ids[a]), int(ids[b]))))
-            if key in force:
-                normal_force[k] = force[key]
-            else:   # touching, but YADE's collider had not paired them: Hertz, as YADE would
-                normal_force[k] = 4.0 / 3.0 * e_star * math.sqrt(r_star[k]) * overlap[k] ** 1.5
-                n_formula += 1
+            f = force.get((int(a), int(b)))
+            if f is None:
+                n_untracked += 1      # touching by < round-off, not yet paired by YADE
+            else:
+                normal_force[k] = f
     contact_radius = np.sqrt(np.clip(overlap, 0, None) * r_star)
 
-    wall_particle, wall_index, wall_overlap = [], [], []
+    # Wall contacts: every particle YADE has in contact with a wall (YADE's depth and force;
+    # the cylinder mantle and the spherical container are facet polygons with wall_segments
+    # sides), plus the near-wall particles within (1 + wall_gap_tolerance) r of the analytic
+    # wall surface (negative overlap, zero force).
+    wall_particle, wall_index, wall_overlap, wall_force = [], [], [], []
     for w, wall in enumerate(walls):
-        if wall["kind"] == "plane":
-            dist = (position - wall["point"]) @ wall["normal"]
-        elif wall["kind"] == "cylinder":
-            dist = wall["radius"] - np.hypot(position[:, 0] - wall["point"][0],
-                                             position[:, 1] - wall["point"][1])
-        else:
-            dist = wall["radius"] - np.linalg.norm(position - wall["point"], axis=1)
-        near = np.flatnonzero(dist < (1.0 + p["wall_gap_tolerance"]) * radius)
-        wall_particle.append(near)
-        wall_index.append(np.full(len(near), w))
-        wall_overlap.append(radius[near] - dist[near])
-    wall_particle = np.concatenate(wall_particle) if walls else np.zeros(0, int)
-    wall_index = np.concatenate(wall_index) if walls else np.zeros(0, int)
-    wall_overlap = np.concatenate(wall_overlap) if walls else np.zeros(0)
-    # The cut walls are geometric: no sphere presses on them (overlap <= 0, force 0).
-    wall_force = np.zeros(len(wall_particle))
+        dist = box.distance_to_wall(wall, position)
+        near = set(np.flatnonzero(dist < (1.0 + p["wall_gap_tolerance"]) * radius).tolist())
+        near |= {q for (q, ww) in wall_touch if ww == w}
+        for q in sorted(near):
+            wall_particle.append(q)
+            wall_index.append(w)
+            if (q, w) in wall_touch:
+                wall_overlap.append(wall_touch[(q, w)][0])
+                wall_force.append(wall_touch[(q, w)][1])
+            else:
+                wall_overlap.append(min(radius[q] - dist[q], 0.0))
+                wall_force.append(0.0)
+    wall_particle = np.array(wall_particle, dtype=np.int64)
+    wall_index = np.array(wall_index, dtype=np.int32)
+    wall_overlap = np.array(wall_overlap, dtype=float)
+    wall_force = np.array(wall_force, dtype=float)
 
+    lo, hi = np.zeros(3), box.size.copy()
     phase = np.zeros(n, dtype=np.int32)
-    box = hi - lo
+    extent = hi - lo
     for inc in p["inclusions"]:
-        c = lo + np.asarray(inc["centre"], dtype=float) * box
-        rr = float(inc["radius"]) * box.min()
+        c = lo + np.asarray(inc["centre"], dtype=float) * extent
+        rr = float(inc["radius"]) * extent.min()
         phase[np.linalg.norm(position - c, axis=1) <= rr] = int(inc.get("phase", 1))
+    n_dispersed = 0
     if p["inclusion_volume_fraction"] > 0:
         rng = np.random.default_rng(p["seed"] + 7919)
-        r_inc = p["inclusion_radius_over_mean"] * p["radius_mean_m"]
-        target = p["inclusion_volume_fraction"] * region_volume
-        centres = []
+        r_inc = p["inclusion_radius_over_mean"] * float(radius.mean())
+        target = p["inclusion_volume_fraction"] * box.volume
+        centres_inc = []
         placed, tries = 0.0, 0
         while placed < target and tries < 100000:
             tries += 1
-            c = lo + rng.random(3) * box
-            if any(np.linalg.norm(c - q) < 2 * r_inc for q in centres):
+            c = lo + rng.random(3) * extent
+            if not periodic and not box.inside(c, r_inc)[0]:
                 continue
-            centres.append(c)
+            d = np.asarray(centres_inc).reshape(-1, 3) - c
+            if periodic:
+                d -= np.round(d / box.size) * box.size
+            if len(centres_inc) and np.min(np.linalg.norm(d, axis=1)) < 2 * r_inc:
+                continue
+            centres_inc.append(c)
             placed += 4.0 / 3.0 * math.pi * r_inc ** 3
-        for c in centres:
-            phase[np.linalg.norm(position - c, axis=1) <= r_inc] = p["inclusion_phase"]
+        for c in centres_inc:
+            d = position - c
+            if periodic:
+                d -= np.round(d / box.size) * box.size
+            phase[np.linalg.norm(d, axis=1) <= r_inc] = p["inclusion_phase"]
+        n_dispersed = len(centres_inc)
 
     volume = 4.0 / 3.0 * np.pi * radius ** 3
     touching = overlap > 0
-    phi = float(volume.sum() / region_volume)
-    # bulk solid fraction: spheres whose centre lies in the inner half (by linear size) of the
-    # region, over that region's volume, each sphere counted wholly (no wall layer)
-    inner = np.all(np.abs(position - (lo + hi) / 2) <= box / 4, axis=1)
-    phi_bulk = float(volume[inner].sum() / np.prod(box / 2)) if not periodic else phi
+    phi = float(volume.sum() / box.volume)
+    # bulk solid fraction: the domain without a layer of two mean diameters along its walls,
+    # spheres counted wholly by centre (the wall layer is looser: its fraction is the
+    # difference to solid_fraction)
+    phi_bulk = phi
+    if not periodic:
+        layer = 4.0 * float(radius.mean())
+        if box.shape == "box":
+            inside = np.all(np.abs(position - box.centre) <= box.size / 2 - layer, axis=1)
+            inner_volume = float(np.prod(box.size - 2 * layer))
+        elif box.shape == "cylinder":
+            rad = np.hypot(position[:, 0] - box.centre[0], position[:, 1] - box.centre[1])
+            inside = (rad <= box.radius - layer) & \
+                (np.abs(position[:, 2] - box.centre[2]) <= box.size[2] / 2 - layer)
+            inner_volume = math.pi * (box.radius - layer) ** 2 * (box.size[2] - 2 * layer)
+        else:
+            inside = np.linalg.norm(position - box.centre, axis=1) <= box.radius - layer
+            inner_volume = 4.0 / 3.0 * math.pi * (box.radius - layer) ** 3
+        phi_bulk = float(volume[inside].sum() / inner_volume) if inner_volume > 0 else phi
     attrs = {
         "generator": "yade_scripts/dense_packing.py", "seed": int(p["seed"]),
-        "shape": shape, "solid_fraction": phi, "solid_fraction_bulk": phi_bulk,
-        "solid_fraction_cell": phi_cell,
+        "shape": box.shape, "solid_fraction": phi, "solid_fraction_bulk": phi_bulk,
+        "domain_volume_m3": float(box.volume),
         "mean_coordination": float(2.0 * touching.sum() / n),
         "mean_coordination_with_gaps": float(2.0 * len(pair) / n),
-        "pressure_pa": float(pressure_cell), "confining_pressure_pa": p["confining_pressure_pa"],
-        "young_pa": p["young_pa"], "young_pa_used": p["young_pa"], "poisson": p["poisson"],
+        "pressure_pa": float(pressure), "confining_pressure_pa": p["confining_pressure_pa"],
+        "young_pa": p["young_pa"], "young_pa_used": p["young_pa"],
+        "young_pa_softened_start": stiffness_stages(p)[0], "poisson": p["poisson"],
         "density": p["density"], "density_scaling": p["density_scaling"],
         "friction": p["friction"], "compaction_friction": p["compaction_friction"],
         "unbalanced_force_ratio": float(unbalanced),
         "neighbour_criterion": "centre distance < (1 + gap_tolerance)(r_i + r_j)",
         "gap_tolerance": p["gap_tolerance"], "wall_gap_tolerance": p["wall_gap_tolerance"],
-        "contacts_force_from_formula": n_formula,
+        "wall_segments": p["wall_segments"],
+        "wall_contact_model": "YADE Hertz-Mindlin: a plane wall acts as a sphere of the same "
+                              "radius and material (R* = r/2), a facet as one of radius 2r",
+        "contacts_touching_without_yade_force": n_untracked,
         "radius_distribution": p["radius_distribution"],
+        "radius_mean_requested_m": p["radius_mean_m"],
+        "radius_growth_factor": float(radius.mean() / radii_drawn.mean()),
+        "inclusions_dispersed": n_dispersed,
+        "compression_seconds": compress_seconds,
         "yade_version": yade_version(), "wall_seconds": time.time() - t0,
     }
     out = os.path.join(p["output_dir"], "packing.h5")
     write_packing(out, position, radius, phase, pair, overlap, normal_force, branch, walls,
                   wall_particle, wall_index, wall_overlap, wall_force, lo, hi,
                   [periodic] * 3, attrs, contact_radius=contact_radius,
-                  wall_contact_radius=np.zeros(len(wall_particle)), yade_id=ids)
-    log(f"wrote {out}: {n} particles, phi {phi:.4f}, Z {attrs['mean_coordination']:.3f} "
-        f"(with gaps {attrs['mean_coordination_with_gaps']:.3f}), {time.time() - t0:.1f} s")
+                  wall_contact_radius=np.zeros(len(wall_particle)), yade_id=sphere_ids)
+    log(f"wrote {out}: {n} particles, phi {phi:.4f} (bulk {phi_bulk:.4f}), "
+        f"Z {attrs['mean_coordination']:.3f} (with gaps "
+        f"{attrs['mean_coordination_with_gaps']:.3f}), {time.time() - t0:.1f} s")
 
 
 def yade_version():

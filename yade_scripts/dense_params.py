@@ -4,8 +4,7 @@ PARAMS = {
     "shape": dict(kind="str", default="box", choices=["box", "periodic", "cylinder", "sphere"],
                   help="domain: box (6 plane walls), periodic cell, cylinder (beam along z), sphere"),
     "n_particles": dict(kind="int", default=2000, minimum=20,
-                        help="particles in the periodic cell that is compressed; a walled shape "
-                             "is cut from it and keeps about this many"),
+                        help="number of spheres"),
     "radius_mean_m": dict(kind="float", default=1e-3, minimum=1e-12, help="mean radius, m"),
     "radius_distribution": dict(kind="str", default="gaussian", choices=["uniform", "gaussian"],
                                 help="uniform in mean*(1 +- spread) or truncated Gaussian"),
@@ -17,10 +16,11 @@ PARAMS = {
                                      help="gaussian: radii kept within mean +- this many sigma "
                                           "(and > 0.1 mean)"),
     "aspect": dict(kind="floats", default=[1.0, 1.0, 1.0], minimum=0.05,
-                   help="relative side lengths x:y:z of the cell (cylinder: z is the axis, "
-                        "length/diameter = z/x)"),
+                   help="relative side lengths x:y:z of the box or cell (cylinder: z is the "
+                        "axis, length/diameter = z/x; sphere: unused)"),
     "confining_pressure_pa": dict(kind="float", default=1e5, minimum=1.0,
-                                  help="isotropic stress the periodic cell is compressed to, Pa"),
+                                  help="mean stress the packing is compressed to (radii grow in the fixed "
+                                       "domain until it is reached), Pa"),
     "compaction_friction": dict(kind="float", default=0.0, minimum=0.0,
                                 help="friction coefficient while compressing (0 gives the densest "
                                      "random packing, phi ~0.64; more gives a looser one)"),
@@ -32,8 +32,17 @@ PARAMS = {
     "density_scaling": dict(kind="float", default=1e4, minimum=1.0,
                             help="mass factor used while compressing (no gravity: the static end "
                                  "state does not depend on it; dt grows by its square root)"),
+    "softening_factor": dict(kind="float", default=1e3, minimum=1.0,
+                             help="compression starts with E = min(young_pa, this x confining "
+                                  "pressure) and raises E tenfold per stage to young_pa, "
+                                  "re-relaxing at each (speed only: the dump is at young_pa)"),
     "unbalanced_force_target": dict(kind="float", default=1e-3, minimum=1e-9,
                                     help="compression ends below this unbalanced-force ratio"),
+    "pressure_tolerance": dict(kind="float", default=0.02, minimum=1e-6,
+                              help="each stage ends when |mean stress / confining pressure - 1| "
+                                   "is below this (and the unbalanced force is small)"),
+    "wall_segments": dict(kind="int", default=48, minimum=8,
+                          help="facets around the cylinder mantle / the spherical container"),
     "gap_tolerance": dict(kind="float", default=0.0, minimum=0.0,
                           help="neighbour criterion: pairs with centre distance < "
                                "(1 + gap_tolerance)(r_i + r_j) are dumped as contacts (gaps "
