@@ -189,12 +189,29 @@ def stiffness_stages(p):
     return stages
 
 
+# YADE's Hertz-Mindlin gives a sphere-wall contact R* = r/2 (Ig2_Wall_Sphere: the wall acts as a
+# sphere of the same radius) and a sphere-facet contact R* = 2r/3 (the facet acts as a sphere of
+# radius 2r), where a sphere on a rigid-shaped plane has R* = r. The walls get a modulus E_w such
+# that YADE's contact modulus E_w E / ((1 - nu^2)(E_w + E)) times sqrt(R*_yade) equals
+# E / (2 (1 - nu^2)) sqrt(r): E_w / (E_w + E) = c / 2 with c = sqrt(r / R*_yade), i.e.
+# E_w = E c / (2 - c). Every dumped wall contact then follows Hertz with R* = r and the
+# particle pair's E* = E / (2 (1 - nu^2)) (a wall of the particles' own material).
+WALL_YOUNG_FACTOR = {kind: c / (2.0 - c) for kind, c in
+                     (("plane", math.sqrt(2.0)), ("facet", math.sqrt(1.5)))}
+
+
 def build_scene(p, centres, radii, box, young):
     """YADE scene: spheres, container walls (infinite planes; facet polygons for the cylinder
     mantle and the spherical container), frictionless Hertz-Mindlin contacts."""
     O.reset()
     mat = O.materials.append(FrictMat(
         young=young, poisson=p["poisson"], density=p["density"] * p["density_scaling"],
+        frictionAngle=math.atan(p["compaction_friction"])))
+    plane_mat = O.materials.append(FrictMat(
+        young=young * WALL_YOUNG_FACTOR["plane"], poisson=p["poisson"], density=p["density"],
+        frictionAngle=math.atan(p["compaction_friction"])))
+    facet_mat = O.materials.append(FrictMat(
+        young=young * WALL_YOUNG_FACTOR["facet"], poisson=p["poisson"], density=p["density"],
         frictionAngle=math.atan(p["compaction_friction"])))
     wall_of_body = {}
     if box.shape == "periodic":
@@ -204,16 +221,16 @@ def build_scene(p, centres, radii, box, young):
         if wall["kind"] == "plane":
             axis = int(np.argmax(np.abs(wall["normal"])))
             ids = [O.bodies.append(utils.wall(tuple(float(x) for x in wall["point"]), axis=axis,
-                                              material=mat))]
+                                              material=plane_mat))]
         elif wall["kind"] == "cylinder":
             ids = O.bodies.append(geom.facetCylinder(
                 center=tuple(float(x) for x in box.centre), radius=wall["radius"],
-                height=box.size[2], segmentsNumber=p["wall_segments"], wallMask=4, material=mat))
+                height=box.size[2], segmentsNumber=p["wall_segments"], wallMask=4, material=facet_mat))
         else:
             ids = O.bodies.append(geom.facetSphere(
                 center=tuple(float(x) for x in box.centre), radius=wall["radius"],
                 thetaResolution=p["wall_segments"], phiResolution=p["wall_segments"] // 2,
-                material=mat))
+                material=facet_mat))
         for i in ids:
             wall_of_body[i] = w
     collider = InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb()])
@@ -228,7 +245,7 @@ def build_scene(p, centres, radii, box, young):
                         [Law2_ScGeom_MindlinPhys_Mindlin()]),
         NewtonIntegrator(damping=0.5),
     ]
-    return mat, np.array(sphere_ids), wall_of_body, collider
+    return (mat, plane_mat, facet_mat), np.array(sphere_ids), wall_of_body, collider
 
 
 def mean_stress(box):
@@ -242,7 +259,7 @@ def compress(p, centres, radii, box):
     stage. The controller uses Hertz's law: overlaps scale as stress^(2/3), so the radius
     change that brings the stress to its target is ~ delta/R ((p_t/p)^(2/3) - 1)."""
     stages = stiffness_stages(p)
-    mat, sphere_ids, wall_of_body, collider = build_scene(p, centres, radii, box, stages[0])
+    mats, sphere_ids, wall_of_body, collider = build_scene(p, centres, radii, box, stages[0])
     p_target = p["confining_pressure_pa"]
     start = time.time()
     last = -10.0
@@ -256,7 +273,9 @@ def compress(p, centres, radii, box):
                 O.interactions.clear()
                 collider.doSort = True
             factor = young / young_now
-            O.materials[mat].young = young
+            for m, scale in zip(mats, (1.0, WALL_YOUNG_FACTOR["plane"],
+                                       WALL_YOUNG_FACTOR["facet"])):
+                O.materials[m].young = young * scale
             for i in O.interactions:
                 if i.isReal:
                     i.phys.kno *= factor
@@ -470,8 +489,8 @@ def main():
         "neighbour_criterion": "centre distance < (1 + gap_tolerance)(r_i + r_j)",
         "gap_tolerance": p["gap_tolerance"], "wall_gap_tolerance": p["wall_gap_tolerance"],
         "wall_segments": p["wall_segments"],
-        "wall_contact_model": "YADE Hertz-Mindlin: a plane wall acts as a sphere of the same "
-                              "radius and material (R* = r/2), a facet as one of radius 2r",
+        "wall_contact_model": "Hertz with R* = r and E* = E / (2 (1 - nu^2)): a flat wall of "
+                              "the particles' material (curved walls: facets, locally flat)",
         "contacts_touching_without_yade_force": n_untracked,
         "radius_distribution": p["radius_distribution"],
         "radius_mean_requested_m": p["radius_mean_m"],
