@@ -28,6 +28,7 @@ import math
 import os
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -221,3 +222,34 @@ def test_same_seed_same_packing_and_bad_parameter(tmp_path):
     assert "Traceback" not in bad.stderr
     assert not (tmp_path / "bad" / "packing.h5").exists()
     os.remove(tmp_path / "bad" / "params.json")
+
+
+def test_tdem_pack_builds_and_prints_statistics(tmp_path):
+    """`tdem pack` end to end: YADE runs, the file is validated and its statistics printed."""
+    scene = tmp_path / "tiny.toml"
+    scene.write_text('[pack]\ngenerator = "dense"\nshape = "periodic"\nn_particles = 100\n'
+                     'young_pa = 5e9\nunbalanced_force_target = 0.05\ngap_tolerance = 0.05\n'
+                     'seed = 5\n')
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "tdem.cli", "pack", str(scene), "--out",
+                           str(out)], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    p = read_packing(out / "packing.h5")
+    params = json.loads((out / "params.json").read_text())
+    assert params["n_particles"] == 100 and params["radius_mean_m"] == 1e-3   # defaults filled
+    assert "  yade | compress:" in proc.stdout                                  # YADE streamed
+    assert f"  particles            {p.n_particles}" in proc.stdout
+    assert f"  solid fraction       {p.attrs['solid_fraction']:.4f}" in proc.stdout
+    assert f"mean Z (with gaps)   {2 * len(p.pair) / p.n_particles:.3f}" in proc.stdout
+    assert (out / "yade.log").stat().st_size > 0
+
+
+def test_tdem_pack_bad_key_is_one_line(tmp_path):
+    scene = tmp_path / "bad.toml"
+    scene.write_text('[pack]\ngenerator = "dense"\nradius_spred = 0.1\n')
+    proc = subprocess.run([sys.executable, "-m", "tdem.cli", "pack", str(scene), "--out",
+                           str(tmp_path / "out")], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert f"{scene}: pack.radius_spred: unknown key" in proc.stderr
+    assert not (tmp_path / "out" / "packing.h5").exists()
