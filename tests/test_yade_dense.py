@@ -18,8 +18,11 @@ Tolerances, and why:
 - mean stress: the generator's pressure_tolerance (2 %);
 - solid fraction: periodic 0.62-0.68 (random close packing of frictionless polydisperse
   spheres); walled 150-sphere domains 0.50-0.66 (a wall layer of one diameter is ~40 % of such a
-  small domain and is looser); non-rattler coordination of the frictionless periodic packing
-  5.8-6.8 (isostatic: 6 at jamming, a little more under pressure);
+  small domain and is looser); non-rattler coordination of the periodic packing 5.5-6.8
+  (compacted frictionless, friction switched on only at rest at the end: isostatic, 6 at
+  jamming, a little more under pressure);
+- mean stress of the dumped normal forces (no tangential forces in the dump): within 5 % of
+  the pressure reached;
 - radius statistics: mean within 3 standard errors of the requested mean times the reported
   growth factor; std/mean within 0.05 of the truncated distribution's exact value.
 """
@@ -154,12 +157,15 @@ def test_solid_fraction_coordination_pressure(case):
         assert volume == pytest.approx(np.prod(p.domain_hi - p.domain_lo), rel=1e-12)
         touching = p.overlap > 0
         degree = np.bincount(p.pair[touching].ravel(), minlength=p.n_particles)
-        assert 5.8 <= degree[degree > 0].mean() <= 6.8
+        # frictionless compaction (friction switched on only at rest, at the end): isostatic
+        assert 5.5 <= degree[degree > 0].mean() <= 6.8
     else:
         assert 0.50 <= phi <= 0.66
     assert p.attrs["pressure_pa"] == pytest.approx(params.get("confining_pressure_pa", 1e5),
                                                    rel=0.02)
-    assert p.attrs["unbalanced_force_ratio"] < 1.5 * params["unbalanced_force_target"]
+    assert p.attrs["mean_stress_from_dumped_forces_pa"] == pytest.approx(p.attrs["pressure_pa"],
+                                                                          rel=0.05)
+    assert p.attrs["unbalanced_force_ratio"] < params["unbalanced_force_target"]
     assert p.attrs["young_pa"] == params["young_pa"]
     assert p.attrs["young_pa_softened_start"] < params["young_pa"]
 

@@ -25,7 +25,8 @@ PARAMS = {
                                 help="friction coefficient while compressing (0 gives the densest "
                                      "random packing, phi ~0.64; more gives a looser one)"),
     "friction": dict(kind="float", default=0.3, minimum=0.0,
-                     help="friction coefficient of the material recorded in the dump"),
+                     help="friction coefficient of the material: switched on for the final "
+                          "relaxation at the real modulus, recorded in the dump"),
     "young_pa": dict(kind="float", default=2.1e11, minimum=1.0, help="Young's modulus, Pa (real)"),
     "poisson": dict(kind="float", default=0.3, minimum=0.0, help="Poisson ratio"),
     "density": dict(kind="float", default=7800.0, minimum=1e-9, help="density, kg/m^3 (real)"),
@@ -36,6 +37,8 @@ PARAMS = {
                              help="compression starts with E = min(young_pa, this x confining "
                                   "pressure) and raises E tenfold per stage to young_pa, "
                                   "re-relaxing at each (speed only: the dump is at young_pa)"),
+    "damping": dict(kind="float", default=0.5, minimum=0.0,
+                    help="YADE's non-viscous (local) damping of the compression, 0..1"),
     "unbalanced_force_target": dict(kind="float", default=1e-3, minimum=1e-9,
                                     help="compression ends below this unbalanced-force ratio"),
     "pressure_tolerance": dict(kind="float", default=0.02, minimum=1e-6,
