@@ -1,0 +1,122 @@
+"""Speed against error of the three solvers on a YADE-made bed (not a test; docs/solvers.md
+quotes its output, bench/results/solvers_speed_error.md).
+
+    .venv/bin/python bench/bench_solvers.py [PACKING.h5] [--law pipe]
+
+The scene is the pipe-model paper's transient (003, sec. 4.4): bottom wall 500 K, plate 400 K,
+particles at 300 K, outputs at 0.2, 0.5, 1 and 2 s. Reference: Crank-Nicolson at dt = 1e-4 s
+(second order; its own error is estimated by the difference to dt = 2e-4 s, printed). Error =
+max over particles and output times of |T - T_ref|, in K (the temperature span is 200 K).
+Steady: the error of the steady field against a backward-Euler run to t = 1e7 s.
+Times are wall times of the solver alone (network assembled once, outside), best of 3.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from thermal_kernel.network import assemble  # noqa: E402
+from thermal_kernel.packing import read_packing  # noqa: E402
+from thermal_kernel.problem import build_problem  # noqa: E402
+from thermal_kernel.scene import load_scene  # noqa: E402
+from thermal_kernel.solvers.explicit import run_explicit  # noqa: E402
+from thermal_kernel.solvers.implicit import run_implicit  # noqa: E402
+from thermal_kernel.solvers.steady import solve_steady  # noqa: E402
+
+SCENE = """packing = "{packing}"
+law = "{law}"
+[material]
+conductivity = 205.0
+density = 2500.0
+heat_capacity = 900.0
+young_pa = 5e10
+poisson = 0.2
+[initial]
+temperature = 300.0
+[[boundary]]
+kind = "temperature"
+on = "zmin"
+value = 500.0
+[[boundary]]
+kind = "temperature"
+on = "plate"
+value = 400.0
+[solver]
+method = "steady"
+"""
+TIMES = [0.2, 0.5, 1.0, 2.0]
+
+
+def best_of(fn, repeat=3):
+    best, out = np.inf, None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("packing", nargs="?", default=str(ROOT / "tests/data/bed_small_4.05e+07Pa.h5"))
+    ap.add_argument("--law", default="pipe")
+    ap.add_argument("--out", default=str(ROOT / "bench/results/solvers_speed_error.md"))
+    args = ap.parse_args()
+    scene_path = Path("/tmp/bench_solvers_scene.toml")
+    scene_path.write_text(SCENE.format(packing=Path(args.packing).resolve(), law=args.law))
+    scene = load_scene(scene_path)
+    packing = read_packing(args.packing)
+    problem, _ = build_problem(scene, packing)
+    net = assemble(problem)
+    T0 = np.full(packing.n_particles, 300.0)
+    ref = run_implicit(net, T0, TIMES, dt=1e-4, theta=0.5).temperature_k
+    ref2 = run_implicit(net, T0, TIMES, dt=2e-4, theta=0.5).temperature_k
+    rows = []
+    run_explicit(net, T0, TIMES[:1], safety=0.9)          # numba compile outside the timing
+    first = run_explicit(net, T0, TIMES, safety=0.9)
+    dt_max = first.dt_max
+    for safety in (0.9, 0.5, 0.2, 0.1, 0.05, 0.02):
+        sec, r = best_of(lambda: run_explicit(net, T0, TIMES, safety=safety))
+        rows.append(("explicit", f"safety {safety} (dt {r.dt:.3g} s)", r.steps, sec,
+                     np.abs(r.temperature_k - ref).max()))
+    for theta, name in ((1.0, "backward Euler"), (0.5, "Crank-Nicolson")):
+        for dt in (0.1, 0.05, 0.02, 0.01, 0.005, 0.002):
+            sec, r = best_of(lambda: run_implicit(net, T0, TIMES, dt=dt, theta=theta))
+            rows.append((name, f"dt {dt:g} s", r.steps, sec, np.abs(r.temperature_k - ref).max()))
+    long = run_implicit(net, T0, [1e7], dt=1e5, theta=1.0).temperature_k[-1]
+    steady_sec, st = best_of(lambda: solve_steady(net, T0))
+    steady_err = np.abs(st.temperature_k[-1] - long).max()
+    lines = [
+        f"# Solvers: speed against error ({Path(args.packing).name}, law {args.law})",
+        "",
+        f"`.venv/bin/python bench/bench_solvers.py {args.packing} --law {args.law}`; "
+        f"{packing.n_particles} particles, {net.n_active_contacts} conducting contacts; "
+        f"exact explicit bound dt_max = {dt_max:.4g} s; load average at start "
+        f"{os.getloadavg()[0]:.2f} (2 cores).",
+        "",
+        f"Reference: Crank-Nicolson dt = 1e-4 s (its difference to dt = 2e-4 s: "
+        f"{np.abs(ref - ref2).max():.2e} K). Error: max |T - T_ref| over particles and the "
+        "output times 0.2, 0.5, 1, 2 s (span 200 K).",
+        "",
+        "| solver | step | steps | wall (s) | max error (K) |",
+        "|---|---|---|---|---|",
+    ]
+    for solver, step, steps, sec, err in rows:
+        lines.append(f"| {solver} | {step} | {steps} | {sec:.4f} | {err:.3g} |")
+    lines += ["", f"Steady solve: {steady_sec:.4f} s; max |T_steady - T(backward Euler, t = 1e7 s)| = "
+                  f"{steady_err:.2e} K.", ""]
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text("\n".join(lines))
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
