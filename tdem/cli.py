@@ -32,6 +32,30 @@ def _cmd_run(args):
     run_scene(scene, packing, quiet=args.quiet, threads=args.threads)
 
 
+def _cmd_calibrate(args):
+    from thermal_kernel.calibrate import calibrate_ct
+    from thermal_kernel.laws import LAWS
+    from thermal_kernel.packing import read_packing
+    from thermal_kernel.scene import load_scene
+    scene = load_scene(args.scene, known_laws=LAWS)
+    path = Path(args.packing) if args.packing else scene.packing
+    if path is None:
+        raise UserError(f"{args.scene}: packing: the scene builds its packing ([pack]); run "
+                        "`tdem pack` first and pass --packing FILE.h5")
+    packing = read_packing(path)
+    axes = "xyz" if args.axis == "all" else args.axis
+    results = [calibrate_ct(scene, packing, axis) for axis in axes]
+    print(f"tdem calibrate: {args.scene} on {path} ({packing.n_particles} particles), law haddad,"
+          f" lambda = {results[0].conductivity_w_mk:.6g} W/m/K (002, eq. 8-9: one steady solve)")
+    for r in results:
+        print(f"  axis {r.axis}: faces {r.n_hot} / {r.n_cold} particles, L = {r.length_m:.6g} m, "
+              f"A = {r.area_m2:.6g} m^2, Q = {r.heat_flow_w:.6g} W at C_t = {r.ct_used:.6g} "
+              f"(balance {r.balance:.1e}) -> lambda_e = {r.effective_w_mk:.6g} W/m/K, "
+              f"C_t = {r.ct:.6f}")
+    ct = sum(r.ct for r in results) / len(results)
+    print(f"  put this in the scene:\n[law_params]\nct = {ct:.6f}")
+
+
 def _cmd_laws(args):
     from thermal_kernel.laws import LAWS
     width = max(len(n) for n in LAWS)
@@ -99,6 +123,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--threads", type=int, default=None, help="numba threads (default: all)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("calibrate", help="calibrate the haddad law's C_t on a packing by a "
+                                         "steady flux test (002, eq. 8-9)")
+    p.add_argument("scene", help="scene TOML with law = \"haddad\" and its material")
+    p.add_argument("--packing", help="packing.h5 to use instead of the scene's")
+    p.add_argument("--axis", default="all", choices=["x", "y", "z", "all"],
+                   help="direction of the flux test (default: all three, averaged)")
+    p.set_defaults(func=_cmd_calibrate)
 
     p = sub.add_parser("laws", help="list the conductance laws with formula and reference")
     p.set_defaults(func=_cmd_laws)

@@ -1,0 +1,101 @@
+"""`tdem calibrate`: the Haddad C_t from one steady flux test (002, eq. 8-9).
+
+- Simple-cubic lattice of n_x x n_y x n_z touching spheres (pitch s), faces x held: the n_y n_z
+  columns are chains of n_x - 1 equal conductances H = lambda C_t pi (s/2)^2 / s, so
+  Q = n_y n_z H dT / (n_x - 1) and lambda_e = Q L / (A dT) in closed form; the calibrated
+  C_t = C_t lambda / lambda_e follows, all to round-off (1e-12).
+- On a YADE-made dump, a second steady solve with the calibrated C_t gives lambda_e = lambda to
+  1e-9 (linearity: the calibration needs no iteration).
+"""
+import dataclasses
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from thermal_kernel.calibrate import calibrate_ct
+from thermal_kernel.lattice import simple_cubic_packing
+from thermal_kernel.laws import LAWS
+from thermal_kernel.packing import read_packing, write_packing
+from thermal_kernel.scene import SceneError, load_scene
+
+DATA = Path(__file__).resolve().parent / "data"
+SCENE = '''packing = "{packing}"
+law = "{law}"
+[law_params]
+{params}
+[material]
+conductivity = 33.0
+density = 7800.0
+heat_capacity = 460.0
+[initial]
+temperature = 300.0
+[solver]
+method = "steady"
+'''
+
+
+def scene_file(tmp_path, packing, law="haddad", params="ct = 0.806"):
+    path = tmp_path / "scene.toml"
+    path.write_text(SCENE.format(packing=packing, law=law, params=params if law == "haddad"
+                                 else ""))
+    return path
+
+
+@pytest.mark.parametrize("shape", [(6, 4, 4), (3, 5, 7)])
+def test_simple_cubic_lattice_closed_form(tmp_path, shape):
+    spacing = 2e-3
+    write_packing(tmp_path / "sc.h5", simple_cubic_packing(shape, spacing_m=spacing))
+    packing = read_packing(tmp_path / "sc.h5")
+    scene = load_scene(scene_file(tmp_path, tmp_path / "sc.h5"), known_laws=LAWS)
+    nx, ny, nz = shape
+    ext = packing.domain_hi - packing.domain_lo
+    r = calibrate_ct(scene, packing, "x", t_hot=310.0, t_cold=300.0)
+    h = 33.0 * 0.806 * math.pi * (spacing / 2) ** 2 / spacing          # 002, eq. 1-7
+    q = ny * nz * h * 10.0 / (nx - 1)
+    assert r.n_hot == ny * nz and r.n_cold == ny * nz
+    assert r.heat_flow_w == pytest.approx(q, rel=1e-12)
+    assert r.effective_w_mk == pytest.approx(q * ext[0] / (ext[1] * ext[2] * 10.0), rel=1e-12)
+    assert r.ct == pytest.approx(0.806 * 33.0 / r.effective_w_mk, rel=1e-12)
+    assert r.balance < 1e-12
+
+
+@pytest.mark.parametrize("dump, axis", [("dense_box.h5", "y"), ("dense_cylinder.h5", "z")])
+def test_calibrated_ct_reproduces_the_conductivity_on_a_yade_dump(tmp_path, dump, axis):
+    packing = read_packing(DATA / dump)
+    scene = load_scene(scene_file(tmp_path, DATA / dump), known_laws=LAWS)
+    first = calibrate_ct(scene, packing, axis)
+    if axis == "z":     # cylinder along z: the cross-section is the circle, not the box face
+        assert first.area_m2 == pytest.approx(math.pi * packing.wall_radius[
+            packing.wall_name.index("cylinder")] ** 2, rel=1e-12)
+    assert 0.3 < first.ct < 1.5
+    assert first.balance < 1e-9
+    again = calibrate_ct(dataclasses.replace(scene, law_params={"ct": first.ct}), packing, axis)
+    assert again.effective_w_mk == pytest.approx(33.0, rel=1e-9)
+    assert again.ct == pytest.approx(first.ct, rel=1e-9)
+
+
+def test_periodic_axis_is_refused(tmp_path):
+    scene = load_scene(scene_file(tmp_path, DATA / "dense_periodic.h5"), known_laws=LAWS)
+    with pytest.raises(SceneError, match="periodic along x"):
+        calibrate_ct(scene, read_packing(DATA / "dense_periodic.h5"), "x")
+
+
+def test_wrong_law_and_cli(tmp_path):
+    path = scene_file(tmp_path, DATA / "dense_box.h5", law="terreros")
+    with pytest.raises(SceneError, match="law: tdem calibrate calibrates the haddad"):
+        calibrate_ct(load_scene(path, known_laws=LAWS), read_packing(DATA / "dense_box.h5"))
+    proc = subprocess.run([sys.executable, "-m", "tdem.cli", "calibrate", str(path)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1
+    assert "Traceback" not in proc.stderr and "law" in proc.stderr
+    good = scene_file(tmp_path, DATA / "dense_box.h5")
+    proc = subprocess.run([sys.executable, "-m", "tdem.cli", "calibrate", str(good),
+                           "--axis", "x"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    ct = float(proc.stdout.strip().splitlines()[-1].split("=")[1])
+    expected = calibrate_ct(load_scene(good, known_laws=LAWS),
+                            read_packing(DATA / "dense_box.h5"), "x").ct
+    assert ct == pytest.approx(expected, abs=1e-6)

@@ -1,0 +1,93 @@
+"""Calibration of the Haddad transmission coefficient C_t on the packing itself (002, sec. 2.3).
+
+Haddad 2021 (002, eq. 8-9) calibrates C_t so that the packing's effective conductivity equals the
+material's: a steady flux test along one axis gives lambda^e = phi L / dT (eq. 8), and
+C_t / C_t^arb = lambda / lambda^e (eq. 9). Every Haddad conductance is proportional to C_t
+(H = lambda C_t pi R_m^2 / d, eq. 1-7) and the test has only Dirichlet faces, so the steady
+heat flow Q - hence lambda^e - is proportional to C_t: ONE sparse steady solve at any C_t^arb
+gives the calibrated value exactly, no iteration and no time marching.
+
+Test: the two faces normal to ``axis`` held at T_hot and T_cold (their particles: the wall
+contacts of a wall of that name, or the spheres reaching the domain face); lambda^e = Q L / (A dT)
+with L the domain length along the axis and A the cross-section (the box face, or pi R^2 for a
+cylinder wall along the axis). Heterogeneous packings: lambda is the conductivity of phase 0 (the
+matrix), which is what the calibration is for.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .network import assemble
+from .packing import Packing
+from .problem import boundary_particles, build_problem
+from .scene import Boundary, Scene, SceneError, SolverConfig
+from .solvers.steady import solve_steady
+
+AXES = "xyz"
+
+
+@dataclass(frozen=True)
+class Calibration:
+    ct: float                     # calibrated C_t, -
+    ct_used: float                # C_t of the solve (C_t^arb), -
+    conductivity_w_mk: float      # target lambda (phase 0)
+    effective_w_mk: float         # lambda^e at ct_used
+    heat_flow_w: float            # Q through the hot face at ct_used
+    balance: float                # |Q_hot + Q_cold| / Q_hot (steady balance)
+    length_m: float
+    area_m2: float
+    axis: str
+    n_hot: int
+    n_cold: int
+
+
+def cross_section(packing: Packing, axis: int) -> float:
+    """Area normal to ``axis``: pi R^2 for a cylinder wall along the axis, else the box face."""
+    for kind, normal, radius in zip(packing.wall_kind, packing.wall_normal, packing.wall_radius):
+        if kind == "cylinder" and abs(abs(normal[axis]) - 1.0) < 1e-9:
+            return math.pi * float(radius) ** 2
+    extent = np.delete(packing.domain_hi - packing.domain_lo, axis)
+    return float(extent[0] * extent[1])
+
+
+def calibrate_ct(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.0,
+                 t_cold: float = 0.0) -> Calibration:
+    """Calibrated C_t of ``scene`` (law haddad) on ``packing`` by one steady solve."""
+    if scene.law != "haddad":
+        raise SceneError(f"{scene.path}: law: tdem calibrate calibrates the haddad law's C_t, "
+                         f"the scene uses {scene.law!r}")
+    if axis not in AXES:
+        raise SceneError(f"{scene.path}: --axis: expected x, y or z, got {axis!r}")
+    k = AXES.index(axis)
+    if packing.periodic[k]:
+        raise SceneError(f"{scene.path}: --axis: {packing.path} is periodic along {axis}: the "
+                         "flux test needs two opposite faces (a box, a cylinder along its axis)")
+    faces = (f"{axis}min", f"{axis}max")
+    test = dataclasses.replace(
+        scene,
+        boundaries=(Boundary(kind="temperature", name="hot", on=faces[0], value=t_hot),
+                    Boundary(kind="temperature", name="cold", on=faces[1], value=t_cold)),
+        solver=SolverConfig(method="steady"))
+    problem, info = build_problem(test, packing)
+    ct_used = float(info["law_params"]["ct"])
+    net = assemble(problem)
+    result = solve_steady(net, np.full(packing.n_particles, 0.5 * (t_hot + t_cold)))
+    q_hot, q_cold = (float(q) for q in result.boundary_heat_flow_w[-1])
+    if not q_hot > 0:
+        raise SceneError(f"{scene.path}: boundary: no heat flows from {faces[0]} to {faces[1]} "
+                         f"in {packing.path} (the two faces are not connected by contacts)")
+    length = float(packing.domain_hi[k] - packing.domain_lo[k])
+    area = cross_section(packing, k)
+    effective = q_hot * length / (area * (t_hot - t_cold))          # 002, eq. 8
+    conductivity = scene.material(0).conductivity
+    n_hot = len(boundary_particles(test, packing, faces[0], "boundary[0]"))
+    n_cold = len(boundary_particles(test, packing, faces[1], "boundary[1]"))
+    return Calibration(
+        ct=ct_used * conductivity / effective,                        # 002, eq. 9
+        ct_used=ct_used, conductivity_w_mk=conductivity, effective_w_mk=effective,
+        heat_flow_w=q_hot, balance=abs(q_hot + q_cold) / q_hot, length_m=length, area_m2=area,
+        axis=axis, n_hot=n_hot, n_cold=n_cold)
