@@ -1,0 +1,174 @@
+"""Post-processing of one thermal run of a bed between two held walls (003, sec. 4.3-4.4).
+
+    post_run(thermal_h5, n_bins=10) -> dict
+
+From ``thermal.h5`` (its scene and packing are named in its attributes):
+- binned profiles along the axis joining the two temperature boundaries (partial volumes);
+- gamma = k_eff / k_p fitted to all profiles against the slab solution (003 App. A), with its
+  95 % interval and the rms residual; the bed's volumetric heat capacity is phi rho c_p (the heat
+  capacity of the bed per unit volume: the particles' capacity over the bed volume);
+- gamma from the steady solve: k_eff = Q L / (A dT) with Q the heat through the hot wall
+  (heat in = heat out checked), A the bed's cross-section;
+- tau of the middle section (003 eq. 41), exactly from the network (one sparse solve) and from
+  the time series (with the steady temperature from the steady solve, not the last snapshot);
+- mean-field predictions gamma_mf = phi Z H_mean / (2 pi R_mean k_p) for the bob, argento and
+  pipe laws on the same contacts (forces from the dump, modulus from the scene);
+- figure ``post/profiles.png`` (+ ``profiles.csv``) and ``post/summary.json``.
+Rattlers (no conducting contact) keep their initial temperature: they are left out of the
+profiles (their number is reported).
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from thermal_kernel.laws import LAWS
+from thermal_kernel.network import assemble
+from thermal_kernel.packing import packing_statistics, read_packing
+from thermal_kernel.problem import FACES, build_problem
+from thermal_kernel.scene import SceneError, load_scene
+from thermal_kernel.solvers.steady import solve_steady
+
+from .analytic import slab_mean_temperature, slab_temperature
+from .fits import characteristic_time_network, characteristic_time_series, fit_gamma
+from .profiles import binned_profile, partial_volumes
+
+MEAN_FIELD_LAWS = ("bob", "argento", "pipe")
+
+
+def _wall_position(packing, on):
+    """(axis, coordinate) of a wall of the packing or a domain face."""
+    if on in packing.wall_name:
+        w = packing.wall_name.index(on)
+        if packing.wall_kind[w] != "plane":
+            raise ValueError(f"{packing.path}: walls/kind: {on} is not a plane")
+        axis = int(np.argmax(np.abs(packing.wall_normal[w])))
+        return axis, float(packing.wall_point[w][axis])
+    axis, side = FACES[on]
+    return axis, float((packing.domain_lo if side < 0 else packing.domain_hi)[axis])
+
+
+def cross_section_m2(packing, axis):
+    for kind, normal, radius in zip(packing.wall_kind, packing.wall_normal, packing.wall_radius):
+        if kind == "cylinder" and abs(abs(normal[axis]) - 1) < 1e-9:
+            return math.pi * float(radius) ** 2
+    ext = np.delete(packing.domain_hi - packing.domain_lo, axis)
+    return float(ext[0] * ext[1])
+
+
+def post_run(thermal_h5, n_bins: int = 10, plots: bool = True) -> dict:
+    thermal_h5 = Path(thermal_h5)
+    with h5py.File(thermal_h5, "r") as f:
+        times = f["time"][()]
+        temperature = f["temperature"][()]
+        initial = f["initial_temperature"][()]
+        attrs = dict(f.attrs)
+    scene = load_scene(attrs["scene_path"], known_laws=LAWS)
+    packing = read_packing(attrs["packing"])
+    held = [b for b in scene.boundaries if b.kind == "temperature"]
+    if len(held) != 2:
+        raise SceneError(f"{thermal_h5}: scene: the profile fit needs exactly two temperature "
+                         f"boundaries (bottom and top), found {len(held)}")
+    (ax0, x0), (ax1, x1) = (_wall_position(packing, b.on) for b in held)
+    if ax0 != ax1:
+        raise SceneError(f"{thermal_h5}: scene: the two temperature boundaries are not opposite")
+    bottom, top = (held[0], held[1]) if x0 < x1 else (held[1], held[0])
+    axis, z0, z1 = ax0, min(x0, x1), max(x0, x1)
+    length = z1 - z0
+    t_initial = scene.initial_temperature
+    kp = scene.material(0).conductivity
+    mat = scene.material(0)
+    stats = packing_statistics(packing)
+    phi = float(packing.attrs["solid_fraction"])
+    rho_c_bed = phi * mat.density * mat.heat_capacity
+
+    problem, _ = build_problem(dataclasses.replace(scene), packing)
+    net = assemble(problem)
+    conducting = np.asarray(net.degree_w_k > 0) | np.asarray(net.held)
+    z = packing.position[:, axis] - z0
+    edges = np.linspace(0.0, length, n_bins + 1)
+    profiles = binned_profile(z, packing.radius, temperature, edges, weights=conducting)
+    fit = fit_gamma(times, edges, profiles, conductivity_w_mk=kp,
+                    volumetric_capacity_j_m3k=rho_c_bed, t_bottom=bottom.value,
+                    t_top=top.value, t_initial=t_initial)
+
+    steady = solve_steady(net, np.asarray(initial))
+    t_steady = steady.temperature_k[-1]
+    flows = steady.boundary_heat_flow_w[-1]
+    names = list(steady.boundary_names)
+    q_bottom = float(flows[names.index(bottom.name)])
+    q_top = float(flows[names.index(top.name)])
+    balance = abs(q_bottom + q_top) / max(abs(q_bottom), 1e-300)
+    area = cross_section_m2(packing, axis)
+    k_steady = abs(q_bottom) * length / (area * abs(bottom.value - top.value))
+    # middle section: the bin(s) around mid-height
+    mid = np.array([0.45 * length, 0.55 * length])
+    w_mid = partial_volumes(z, packing.radius, mid)[:, 0] * conducting
+    tau_net = characteristic_time_network(net, t_steady, initial, w_mid)
+    section = (temperature @ w_mid) / w_mid.sum()
+    tau_series = characteristic_time_series(times, section, float(t_steady @ w_mid / w_mid.sum()),
+                                            float(initial @ w_mid / w_mid.sum()))
+
+    mean_field = {}
+    touching = packing.overlap > 0
+    r_mean = float(packing.radius.mean())
+    z_mean = 2.0 * touching.sum() / packing.n_particles
+    for law in MEAN_FIELD_LAWS:
+        prob, _ = build_problem(dataclasses.replace(scene, law=law), packing)
+        h_mean = float(np.mean(prob.conductance_w_k[touching])) if touching.any() else 0.0
+        mean_field[law] = phi * z_mean * h_mean / (2 * math.pi * r_mean * kp)
+
+    out_dir = thermal_h5.parent / "post"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summary = {
+        "thermal": str(thermal_h5), "packing": str(packing.path), "law": attrs.get("law"),
+        "method": attrs.get("method"), "n_particles": int(packing.n_particles),
+        "pressure_pa": float(packing.attrs.get("pressure_pa", float("nan"))),
+        "solid_fraction": phi, "mean_coordination": float(z_mean),
+        "mean_normal_force_n": float(stats["mean_normal_force_n"]),
+        "rattlers": int(np.count_nonzero(~conducting)),
+        "gamma": fit.gamma, "gamma_ci95": list(fit.ci95), "gamma_residual_rms_k": fit.residual_rms_k,
+        "gamma_steady": k_steady / kp, "steady_balance": balance,
+        "tau_s": tau_net, "tau_series_s": float(tau_series),
+        "gamma_mean_field": mean_field, "length_m": length, "n_bins": n_bins,
+        "run_wall_seconds": float(attrs.get("wall_seconds", float("nan"))),
+    }
+    tmp = out_dir / "summary.json.tmp"
+    tmp.write_text(json.dumps(summary, indent=1))
+    os.replace(tmp, out_dir / "summary.json")
+    if plots:
+        _plot_profiles(out_dir, times, edges, profiles, fit, length, bottom.value, top.value,
+                       t_initial, summary)
+    return summary
+
+
+def _plot_profiles(out_dir, times, edges, profiles, fit, length, t_b, t_t, t_i, summary):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    fine = np.linspace(0, length, 200)
+    rows = ["time_s,z_m,tdem_k,analytic_k"]
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    for k, t in enumerate(times):
+        model = slab_mean_temperature(edges[:-1], edges[1:], t, length, fit.diffusivity_m2_s,
+                                      t_b, t_t, t_i)
+        line = slab_temperature(fine, t, length, fit.diffusivity_m2_s, t_b, t_t, t_i)
+        ax.plot(centres * 1e3, profiles[k], "o", ms=4, color=f"C{k}", label=f"t = {t:g} s")
+        ax.plot(fine * 1e3, line, "--", color=f"C{k}")
+        rows += [f"{t},{c},{p},{m}" for c, p, m in zip(centres, profiles[k], model)]
+    ax.set_xlabel("height above the bottom wall (mm)")
+    ax.set_ylabel("temperature (K)")
+    ax.set_title(f"{summary['law']}, p = {summary['pressure_pa'] / 1e5:.3g} bar: "
+                 f"gamma = {fit.gamma:.4g} (dots tdem, dashes slab solution)", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out_dir / "profiles.png", dpi=110)
+    plt.close(fig)
+    (out_dir / "profiles.csv").write_text("\n".join(rows) + "\n")
