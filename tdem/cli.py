@@ -67,10 +67,37 @@ def _cmd_laws(args):
 
 
 def _cmd_demo(args):
-    from .pack import build
+    from .campaign import run_campaign
     scene = RUNS / "demo.toml"
-    print(f"tdem demo: the default scene {scene}")
-    build(scene, Path(args.out) if args.out else None, threads=args.threads, quiet=args.quiet)
+    print(f"tdem demo: the default campaign {scene}", flush=True)
+    run_campaign(scene, Path(args.out) if args.out else None, threads=args.threads,
+                 quiet=args.quiet)
+
+
+def _cmd_campaign(args):
+    from .campaign import run_campaign
+    run_campaign(Path(args.campaign), Path(args.out) if args.out else None,
+                 threads=args.threads, quiet=args.quiet)
+
+
+def _cmd_post(args):
+    from tdem_post.post_run import post_run
+    path = Path(args.run)
+    thermal = path / "thermal.h5" if path.is_dir() else path
+    if not thermal.exists():
+        raise UserError(f"{thermal}: file not found (give a run folder or its thermal.h5)")
+    s = post_run(thermal, n_bins=args.bins)
+    print(f"tdem post: {thermal} ({s['law']}, {s['n_particles']} particles, "
+          f"p = {s['pressure_pa']:.4g} Pa)")
+    print(f"  gamma = k_eff/k_p  {s['gamma']:.5g}   95 % CI [{s['gamma_ci95'][0]:.5g}, "
+          f"{s['gamma_ci95'][1]:.5g}], profile residual {s['gamma_residual_rms_k']:.3g} K")
+    print(f"  gamma (steady ETC) {s['gamma_steady']:.5g}   heat in/out balance "
+          f"{s['steady_balance']:.1e}")
+    print("  gamma mean field   " + ", ".join(f"{k} {v:.4g}" for k, v in
+                                              s["gamma_mean_field"].items()))
+    print(f"  tau (middle)       {s['tau_s']:.5g} s (from the time series: "
+          f"{s['tau_series_s']:.5g} s)")
+    print(f"  wrote {thermal.parent / 'post'}/ (profiles.png, profiles.csv, summary.json)")
 
 
 def _cmd_info(args):
@@ -140,6 +167,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--threads", type=int, default=2, help="YADE threads, default 2")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cmd_demo)
+
+    p = sub.add_parser("campaign", help="pressure campaign: packings, thermal runs, post, "
+                                        "report (resumes where it stopped)")
+    p.add_argument("campaign", help="campaign TOML ([pack] + [campaign] + thermal scene)")
+    p.add_argument("--out", help="output folder (default: runs/out/<campaign name>/)")
+    p.add_argument("--threads", type=int, default=2, help="YADE and numba threads, default 2")
+    p.add_argument("--quiet", action="store_true", help="do not stream YADE's output")
+    p.set_defaults(func=_cmd_campaign)
+
+    p = sub.add_parser("post", help="post-process a run: profiles, gamma, tau, mean field")
+    p.add_argument("run", help="run folder (with thermal.h5) or a thermal.h5")
+    p.add_argument("--bins", type=int, default=10, help="profile bins, default 10")
+    p.set_defaults(func=_cmd_post)
 
     p = sub.add_parser("info", help="validate a packing.h5 and print its statistics")
     p.add_argument("packing")
