@@ -32,5 +32,16 @@ $(VENV)/.installed: pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@
 
+# Benchmarks (not tests): they measure and write bench/results/*, which docs/solvers.md quotes.
+bench: deps
+	$(BIN)/python bench/bench_explicit.py > bench/results/explicit_layout.txt
+	$(BIN)/python bench/bench_explicit.py --memory 8e6 >> bench/results/explicit_layout.txt
+	$(BIN)/python bench/bench_solvers.py
+
+# Long validation: the 7,500-sphere pressure campaign of the pipe-model paper (YADE ~15 min,
+# thermal ~3 min); its report is quoted in docs/campaign.md.
+validate: deps
+	$(BIN)/tdem campaign runs/campaign_7500.toml
+
 clean:
 	rm -rf $(VENV) runs/out .pytest_cache
