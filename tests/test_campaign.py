@@ -16,6 +16,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from bed_scene import BED_THERMAL
 from tdem.yade import yade_environment
 
 pytestmark = [pytest.mark.yade,
@@ -33,25 +34,7 @@ cylinder_radius_m = 0.009
 pressures_pa = [2.8e4, 1.6e6]
 seed = 7
 
-[material]
-conductivity = 205.0
-density = 2500.0
-heat_capacity = 900.0
-young_pa = 5e10
-poisson = 0.2
-
-[initial]
-temperature = 300.0
-
-[[boundary]]
-kind = "temperature"
-on = "zmin"
-value = 500.0
-
-[[boundary]]
-kind = "temperature"
-on = "plate"
-value = 400.0
+''' + BED_THERMAL + '''
 
 [solver]
 method = "implicit"

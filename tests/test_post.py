@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bed_scene import BED_THERMAL
 from tdem.cli import main
 from tdem_post.analytic import slab_characteristic_time, slab_mean_temperature
 from tdem_post.fits import (characteristic_time_network, characteristic_time_series, fit_gamma,
@@ -137,23 +138,7 @@ def test_post_run_on_a_yade_bed(tmp_path):
     scene = tmp_path / "bed.toml"
     scene.write_text(f'''packing = "{DATA / 'bed_small_4.05e+07Pa.h5'}"
 law = "pipe"
-[material]
-conductivity = 205.0
-density = 2500.0
-heat_capacity = 900.0
-young_pa = 5e10
-poisson = 0.2
-[initial]
-temperature = 300.0
-[[boundary]]
-kind = "temperature"
-on = "zmin"
-value = 500.0
-[[boundary]]
-kind = "temperature"
-on = "plate"
-value = 400.0
-[solver]
+{BED_THERMAL}[solver]
 method = "implicit"
 theta = 0.5
 dt = 0.1

@@ -20,6 +20,7 @@ import h5py
 import numpy as np
 import pytest
 
+from bed_scene import BED_THERMAL
 from tdem.cli import main
 from thermal_kernel.laws import LAWS
 
@@ -36,23 +37,7 @@ def bed_scene(law, method, extra_solver="", output="thermal.h5"):
         "end_time = 2.0\noutput_times = [0.5, 1.0, 2.0]\n" + METHODS[method])
     return f'''packing = "{BED}"
 law = "{law}"
-[material]
-conductivity = 205.0
-density = 2500.0
-heat_capacity = 900.0
-young_pa = 5e10
-poisson = 0.2
-[initial]
-temperature = 300.0
-[[boundary]]
-kind = "temperature"
-on = "zmin"
-value = 500.0
-[[boundary]]
-kind = "temperature"
-on = "plate"
-value = 400.0
-[solver]
+{BED_THERMAL}[solver]
 {solver}{extra_solver}
 [output]
 path = "{output}"
