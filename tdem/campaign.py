@@ -109,7 +109,10 @@ def build_packings(campaign_path: Path, out_dir: Path, *, threads: int, quiet: b
     return expected
 
 
-def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, quiet: bool = False) -> dict:
+def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads: int = 1,
+                 quiet: bool = False) -> dict:
+    """Packings (YADE, ``yade_threads``; 1 keeps them bit-reproducible for a seed: YADE's
+    parallel force summation order varies between runs), then thermal cases (numba, ``threads``)."""
     from thermal_kernel.laws import LAWS
     from thermal_kernel.run import run_scene
     from thermal_kernel.scene import load_scene
@@ -121,7 +124,7 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, quiet: bool =
     out_dir = Path(out_dir) if out_dir else default_out_dir(campaign_path)
     out_dir.mkdir(parents=True, exist_ok=True)
     start = time.time()
-    packings = build_packings(campaign_path, out_dir, threads=threads, quiet=quiet)
+    packings = build_packings(campaign_path, out_dir, threads=yade_threads, quiet=quiet)
     cases = [(p, law) for p in packings for law in conf["laws"]]
     rows = []
     for k, (packing, law) in enumerate(cases, 1):

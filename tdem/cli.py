@@ -71,13 +71,13 @@ def _cmd_demo(args):
     scene = RUNS / "demo.toml"
     print(f"tdem demo: the default campaign {scene}", flush=True)
     run_campaign(scene, Path(args.out) if args.out else None, threads=args.threads,
-                 quiet=args.quiet)
+                 yade_threads=args.yade_threads, quiet=args.quiet)
 
 
 def _cmd_campaign(args):
     from .campaign import run_campaign
     run_campaign(Path(args.campaign), Path(args.out) if args.out else None,
-                 threads=args.threads, quiet=args.quiet)
+                 threads=args.threads, yade_threads=args.yade_threads, quiet=args.quiet)
 
 
 def _cmd_post(args):
@@ -164,7 +164,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="run the default scene (runs/demo.toml) end to end")
     p.add_argument("--out", help="output folder (default: runs/out/demo/)")
-    p.add_argument("--threads", type=int, default=2, help="YADE threads, default 2")
+    p.add_argument("--threads", type=int, default=2, help="numba threads, default 2")
+    p.add_argument("--yade-threads", type=int, default=1,
+                   help="YADE threads (-j), default 1: reproducible packings for a seed")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cmd_demo)
 
@@ -172,7 +174,9 @@ def build_parser() -> argparse.ArgumentParser:
                                         "report (resumes where it stopped)")
     p.add_argument("campaign", help="campaign TOML ([pack] + [campaign] + thermal scene)")
     p.add_argument("--out", help="output folder (default: runs/out/<campaign name>/)")
-    p.add_argument("--threads", type=int, default=2, help="YADE and numba threads, default 2")
+    p.add_argument("--threads", type=int, default=2, help="numba threads, default 2")
+    p.add_argument("--yade-threads", type=int, default=1,
+                   help="YADE threads (-j), default 1: reproducible packings for a seed")
     p.add_argument("--quiet", action="store_true", help="do not stream YADE's output")
     p.set_defaults(func=_cmd_campaign)
 

@@ -3,7 +3,8 @@ bob), and its resumption after an interruption.
 
 Asserted: one results.csv row per pressure x law with finite, positive gamma inside its interval
 and close to the steady ETC (25 %: the profile fit and the steady heat flow measure the same
-conductivity in two ways); gamma grows with pressure (contact radii grow as F^(1/3)); pipe > bob
+conductivity in two ways; in this 200-sphere bed only ~6 of the ~12 top-layer spheres touch the
+plate, and that constriction lowers the steady value by ~20 %, against 0-5 % on the 7,500 bed); gamma grows with pressure (contact radii grow as F^(1/3)); pipe > bob
 (003 eq. 40 vs 34: 1.033 for equal spheres); the report names both laws; a second run reuses the
 packings and every case; after a case's results are deleted (an interrupted run), only that case
 is recomputed and the table is the same.
