@@ -3,7 +3,8 @@
     post_run(thermal_h5, n_bins=10) -> dict
 
 From ``thermal.h5`` (its scene and packing are named in its attributes):
-- binned profiles along the axis joining the two temperature boundaries (partial volumes);
+- binned profiles along the axis joining the two temperature boundaries (partial volumes),
+  between the mean centre planes of the two held sets of spheres (the slab length L);
 - gamma = k_eff / k_p fitted to all profiles against the slab solution (003 App. A), with its
   95 % interval and the rms residual; the bed's volumetric heat capacity is phi rho c_p (the heat
   capacity of the bed per unit volume: the particles' capacity over the bed volume);
@@ -31,7 +32,7 @@ import numpy as np
 from thermal_kernel.laws import LAWS
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import packing_statistics, read_packing
-from thermal_kernel.problem import FACES, build_problem
+from thermal_kernel.problem import FACES, boundary_particles, build_problem
 from thermal_kernel.scene import SceneError, load_scene
 from thermal_kernel.solvers.steady import solve_steady
 
@@ -79,7 +80,14 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True) -> dict:
     if ax0 != ax1:
         raise SceneError(f"{thermal_h5}: scene: the two temperature boundaries are not opposite")
     bottom, top = (held[0], held[1]) if x0 < x1 else (held[1], held[0])
-    axis, z0, z1 = ax0, min(x0, x1), max(x0, x1)
+    axis = ax0
+    wall_gap = max(x0, x1) - min(x0, x1)
+    # The Dirichlet condition acts on the held spheres, whose centres lie about one radius
+    # inside the walls: the slab of the analytical solution spans the mean centre planes of the
+    # two held sets (on a simple-cubic lattice this is exactly the finite-difference slab).
+    z0, z1 = (float(np.mean(packing.position[boundary_particles(scene, packing, b.on,
+                                                                   "boundary")][:, axis]))
+              for b in (bottom, top))
     length = z1 - z0
     t_initial = scene.initial_temperature
     kp = scene.material(0).conductivity
@@ -136,7 +144,8 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True) -> dict:
         "gamma": fit.gamma, "gamma_ci95": list(fit.ci95), "gamma_residual_rms_k": fit.residual_rms_k,
         "gamma_steady": k_steady / kp, "steady_balance": balance,
         "tau_s": tau_net, "tau_series_s": float(tau_series),
-        "gamma_mean_field": mean_field, "length_m": length, "n_bins": n_bins,
+        "gamma_mean_field": mean_field, "length_m": length, "wall_gap_m": wall_gap,
+        "n_bins": n_bins,
         "run_wall_seconds": float(attrs.get("wall_seconds", float("nan"))),
     }
     tmp = out_dir / "summary.json.tmp"
@@ -163,7 +172,7 @@ def _plot_profiles(out_dir, times, edges, profiles, fit, length, t_b, t_t, t_i, 
         ax.plot(centres * 1e3, profiles[k], "o", ms=4, color=f"C{k}", label=f"t = {t:g} s")
         ax.plot(fine * 1e3, line, "--", color=f"C{k}")
         rows += [f"{t},{c},{p},{m}" for c, p, m in zip(centres, profiles[k], model)]
-    ax.set_xlabel("height above the bottom wall (mm)")
+    ax.set_xlabel("height above the bottom held spheres (mm)")
     ax.set_ylabel("temperature (K)")
     ax.set_title(f"{summary['law']}, p = {summary['pressure_pa'] / 1e5:.3g} bar: "
                  f"gamma = {fit.gamma:.4g} (dots tdem, dashes slab solution)", fontsize=9)

@@ -159,3 +159,47 @@ output_times = [2.0, 5.0, 10.0, 20.0, 40.0, 80.0, 150.0, 400.0]
         1.033, rel=0.02)
     assert (tmp_path / "out" / "post" / "profiles.png").stat().st_size > 10_000
     assert (tmp_path / "out" / "post" / "summary.json").exists()
+
+
+def test_gamma_of_a_simple_cubic_lattice_run_is_its_closed_form(tmp_path):
+    """A bob run on a simple-cubic lattice (pitch a, 21 layers, every contact the same Hertz
+    overlap delta): each column is a chain of conductances H = 2 k_p a_c (003 eq. 34) with
+    a_c = sqrt(R* delta), so k_eff = H / a and gamma = 2 sqrt(R* delta) / a in closed form.
+    The steady ETC is that value to round-off (the held layers are the slab's ends); the
+    transient fit of the Crank-Nicolson profiles differs from it only by the lattice's
+    finite-difference error ((pi a / L)^2 / 12 ~ 0.2 % for 20 intervals) and the binning of
+    layer values (measured 0.5 % with outputs from t = 20 s, when sqrt(alpha t) > 2 pitches; the
+    slab fitted between the walls, 21 pitches apart, would be 10 % off): asserted within 1 %."""
+    from thermal_kernel.lattice import simple_cubic_packing
+    from thermal_kernel.packing import write_packing
+    pitch, delta = 4e-3, 4e-6
+    radius = (pitch + delta) / 2
+    packing = simple_cubic_packing((3, 3, 21), spacing_m=pitch, radius_m=radius, young_pa=5e10,
+                                   poisson=0.2, density=2500.0)
+    write_packing(tmp_path / "lattice.h5", packing)
+    gamma_exact = 2 * math.sqrt(radius / 2 * delta) / pitch
+    scene = tmp_path / "lattice.toml"
+    scene.write_text(f'''packing = "lattice.h5"
+law = "bob"
+{BED_THERMAL.replace('on = "plate"', 'on = "zmax"')}[solver]
+method = "implicit"
+theta = 0.5
+dt = 0.25
+end_time = 600.0
+output_times = [20.0, 40.0, 80.0, 150.0, 300.0, 600.0]
+''')
+    assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    s = post_run(tmp_path / "out" / "thermal.h5", n_bins=10, plots=False)
+    assert s["length_m"] == pytest.approx(20 * pitch, rel=1e-12)
+    assert s["gamma_steady"] == pytest.approx(gamma_exact, rel=1e-9)
+    assert s["gamma"] == pytest.approx(gamma_exact, rel=0.01)
+    assert s["gamma_ci95"][0] < gamma_exact * 1.01 and gamma_exact * 0.99 < s["gamma_ci95"][1]
+    # the mean field phi Z H / (2 pi R k_p) with Z = 6, phi = pi/6 (delta -> 0) is H / (2 R k_p),
+    # the lattice's exact answer; this finite lattice has 2 (2 x 3 x 21) + 3 x 3 x 20 contacts
+    z_mean = 2 * (2 * 2 * 3 * 21 + 3 * 3 * 20) / (3 * 3 * 21)
+    phi = 4 / 3 * math.pi * radius ** 3 / pitch ** 3
+    h = 2 * 205.0 * math.sqrt(radius / 2 * delta)
+    assert s["gamma_mean_field"]["bob"] == pytest.approx(
+        phi * z_mean * h / (2 * math.pi * radius * 205.0), rel=1e-9)
+    assert (math.pi / 6) * 6 * h / (2 * math.pi * (pitch / 2) * 205.0) == pytest.approx(
+        gamma_exact, rel=1e-12)
