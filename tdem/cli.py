@@ -77,7 +77,8 @@ def _cmd_demo(args):
 def _cmd_campaign(args):
     from .campaign import run_campaign
     run_campaign(Path(args.campaign), Path(args.out) if args.out else None,
-                 threads=args.threads, yade_threads=args.yade_threads, quiet=args.quiet)
+                 threads=args.threads, yade_threads=args.yade_threads, quiet=args.quiet,
+                 repost=args.repost)
 
 
 def _cmd_post(args):
@@ -178,6 +179,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--yade-threads", type=int, default=1,
                    help="YADE threads (-j), default 1: reproducible packings for a seed")
     p.add_argument("--quiet", action="store_true", help="do not stream YADE's output")
+    p.add_argument("--repost", action="store_true",
+                   help="keep finished thermal runs but post-process them again")
     p.set_defaults(func=_cmd_campaign)
 
     p = sub.add_parser("post", help="post-process a run: profiles, gamma, tau, mean field")

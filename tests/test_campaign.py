@@ -7,7 +7,7 @@ conductivity in two ways; in this 200-sphere bed only ~6 of the ~12 top-layer sp
 plate, and that constriction lowers the steady value by ~20 %, against 0-5 % on the 7,500 bed); gamma grows with pressure (contact radii grow as F^(1/3)); pipe > bob
 (003 eq. 40 vs 34: 1.033 for equal spheres); the report names both laws; a second run reuses the
 packings and every case; after a case's results are deleted (an interrupted run), only that case
-is recomputed and the table is the same.
+is recomputed and the table is the same; --repost post-processes the kept runs to the same table.
 """
 import shutil
 import subprocess
@@ -46,9 +46,10 @@ output_times = [2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 1000.0]
 '''
 
 
-def campaign(path, out):
+def campaign(path, out, *extra):
     return subprocess.run([sys.executable, "-m", "tdem.cli", "campaign", str(path), "--out",
-                           str(out), "--quiet"], capture_output=True, text=True, timeout=1200)
+                           str(out), "--quiet", *extra], capture_output=True, text=True,
+                          timeout=1200)
 
 
 def test_campaign_runs_and_resumes(tmp_path):
@@ -86,6 +87,12 @@ def test_campaign_runs_and_resumes(tmp_path):
     assert third.stdout.count("done before") == 3
     resumed = pd.read_csv(out / "results.csv")
     pd.testing.assert_series_equal(resumed.gamma, table.gamma, rtol=1e-12)
+
+    # --repost keeps the thermal runs and post-processes them again: same numbers
+    fourth = campaign(path, out, "--repost")
+    assert fourth.returncode == 0
+    assert fourth.stdout.count("post-processed again") == 4
+    pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv"), resumed, rtol=1e-12)
 
 
 def test_bad_campaign_is_one_line(tmp_path):
