@@ -29,6 +29,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from thermal_kernel.calibrate import cross_section
 from thermal_kernel.laws import LAWS
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import packing_statistics, read_packing
@@ -53,14 +54,6 @@ def _wall_position(packing, on):
         return axis, float(packing.wall_point[w][axis])
     axis, side = FACES[on]
     return axis, float((packing.domain_lo if side < 0 else packing.domain_hi)[axis])
-
-
-def cross_section_m2(packing, axis):
-    for kind, normal, radius in zip(packing.wall_kind, packing.wall_normal, packing.wall_radius):
-        if kind == "cylinder" and abs(abs(normal[axis]) - 1) < 1e-9:
-            return math.pi * float(radius) ** 2
-    ext = np.delete(packing.domain_hi - packing.domain_lo, axis)
-    return float(ext[0] * ext[1])
 
 
 def post_run(thermal_h5, n_bins: int = 10, plots: bool = True) -> dict:
@@ -113,7 +106,7 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True) -> dict:
     q_bottom = float(flows[names.index(bottom.name)])
     q_top = float(flows[names.index(top.name)])
     balance = abs(q_bottom + q_top) / max(abs(q_bottom), 1e-300)
-    area = cross_section_m2(packing, axis)
+    area = cross_section(packing, axis)
     k_steady = abs(q_bottom) * length / (area * abs(bottom.value - top.value))
     # middle section: the bin(s) around mid-height
     mid = np.array([0.45 * length, 0.55 * length])

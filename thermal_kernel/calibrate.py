@@ -54,12 +54,22 @@ def cross_section(packing: Packing, axis: int) -> float:
     return float(extent[0] * extent[1])
 
 
-def calibrate_ct(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.0,
-                 t_cold: float = 0.0) -> Calibration:
-    """Calibrated C_t of ``scene`` (law haddad) on ``packing`` by one steady solve."""
-    if scene.law != "haddad":
-        raise SceneError(f"{scene.path}: law: tdem calibrate calibrates the haddad law's C_t, "
-                         f"the scene uses {scene.law!r}")
+@dataclass(frozen=True)
+class FluxTest:
+    effective_w_mk: float         # lambda^e = Q L / (A dT), 002 eq. 8
+    heat_flow_w: float            # Q through the hot face
+    balance: float                # |Q_hot + Q_cold| / Q_hot
+    length_m: float
+    area_m2: float
+    n_hot: int
+    n_cold: int
+    law_params: dict
+
+
+def flux_test(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.0,
+              t_cold: float = 0.0) -> FluxTest:
+    """The steady flux test of 002 sec. 2.2 (any law, any phases): the two faces normal to
+    ``axis`` held at ``t_hot`` and ``t_cold``, adiabatic elsewhere, one sparse steady solve."""
     if axis not in AXES:
         raise SceneError(f"{scene.path}: --axis: expected x, y or z, got {axis!r}")
     k = AXES.index(axis)
@@ -73,7 +83,6 @@ def calibrate_ct(scene: Scene, packing: Packing, axis: str = "x", t_hot: float =
                     Boundary(kind="temperature", name="cold", on=faces[1], value=t_cold)),
         solver=SolverConfig(method="steady"))
     problem, info = build_problem(test, packing)
-    ct_used = float(info["law_params"]["ct"])
     net = assemble(problem)
     result = solve_steady(net, np.full(packing.n_particles, 0.5 * (t_hot + t_cold)))
     q_hot, q_cold = (float(q) for q in result.boundary_heat_flow_w[-1])
@@ -82,12 +91,25 @@ def calibrate_ct(scene: Scene, packing: Packing, axis: str = "x", t_hot: float =
                          f"in {packing.path} (the two faces are not connected by contacts)")
     length = float(packing.domain_hi[k] - packing.domain_lo[k])
     area = cross_section(packing, k)
-    effective = q_hot * length / (area * (t_hot - t_cold))          # 002, eq. 8
-    conductivity = scene.material(0).conductivity
-    n_hot = len(boundary_particles(test, packing, faces[0], "boundary[0]"))
-    n_cold = len(boundary_particles(test, packing, faces[1], "boundary[1]"))
-    return Calibration(
-        ct=ct_used * conductivity / effective,                        # 002, eq. 9
-        ct_used=ct_used, conductivity_w_mk=conductivity, effective_w_mk=effective,
+    return FluxTest(
+        effective_w_mk=q_hot * length / (area * (t_hot - t_cold)),      # 002, eq. 8
         heat_flow_w=q_hot, balance=abs(q_hot + q_cold) / q_hot, length_m=length, area_m2=area,
-        axis=axis, n_hot=n_hot, n_cold=n_cold)
+        n_hot=len(boundary_particles(test, packing, faces[0], "boundary[0]")),
+        n_cold=len(boundary_particles(test, packing, faces[1], "boundary[1]")),
+        law_params=dict(info["law_params"]))
+
+
+def calibrate_ct(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.0,
+                 t_cold: float = 0.0) -> Calibration:
+    """Calibrated C_t of ``scene`` (law haddad) on ``packing`` by one steady solve."""
+    if scene.law != "haddad":
+        raise SceneError(f"{scene.path}: law: tdem calibrate calibrates the haddad law's C_t, "
+                         f"the scene uses {scene.law!r}")
+    test = flux_test(scene, packing, axis, t_hot, t_cold)
+    ct_used = float(test.law_params["ct"])
+    conductivity = scene.material(0).conductivity
+    return Calibration(
+        ct=ct_used * conductivity / test.effective_w_mk,             # 002, eq. 9
+        ct_used=ct_used, conductivity_w_mk=conductivity, effective_w_mk=test.effective_w_mk,
+        heat_flow_w=test.heat_flow_w, balance=test.balance, length_m=test.length_m,
+        area_m2=test.area_m2, axis=axis, n_hot=test.n_hot, n_cold=test.n_cold)
