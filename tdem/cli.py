@@ -101,6 +101,63 @@ def _cmd_post(args):
     print(f"  wrote {thermal.parent / 'post'}/ (profiles.png, profiles.csv, summary.json)")
 
 
+def _floats(text, what):
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise UserError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+    if not values or any(not v > 0 for v in values):
+        raise UserError(f"{what}: expected positive numbers, got {text!r}")
+    return values
+
+
+def _cmd_etc(args):
+    import csv
+    import os
+    from thermal_kernel.laws import LAWS
+    from thermal_kernel.packing import read_packing
+    from thermal_kernel.scene import load_scene
+    from tdem_post.etc_sweep import etc_sweep, plot_etc
+    from .pack import default_out_dir
+    scene = load_scene(args.scene, known_laws=LAWS)
+    path = Path(args.packing) if args.packing else scene.packing
+    if path is None:
+        raise UserError(f"{args.scene}: packing: the scene builds its packing ([pack]); run "
+                        "`tdem pack` first and pass --packing FILE.h5")
+    if not Path(path).exists():
+        raise UserError(f"{path}: file not found (run `tdem pack {args.scene}` first)")
+    contrasts = _floats(args.contrasts, "--contrasts")
+    fractions = _floats(args.fractions, "--fractions")
+    if any(f >= 1 for f in fractions + (args.single_fraction,)):
+        raise UserError("--fractions/--single-fraction: expected volume fractions below 1")
+    packing = read_packing(path)
+    out = Path(args.out) if args.out else default_out_dir(Path(args.scene)) / "etc"
+    print(f"tdem etc: {args.scene} on {path} ({packing.n_particles} particles), law "
+          f"{scene.law}, steady flux tests along {args.axis} (002 sec. 4-5)", flush=True)
+    print(f"  {'case':<11s}{'contrast':>9s}{'f':>8s}{'k/k_m':>9s}{'Maxwell':>9s}"
+          f"{'Bruggeman':>10s}{'HS low':>9s}{'HS up':>9s}", flush=True)
+
+    def show(r):
+        print(f"  {r['case']:<11s}{r['contrast']:>9.3g}{r['fraction']:>8.4f}"
+              f"{r['k_over_km']:>9.4f}{r['maxwell']:>9.4f}{r['bruggeman']:>10.4f}"
+              f"{r['hs_lower']:>9.4f}{r['hs_upper']:>9.4f}", flush=True)
+
+    rows, k_m = etc_sweep(scene, packing, contrasts=contrasts, single_fraction=args.single_fraction,
+                          fractions=fractions, dispersion_contrast=args.dispersion_contrast,
+                          diameter_over_length=args.diameter_over_length, seed=args.seed,
+                          axis=args.axis, progress=show)
+    out.mkdir(parents=True, exist_ok=True)
+    tmp = out / "etc.csv.tmp"
+    with open(tmp, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    os.replace(tmp, out / "etc.csv")
+    plot_etc(rows, out / "etc.png", title=f"{Path(args.scene).name}: {packing.n_particles} "
+             f"particles, law {scene.law}, k_m = {k_m:.4g} W/m/K in the flux test")
+    print(f"  k_m (single phase) = {k_m:.6g} W/m/K; wrote {out}/etc.csv and etc.png")
+
+
 def _cmd_info(args):
     from thermal_kernel.packing import format_statistics, packing_statistics, read_packing
     packing = read_packing(args.packing)
@@ -187,6 +244,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("run", help="run folder (with thermal.h5) or a thermal.h5")
     p.add_argument("--bins", type=int, default=10, help="profile bins, default 10")
     p.set_defaults(func=_cmd_post)
+
+    p = sub.add_parser("etc", help="ETC of a composite vs contrast and volume fraction "
+                                   "(steady flux tests, 002 sec. 4-5) with Maxwell, HS, Bruggeman")
+    p.add_argument("scene", help="scene TOML (law, [material] of the matrix) with its packing")
+    p.add_argument("--packing", help="packing.h5 to use instead of the scene's")
+    p.add_argument("--out", help="output folder (default: runs/out/<scene name>/etc/)")
+    p.add_argument("--axis", default="x", choices=["x", "y", "z"])
+    p.add_argument("--contrasts", default="0.01,0.1,0.5,2,10,100",
+                   help="single-inclusion contrasts k_i/k_m (default 0.01,0.1,0.5,2,10,100)")
+    p.add_argument("--single-fraction", type=float, default=0.1551,
+                   help="volume fraction of the single centred inclusion (default 0.1551: a = L/3)")
+    p.add_argument("--fractions", default="0.05,0.1,0.15,0.2,0.25",
+                   help="volume fractions of the random dispersion (default 0.05 ... 0.25)")
+    p.add_argument("--dispersion-contrast", type=float, default=7.7,
+                   help="contrast of the dispersion (default 7.7: silica in epoxy, 002 sec. 5)")
+    p.add_argument("--diameter-over-length", type=float, default=1 / 6,
+                   help="inclusion diameter over the box length (default 1/6, 002 sec. 5)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the dispersion (default 0)")
+    p.set_defaults(func=_cmd_etc)
 
     p = sub.add_parser("info", help="validate a packing.h5 and print its statistics")
     p.add_argument("packing")
