@@ -87,7 +87,7 @@ def _cmd_post(args):
     thermal = path / "thermal.h5" if path.is_dir() else path
     if not thermal.exists():
         raise UserError(f"{thermal}: file not found (give a run folder or its thermal.h5)")
-    s = post_run(thermal, n_bins=args.bins)
+    s = post_run(thermal, n_bins=args.bins, halo_ratio=args.halo)
     print(f"tdem post: {thermal} ({s['law']}, {s['n_particles']} particles, "
           f"p = {s['pressure_pa']:.4g} Pa)")
     print(f"  gamma = k_eff/k_p  {s['gamma']:.5g}   95 % CI [{s['gamma_ci95'][0]:.5g}, "
@@ -98,7 +98,13 @@ def _cmd_post(args):
                                               s["gamma_mean_field"].items()))
     print(f"  tau (middle)       {s['tau_s']:.5g} s (from the time series: "
           f"{s['tau_series_s']:.5g} s)")
-    print(f"  wrote {thermal.parent / 'post'}/ (profiles.png, profiles.csv, summary.json)")
+    if "flux_cov_halo" in s:
+        print(f"  heat flux (steady) CoV of |q| {s['flux_cov_raw']:.3f} per particle, "
+              f"{s['flux_cov_halo']:.3f} with a halo of {s['flux_halo_ratio']:g} R "
+              f"({s['flux_interior_particles']} interior particles); mean axial q / (Q/A) "
+              f"{s['flux_mean_over_q_per_area']:.3f}")
+    print(f"  wrote {thermal.parent / 'post'}/ (profiles.png/.csv, flux_section.png/.csv, "
+          "summary.json)")
 
 
 def _floats(text, what):
@@ -243,6 +249,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("post", help="post-process a run: profiles, gamma, tau, mean field")
     p.add_argument("run", help="run folder (with thermal.h5) or a thermal.h5")
     p.add_argument("--bins", type=int, default=10, help="profile bins, default 10")
+    p.add_argument("--halo", type=float, default=3.0,
+                   help="Halo radius over the particle radius for the flux field (002 eq. 22), "
+                        "default 3")
     p.set_defaults(func=_cmd_post)
 
     p = sub.add_parser("etc", help="ETC of a composite vs contrast and volume fraction "

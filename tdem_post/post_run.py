@@ -38,6 +38,7 @@ from thermal_kernel.scene import SceneError, load_scene
 from thermal_kernel.solvers.steady import solve_steady
 
 from .analytic import slab_mean_temperature, slab_temperature
+from .flux import coefficient_of_variation, particle_flux
 from .fits import characteristic_time_network, characteristic_time_series, fit_gamma
 from .profiles import binned_profile, partial_volumes
 
@@ -56,7 +57,26 @@ def _wall_position(packing, on):
     return axis, float((packing.domain_lo if side < 0 else packing.domain_hi)[axis])
 
 
-def post_run(thermal_h5, n_bins: int = 10, plots: bool = True) -> dict:
+def interior_mask(packing, margin_m):
+    """Particles at least ``margin_m`` (scalar or (N,)) inside the domain's non-periodic faces
+    and inside every cylinder wall: their halo does not cross a boundary."""
+    margin = np.broadcast_to(np.asarray(margin_m, float), (packing.n_particles,))
+    x = packing.position
+    inside = np.ones(packing.n_particles, bool)
+    for axis in range(3):
+        if not packing.periodic[axis]:
+            inside &= (x[:, axis] - margin >= packing.domain_lo[axis]) & (
+                x[:, axis] + margin <= packing.domain_hi[axis])
+    for kind, point, normal, radius in zip(packing.wall_kind, packing.wall_point,
+                                           packing.wall_normal, packing.wall_radius):
+        if kind == "cylinder":
+            rel = x - point
+            radial = rel - np.outer(rel @ normal, normal) / float(normal @ normal)
+            inside &= np.linalg.norm(radial, axis=1) + margin <= radius
+    return inside
+
+
+def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float = 3.0) -> dict:
     thermal_h5 = Path(thermal_h5)
     with h5py.File(thermal_h5, "r") as f:
         times = f["time"][()]
@@ -116,6 +136,23 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True) -> dict:
     tau_series = characteristic_time_series(times, section, float(t_steady @ w_mid / w_mid.sum()),
                                             float(initial @ w_mid / w_mid.sum()))
 
+    # heat flux per particle at steady state (002 eq. 20) and its Halo average (eq. 22-23)
+    q_raw = particle_flux(packing.position, packing.radius, packing.pair, packing.branch,
+                          problem.conductance_w_k, t_steady, phi)
+    q_halo = particle_flux(packing.position, packing.radius, packing.pair, packing.branch,
+                           problem.conductance_w_k, t_steady, phi, halo_ratio=halo_ratio)
+    interior = interior_mask(packing, halo_ratio * packing.radius) & conducting
+    interior &= (z > 0) & (z < length)
+    flux_stats = {"flux_halo_ratio": halo_ratio, "flux_interior_particles": int(interior.sum())}
+    if interior.sum() >= 2:
+        sign = 1.0 if bottom.value > top.value else -1.0
+        flux_stats.update(
+            flux_cov_raw=coefficient_of_variation(q_raw, interior),
+            flux_cov_halo=coefficient_of_variation(q_halo, interior),
+            # mean axial flux of the interior over the heat flow per cross-section Q / A
+            flux_mean_over_q_per_area=float(sign * q_halo[interior, axis].mean()
+                                            / (abs(q_bottom) / area)))
+
     mean_field = {}
     touching = packing.overlap > 0
     r_mean = float(packing.radius.mean())
@@ -140,6 +177,7 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True) -> dict:
         "gamma_mean_field": mean_field, "length_m": length, "wall_gap_m": wall_gap,
         "n_bins": n_bins,
         "run_wall_seconds": float(attrs.get("wall_seconds", float("nan"))),
+        **flux_stats,
     }
     tmp = out_dir / "summary.json.tmp"
     tmp.write_text(json.dumps(summary, indent=1))
@@ -147,6 +185,7 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True) -> dict:
     if plots:
         _plot_profiles(out_dir, times, edges, profiles, fit, length, bottom.value, top.value,
                        t_initial, summary)
+        _plot_flux_section(out_dir, packing, axis, q_raw, q_halo, summary)
     return summary
 
 
@@ -174,3 +213,37 @@ def _plot_profiles(out_dir, times, edges, profiles, fit, length, t_b, t_t, t_i, 
     fig.savefig(out_dir / "profiles.png", dpi=110)
     plt.close(fig)
     (out_dir / "profiles.csv").write_text("\n".join(rows) + "\n")
+
+
+def _plot_flux_section(out_dir, packing, axis, q_raw, q_halo, summary):
+    """|q| in a slab one mean radius thick through the domain's centre, containing the axis
+    (002 Fig. 16 style): eq. 20 beside its Halo average; data in flux_section.csv."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    across, depth = [a for a in range(3) if a != axis]
+    centre = 0.5 * (packing.domain_lo + packing.domain_hi)
+    sel = np.abs(packing.position[:, depth] - centre[depth]) < packing.radius.mean()
+    x = packing.position[sel, across] * 1e3
+    y = packing.position[sel, axis] * 1e3
+    raw, halo = (np.linalg.norm(q[sel], axis=1) for q in (q_raw, q_halo))
+    top = np.percentile(np.r_[raw, halo], 99) if sel.any() else 1.0
+    fig, axes = plt.subplots(1, 2, figsize=(9, 5), sharey=True)
+    for ax, values, name in ((axes[0], raw, "eq. 20 (per particle)"),
+                             (axes[1], halo, f"Halo, ratio {summary['flux_halo_ratio']:g} "
+                                             "(eq. 22-23)")):
+        sc = ax.scatter(x, y, c=values, s=12, cmap="inferno", vmin=0, vmax=top)
+        ax.set_aspect("equal")
+        ax.set_xlabel(f"{'xyz'[across]} (mm)")
+        cov = summary.get("flux_cov_raw" if ax is axes[0] else "flux_cov_halo")
+        ax.set_title(name + (f": CoV {cov:.3f}" if cov is not None else ""), fontsize=9)
+    axes[0].set_ylabel(f"{'xyz'[axis]} (mm)")
+    fig.colorbar(sc, ax=axes, label="|q| (W/m^2), steady state")
+    fig.suptitle(f"{summary['law']}, p = {summary['pressure_pa'] / 1e5:.3g} bar: heat flux in "
+                 f"the section {'xyz'[depth]} = {centre[depth] * 1e3:.3g} mm", fontsize=10)
+    fig.savefig(out_dir / "flux_section.png", dpi=110)
+    plt.close(fig)
+    rows = ["x_m,y_m,z_m,qx_w_m2,qy_w_m2,qz_w_m2,qx_halo_w_m2,qy_halo_w_m2,qz_halo_w_m2"]
+    for p in np.flatnonzero(sel):
+        rows.append(",".join(f"{v:.9g}" for v in (*packing.position[p], *q_raw[p], *q_halo[p])))
+    (out_dir / "flux_section.csv").write_text("\n".join(rows) + "\n")

@@ -159,6 +159,12 @@ output_times = [2.0, 5.0, 10.0, 20.0, 40.0, 80.0, 150.0, 400.0]
         1.033, rel=0.02)
     assert (tmp_path / "out" / "post" / "profiles.png").stat().st_size > 10_000
     assert (tmp_path / "out" / "post" / "summary.json").exists()
+    # steady flux field: the halo lowers the scatter, and the interior's mean axial flux is the
+    # heat flow per cross-section (within 15 %: the wall region and the halo's edge)
+    assert s["flux_interior_particles"] > 20
+    assert s["flux_cov_halo"] < s["flux_cov_raw"]
+    assert s["flux_mean_over_q_per_area"] == pytest.approx(1.0, rel=0.15)
+    assert (tmp_path / "out" / "post" / "flux_section.png").stat().st_size > 10_000
 
 
 def test_gamma_of_a_simple_cubic_lattice_run_is_its_closed_form(tmp_path):

@@ -91,6 +91,26 @@ method = "steady"
     assert covs[0] > covs[1] > covs[2]
     assert means[2] == pytest.approx(q_in / (ext[1] * ext[2]), rel=0.10)
 
+    # exact at steady state (discrete divergence theorem): sum_p V_p q_p (eq. 20)
+    # = phi sum_c H_c (T_i - T_j) l_ij = -phi sum_held x_p R_p, with R_p the heat each held
+    # particle passes to the network; the R_p of a face add up to the solver's boundary flow
+    q = particle_flux(packing.position, packing.radius, packing.pair, packing.branch,
+                      problem.conductance_w_k, T, phi)
+    volume = 4 / 3 * np.pi * packing.radius ** 3
+    i, j = packing.pair.T
+    flow = problem.conductance_w_k * (T[i] - T[j])
+    out_of = np.zeros(packing.n_particles)
+    np.add.at(out_of, i, flow)
+    np.add.at(out_of, j, -flow)
+    held = net.held
+    free = ~held & (np.abs(out_of) > 0)
+    assert np.abs(out_of[free]).max() < 1e-9 * abs(q_in)        # steady: free particles balance
+    hot = held & (x < 0.5 * (packing.domain_lo[0] + packing.domain_hi[0]))
+    assert out_of[hot].sum() == pytest.approx(q_in, rel=1e-9)
+    np.testing.assert_allclose((volume[:, None] * q).sum(axis=0),
+                               -phi * (packing.position[held] * out_of[held, None]).sum(axis=0),
+                               rtol=1e-9, atol=1e-12 * abs(q_in) * ext.max() * phi)
+
 
 def test_etc_estimates_limits_and_order():
     k_m, k_i = 0.2, 1.4
