@@ -30,6 +30,7 @@ from thermal_kernel.scene import load_scene  # noqa: E402
 from thermal_kernel.solvers.explicit import run_explicit  # noqa: E402
 from thermal_kernel.solvers.implicit import run_implicit  # noqa: E402
 from thermal_kernel.solvers.steady import solve_steady  # noqa: E402
+from tdem_post.speed_error import write_speed_error  # noqa: E402
 
 SCENE = """packing = "{packing}"
 law = "{law}"
@@ -113,8 +114,14 @@ def main():
         lines.append(f"| {solver} | {step} | {steps} | {sec:.4f} | {err:.3g} |")
     lines += ["", f"Steady solve: {steady_sec:.4f} s; max |T_steady - T(backward Euler, t = 1e7 s)| = "
                   f"{steady_err:.2e} K.", ""]
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text("\n".join(lines))
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    lines += [f"Figure: `{out.with_suffix('.png').name}`, data: `{out.with_suffix('.csv').name}`.",
+              ""]
+    out.write_text("\n".join(lines))
+    write_speed_error(rows, out.with_suffix(".csv"), out.with_suffix(".png"),
+                      title=f"{Path(args.packing).name}, law {args.law}: speed against error "
+                            "(labels: steps)")
     print("\n".join(lines))
 
 
