@@ -32,8 +32,8 @@ def _cmd_run(args):
     run_scene(scene, packing, quiet=args.quiet, threads=args.threads)
 
 
-def _cmd_calibrate(args):
-    from thermal_kernel.calibrate import calibrate_ct
+def _scene_and_packing(args):
+    """The scene (laws known) and its packing, or --packing: for commands on a built packing."""
     from thermal_kernel.laws import LAWS
     from thermal_kernel.packing import read_packing
     from thermal_kernel.scene import load_scene
@@ -42,7 +42,14 @@ def _cmd_calibrate(args):
     if path is None:
         raise UserError(f"{args.scene}: packing: the scene builds its packing ([pack]); run "
                         "`tdem pack` first and pass --packing FILE.h5")
-    packing = read_packing(path)
+    if not Path(path).exists():
+        raise UserError(f"{path}: file not found (run `tdem pack {args.scene}` first)")
+    return scene, path, read_packing(path)
+
+
+def _cmd_calibrate(args):
+    from thermal_kernel.calibrate import calibrate_ct
+    scene, path, packing = _scene_and_packing(args)
     axes = "xyz" if args.axis == "all" else args.axis
     results = [calibrate_ct(scene, packing, axis) for axis in axes]
     print(f"tdem calibrate: {args.scene} on {path} ({packing.n_particles} particles), law haddad,"
@@ -120,23 +127,13 @@ def _floats(text, what):
 def _cmd_etc(args):
     import csv
     import os
-    from thermal_kernel.laws import LAWS
-    from thermal_kernel.packing import read_packing
-    from thermal_kernel.scene import load_scene
     from tdem_post.etc_sweep import etc_sweep, plot_etc
     from .pack import default_out_dir
-    scene = load_scene(args.scene, known_laws=LAWS)
-    path = Path(args.packing) if args.packing else scene.packing
-    if path is None:
-        raise UserError(f"{args.scene}: packing: the scene builds its packing ([pack]); run "
-                        "`tdem pack` first and pass --packing FILE.h5")
-    if not Path(path).exists():
-        raise UserError(f"{path}: file not found (run `tdem pack {args.scene}` first)")
     contrasts = _floats(args.contrasts, "--contrasts")
     fractions = _floats(args.fractions, "--fractions")
     if any(f >= 1 for f in fractions + (args.single_fraction,)):
         raise UserError("--fractions/--single-fraction: expected volume fractions below 1")
-    packing = read_packing(path)
+    scene, path, packing = _scene_and_packing(args)
     out = Path(args.out) if args.out else default_out_dir(Path(args.scene)) / "etc"
     print(f"tdem etc: {args.scene} on {path} ({packing.n_particles} particles), law "
           f"{scene.law}, steady flux tests along {args.axis} (002 sec. 4-5)", flush=True)

@@ -124,6 +124,18 @@ def etc_sweep(scene: Scene, packing: Packing, *, contrasts=(0.01, 0.1, 0.5, 2.0,
     return rows, k_m
 
 
+def _panel(ax, x_points, y_points, x_line, estimate_args):
+    """Measured points over the HS band and the Maxwell / Bruggeman lines of one panel;
+    estimate_args(x_line) -> (k_m, k_i, f) for the estimates along the line."""
+    low, high = hashin_shtrikman(*estimate_args(x_line))
+    ax.fill_between(x_line, low, high, color="0.85", label="Hashin-Shtrikman bounds")
+    ax.plot(x_line, maxwell(*estimate_args(x_line)), "k-", label="Maxwell")
+    ax.plot(x_line, bruggeman(*estimate_args(x_line)), "k:", label="Bruggeman")
+    ax.plot(x_points, y_points, "o", color="C3", label="tdem (steady flux test)")
+    ax.set_ylabel("k_eff / k_m")
+    ax.legend(fontsize=8)
+
+
 def plot_etc(rows, path, title=""):
     """Two panels: k_eff/k_m against the contrast (single inclusion, 002 Fig. 14) and against
     the volume fraction (dispersion, 002 Fig. 17), with the estimates as lines."""
@@ -134,37 +146,24 @@ def plot_etc(rows, path, title=""):
     disp = [r for r in rows if r["case"] == "dispersion"]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
     if single:
-        ax = axes[0]
         f = single[0]["fraction"]
-        c_line = np.logspace(np.log10(min(r["contrast"] for r in single)),
-                             np.log10(max(r["contrast"] for r in single)), 200)
-        low, high = hashin_shtrikman(1.0, c_line, f)
-        ax.fill_between(c_line, low, high, color="0.85", label="Hashin-Shtrikman bounds")
-        ax.plot(c_line, maxwell(1.0, c_line, f), "k-", label="Maxwell")
-        ax.plot(c_line, bruggeman(1.0, c_line, f), "k:", label="Bruggeman")
-        ax.plot([r["contrast"] for r in single], [r["k_over_km"] for r in single], "o",
-                color="C3", label="tdem (steady flux test)")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("contrast k_i / k_m")
-        ax.set_ylabel("k_eff / k_m")
-        ax.set_title(f"single centred inclusion, f = {f:.3f} ({single[0]['inclusion_particles']}"
-                     " particles)", fontsize=9)
-        ax.legend(fontsize=8)
+        contrasts = [r["contrast"] for r in single]
+        c_line = np.logspace(np.log10(min(contrasts)), np.log10(max(contrasts)), 200)
+        _panel(axes[0], contrasts, [r["k_over_km"] for r in single], c_line,
+               lambda c: (1.0, c, f))
+        axes[0].set_xscale("log")
+        axes[0].set_yscale("log")
+        axes[0].set_xlabel("contrast k_i / k_m")
+        axes[0].set_title(f"single centred inclusion, f = {f:.3f} "
+                          f"({single[0]['inclusion_particles']} particles)", fontsize=9)
     if disp:
-        ax = axes[1]
         c = disp[0]["contrast"]
-        f_line = np.linspace(0.0, max(r["fraction"] for r in disp) * 1.05, 200)
-        low, high = hashin_shtrikman(1.0, c, f_line)
-        ax.fill_between(f_line, low, high, color="0.85", label="Hashin-Shtrikman bounds")
-        ax.plot(f_line, maxwell(1.0, c, f_line), "k-", label="Maxwell")
-        ax.plot(f_line, bruggeman(1.0, c, f_line), "k:", label="Bruggeman")
-        ax.plot([r["fraction"] for r in disp], [r["k_over_km"] for r in disp], "o",
-                color="C3", label="tdem (steady flux test)")
-        ax.set_xlabel("inclusion volume fraction f (on the particles)")
-        ax.set_ylabel("k_eff / k_m")
-        ax.set_title(f"random dispersion, contrast {c:g}", fontsize=9)
-        ax.legend(fontsize=8)
+        fractions = [r["fraction"] for r in disp]
+        f_line = np.linspace(0.0, max(fractions) * 1.05, 200)
+        _panel(axes[1], fractions, [r["k_over_km"] for r in disp], f_line,
+               lambda f: (1.0, c, f))
+        axes[1].set_xlabel("inclusion volume fraction f (on the particles)")
+        axes[1].set_title(f"random dispersion, contrast {c:g}", fontsize=9)
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
