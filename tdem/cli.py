@@ -174,11 +174,13 @@ def _cmd_info(args):
 
 def _cmd_export(args):
     from thermal_kernel.packing import read_packing
-    from .export import packing_to_vtk
+    from .export import packing_to_vtk, read_temperatures
     packing = read_packing(args.packing)
+    temps = read_temperatures(args.thermal, packing.n_particles) if args.thermal else None
     out = Path(args.output) if args.output else Path(args.packing).with_suffix(".vtu")
-    packing_to_vtk(packing, out)
-    print(f"wrote {out} ({packing.n_particles} particles, {packing.n_contacts} contacts)")
+    packing_to_vtk(packing, out, temps)
+    print(f"wrote {out} ({packing.n_particles} particles, {packing.n_contacts} contacts"
+          + (f", temperatures at {len(temps[0])} output times" if temps else "") + ")")
 
 
 def _cmd_plot(args):
@@ -277,6 +279,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("export", help="export a packing to VTK (.vtu) for ParaView")
     p.add_argument("packing")
     p.add_argument("-o", "--output", help="output .vtu (default: beside the input)")
+    p.add_argument("--thermal", help="a run's thermal.h5: add its temperatures as point data")
     p.set_defaults(func=_cmd_export)
 
     p = sub.add_parser("plot", help="save a picture (PNG) of a packing: section and 3-D view")

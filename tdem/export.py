@@ -9,12 +9,30 @@ import numpy as np
 from thermal_kernel.packing import Packing
 
 
-def packing_to_vtk(packing: Packing, out_path: Path) -> Path:
+def read_temperatures(thermal_path, n_particles):
+    """(times (K,), temperatures (K, N)) of a thermal.h5, checked against the packing."""
+    import h5py
+    from .errors import UserError
+    try:
+        with h5py.File(thermal_path, "r") as f:
+            times, temperature = f["time"][()], f["temperature"][()]
+    except (OSError, KeyError) as e:
+        raise UserError(f"{thermal_path}: time/temperature: expected a tdem thermal.h5 "
+                        f"({e})") from None
+    if temperature.ndim != 2 or temperature.shape != (times.shape[0], n_particles):
+        raise UserError(f"{thermal_path}: temperature: expected shape ({times.shape[0]}, "
+                        f"{n_particles}) for this packing, got {temperature.shape}")
+    return times, temperature
+
+
+def packing_to_vtk(packing: Packing, out_path: Path, temperatures=None) -> Path:
     """Write particles as VTK vertices and contacts as lines in one unstructured grid (.vtu).
 
     Point data: radius_m, phase, coordination (touching contacts). Cell data (contacts):
     overlap_m, normal_force_n (vertices carry NaN there). In ParaView, use a Glyph filter
-    (sphere, scale by radius_m, factor 2) to see the particles."""
+    (sphere, scale by radius_m, factor 2) to see the particles. ``temperatures`` = (times,
+    (K, N) array) from a run adds ``temperature_k`` (the last output) and one point field
+    ``temperature_k_t<k>`` per output time (its time in the name, e.g. ``..._t3_2.5s``)."""
     import meshio
 
     n = packing.n_particles
@@ -30,10 +48,14 @@ def packing_to_vtk(packing: Packing, out_path: Path) -> Path:
         cells.append(("line", packing.pair[direct]))
         cell_data["overlap_m"].append(packing.overlap[direct])
         cell_data["normal_force_n"].append(packing.normal_force[direct])
-    mesh = meshio.Mesh(points=packing.position, cells=cells,
-                       point_data={"radius_m": packing.radius,
-                                   "phase": packing.phase.astype(np.int32),
-                                   "coordination": coordination.astype(np.int32)},
+    point_data = {"radius_m": packing.radius, "phase": packing.phase.astype(np.int32),
+                  "coordination": coordination.astype(np.int32)}
+    if temperatures is not None:
+        times, temperature = temperatures
+        point_data["temperature_k"] = temperature[-1]
+        for k, t in enumerate(times):
+            point_data[f"temperature_k_t{k}_{t:g}s"] = temperature[k]
+    mesh = meshio.Mesh(points=packing.position, cells=cells, point_data=point_data,
                        cell_data=cell_data)
     out_path = Path(out_path)
     tmp = out_path.with_name(out_path.name + ".tmp" + out_path.suffix)

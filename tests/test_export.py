@@ -26,3 +26,52 @@ def test_export_round_trips_particles_and_contacts(tmp_path):
     force = mesh.cell_data_dict["normal_force_n"]["line"]
     np.testing.assert_allclose(force, packing.normal_force)
     assert not list(tmp_path.glob("*.tmp*"))
+
+
+def test_export_with_the_temperatures_of_a_run(tmp_path):
+    """A steady run on a lattice held at 400 K (xmin) and 300 K (xmax): the exported fields are
+    the run's temperatures, bit for bit; a thermal file of another packing is a one-line error."""
+    import h5py
+    packing = simple_cubic_packing((4, 2, 2), spacing_m=1e-3, radius_m=0.502e-3)
+    write_packing(tmp_path / "packing.h5", packing)
+    (tmp_path / "s.toml").write_text('''packing = "packing.h5"
+law = "bob"
+[material]
+conductivity = 10.0
+density = 1000.0
+heat_capacity = 1000.0
+[initial]
+temperature = 350.0
+[[boundary]]
+kind = "temperature"
+on = "xmin"
+value = 400.0
+[[boundary]]
+kind = "temperature"
+on = "xmax"
+value = 300.0
+[solver]
+method = "steady"
+''')
+    run = subprocess.run([sys.executable, "-m", "tdem.cli", "run", str(tmp_path / "s.toml"),
+                          "--out", str(tmp_path / "out"), "--quiet"], capture_output=True,
+                         text=True)
+    assert run.returncode == 0, run.stderr
+    thermal = tmp_path / "out" / "thermal.h5"
+    proc = subprocess.run([sys.executable, "-m", "tdem.cli", "export", str(tmp_path / "packing.h5"),
+                           "--thermal", str(thermal)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    mesh = meshio.read(tmp_path / "packing.vtu")
+    with h5py.File(thermal) as f:
+        expected = f["temperature"][()]
+    np.testing.assert_array_equal(mesh.point_data["temperature_k"], expected[-1])
+    # steady between 400 K and 300 K along x: the four layers are 400, 366.7, 333.3, 300 K
+    np.testing.assert_allclose(np.unique(mesh.point_data["temperature_k"].round(6)),
+                               [300.0, 300 + 100 / 3, 300 + 200 / 3, 400.0], rtol=1e-9)
+    other = simple_cubic_packing((3, 2, 2), spacing_m=1e-3, radius_m=0.502e-3)
+    write_packing(tmp_path / "other.h5", other)
+    bad = subprocess.run([sys.executable, "-m", "tdem.cli", "export", str(tmp_path / "other.h5"),
+                          "--thermal", str(thermal)], capture_output=True, text=True)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1
+    assert "temperature" in bad.stderr and "Traceback" not in bad.stderr
+    assert not (tmp_path / "other.vtu").exists()
