@@ -37,11 +37,11 @@ def _scene_and_packing(args):
     from thermal_kernel.laws import LAWS
     from thermal_kernel.packing import read_packing
     from thermal_kernel.scene import load_scene
+    from .pack import default_out_dir
     scene = load_scene(args.scene, known_laws=LAWS)
     path = Path(args.packing) if args.packing else scene.packing
-    if path is None:
-        raise UserError(f"{args.scene}: packing: the scene builds its packing ([pack]); run "
-                        "`tdem pack` first and pass --packing FILE.h5")
+    if path is None:       # a [pack] scene: the packing `tdem pack SCENE` wrote
+        path = default_out_dir(Path(args.scene)) / "packing.h5"
     if not Path(path).exists():
         raise UserError(f"{path}: file not found (run `tdem pack {args.scene}` first)")
     return scene, path, read_packing(path)
