@@ -233,7 +233,7 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
                 lines.append(f"- {law}: {what}(p) not fitted (fewer than 4 pressures)")
             else:
                 lines.append(f"- {law}: {what}(p) = {fit.a:.4g} (±{fit.stderr[0]:.2g}) "
-                             f"p^{fit.b:.4g} (±{fit.stderr[1]:.2g}) + {fit.c:.4g} "
+                             f"p^{fit.b:.4g} (±{fit.stderr[1]:.2g}) {'−' if fit.c < 0 else '+'} {abs(fit.c):.4g} "
                              f"(±{fit.stderr[2]:.2g}), rms {fit.rms:.3g}")
         paper = power_law(p_bar, **PAPER_GAMMA)
         ratio = g["gamma"].to_numpy() / paper
