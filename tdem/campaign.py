@@ -21,7 +21,6 @@ Steps, each kept so that an interrupted campaign resumes where it stopped:
 from __future__ import annotations
 
 import json
-import math
 import os
 import re
 import time
@@ -31,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
+from tdem_post.files import savefig_atomic, write_text_atomic
 
 PAPER_TAU = dict(a=1.945, b=0.1084, c=-1.332)       # 003 Fig. 10: tau = a p^b + c (p in bar)
 
@@ -79,12 +79,6 @@ def _scene_text(campaign_text: str, packing: Path, law: str) -> str:
         if not skip:
             out.append(line)
     return f'packing = "{packing}"\nlaw = "{law}"\n' + "\n".join(out) + "\n"
-
-
-def _atomic_write(path: Path, text: str):
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
 
 
 def build_packings(campaign_path: Path, out_dir: Path, *, threads: int, quiet: bool) -> list:
@@ -140,7 +134,7 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
             summary = post_run(thermal_path, n_bins=conf["n_bins"])
             for key in ("case_wall_seconds", "thermal_wall_seconds"):
                 summary[key] = old.get(key, float("nan"))
-            _atomic_write(summary_path, json.dumps(summary, indent=1))
+            write_text_atomic(summary_path, json.dumps(summary, indent=1))
             print(f"[{k}/{len(cases)}] {name}: thermal run kept, post-processed again: gamma "
                   f"{old['gamma']:.4g} -> {summary['gamma']:.4g} ({time.time() - t0:.1f} s)",
                   flush=True)
@@ -151,7 +145,7 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
         else:
             case_dir.mkdir(parents=True, exist_ok=True)
             scene_path = case_dir / "scene.toml"
-            _atomic_write(scene_path, _scene_text(text, packing.resolve(), law))
+            write_text_atomic(scene_path, _scene_text(text, packing.resolve(), law))
             scene = load_scene(scene_path, known_laws=LAWS, out_dir=case_dir)
             t0 = time.time()
             result = run_scene(scene, packing, quiet=True, threads=threads)
@@ -159,7 +153,7 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
             summary = post_run(result.output, n_bins=conf["n_bins"])
             summary["case_wall_seconds"] = time.time() - t0
             summary["thermal_wall_seconds"] = run_seconds
-            _atomic_write(summary_path, json.dumps(summary, indent=1))
+            write_text_atomic(summary_path, json.dumps(summary, indent=1))
             print(f"[{k}/{len(cases)}] {name}: gamma {summary['gamma']:.4g} "
                   f"[{summary['gamma_ci95'][0]:.4g}, {summary['gamma_ci95'][1]:.4g}], steady "
                   f"{summary['gamma_steady']:.4g}, tau {summary['tau_s']:.4g} s "
@@ -253,7 +247,7 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
     lines += ["", f"Paper (003): γ = {PAPER_GAMMA['a']} p^{PAPER_GAMMA['b']} + "
                   f"{PAPER_GAMMA['c']} (Fig. 7); τ = {PAPER_TAU['a']} p^{PAPER_TAU['b']} "
                   f"{PAPER_TAU['c']:+} s (Fig. 10).", ""]
-    _atomic_write(out_dir / "report.md", "\n".join(lines))
+    write_text_atomic(out_dir / "report.md", "\n".join(lines))
     print(f"tdem campaign: report {out_dir / 'report.md'}", flush=True)
     print(table[["pressure_pa", "law", "gamma", "gamma_steady", "tau_s"]].to_string(
         index=False, float_format=lambda x: f"{x:.4g}"), flush=True)
@@ -297,5 +291,5 @@ def _plots(out_dir, table, fits):
         ax.set_ylabel(label)
         ax.legend(fontsize=7)
         fig.tight_layout()
-        fig.savefig(out_dir / f"{fname}.png", dpi=110)
+        savefig_atomic(fig, out_dir / f"{fname}.png", dpi=110)
         plt.close(fig)

@@ -27,6 +27,7 @@ from thermal_kernel.packing import Packing
 from thermal_kernel.scene import Material, Scene, SceneError
 
 from .etc import bruggeman, hashin_shtrikman, maxwell
+from .files import savefig_atomic
 
 
 def single_inclusion_phase(packing: Packing, volume_fraction: float) -> np.ndarray:
@@ -167,5 +168,5 @@ def plot_etc(rows, path, title=""):
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)

@@ -23,7 +23,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 from pathlib import Path
 
 import h5py
@@ -41,6 +40,7 @@ from .analytic import slab_mean_temperature, slab_temperature
 from .flux import coefficient_of_variation, particle_flux
 from .fits import characteristic_time_network, characteristic_time_series, fit_gamma
 from .profiles import binned_profile, partial_volumes
+from .files import savefig_atomic, write_text_atomic
 
 MEAN_FIELD_LAWS = ("bob", "argento", "pipe")
 
@@ -179,9 +179,7 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
         "run_wall_seconds": float(attrs.get("wall_seconds", float("nan"))),
         **flux_stats,
     }
-    tmp = out_dir / "summary.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=1))
-    os.replace(tmp, out_dir / "summary.json")
+    write_text_atomic(out_dir / "summary.json", json.dumps(summary, indent=1))
     if plots:
         _plot_profiles(out_dir, times, edges, profiles, fit, length, bottom.value, top.value,
                        t_initial, summary)
@@ -210,9 +208,9 @@ def _plot_profiles(out_dir, times, edges, profiles, fit, length, t_b, t_t, t_i, 
                  f"gamma = {fit.gamma:.4g} (dots tdem, dashes slab solution)", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(out_dir / "profiles.png", dpi=110)
+    savefig_atomic(fig, out_dir / "profiles.png", dpi=110)
     plt.close(fig)
-    (out_dir / "profiles.csv").write_text("\n".join(rows) + "\n")
+    write_text_atomic(out_dir / "profiles.csv", "\n".join(rows) + "\n")
 
 
 def _plot_flux_section(out_dir, packing, axis, q_raw, q_halo, summary):
@@ -241,9 +239,9 @@ def _plot_flux_section(out_dir, packing, axis, q_raw, q_halo, summary):
     fig.colorbar(sc, ax=axes, label="|q| (W/m^2), steady state")
     fig.suptitle(f"{summary['law']}, p = {summary['pressure_pa'] / 1e5:.3g} bar: heat flux in "
                  f"the section {'xyz'[depth]} = {centre[depth] * 1e3:.3g} mm", fontsize=10)
-    fig.savefig(out_dir / "flux_section.png", dpi=110)
+    savefig_atomic(fig, out_dir / "flux_section.png", dpi=110)
     plt.close(fig)
     rows = ["x_m,y_m,z_m,qx_w_m2,qy_w_m2,qz_w_m2,qx_halo_w_m2,qy_halo_w_m2,qz_halo_w_m2"]
     for p in np.flatnonzero(sel):
         rows.append(",".join(f"{v:.9g}" for v in (*packing.position[p], *q_raw[p], *q_halo[p])))
-    (out_dir / "flux_section.csv").write_text("\n".join(rows) + "\n")
+    write_text_atomic(out_dir / "flux_section.csv", "\n".join(rows) + "\n")

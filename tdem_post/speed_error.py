@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
+from .files import savefig_atomic
 
 
 def write_speed_error(rows, csv_path, png_path, title=""):
@@ -33,5 +34,5 @@ def write_speed_error(rows, csv_path, png_path, title=""):
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
+    savefig_atomic(fig, png_path, dpi=110)
     plt.close(fig)

@@ -13,7 +13,6 @@ cases kept and ends with the same table; --repost post-processes the kept runs t
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import pandas as pd
 import pytest

@@ -14,7 +14,6 @@ Tolerances, and why:
 """
 import json
 import math
-import os
 import shutil
 import subprocess
 from pathlib import Path

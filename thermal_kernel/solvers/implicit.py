@@ -115,7 +115,6 @@ def _run_implicit(problem, T0, times, *, dt, theta, t_start, method, tol, progre
     free, k_ff, r_d = _split(net)
     b_f = net.constant_rhs_w[free]
     c_f = net.capacity_j_k[free]
-    const_b = net.constant_boundary_flow_w
     sb = prob.source_boundary
     setup_seconds = time.perf_counter() - c0
     factor_seconds = 0.0
