@@ -39,9 +39,12 @@ bench: deps
 	$(BIN)/python bench/bench_solvers.py
 
 # Long validation: the 7,500-sphere pressure campaign of the pipe-model paper (YADE ~15 min,
-# thermal ~3 min); its report is quoted in docs/campaign.md.
+# thermal ~3 min), quoted in docs/campaign.md; the ETC of composites on the 10,000-sphere dense
+# box (YADE ~40 min), quoted in docs/post.md.
 validate: deps
 	$(BIN)/tdem campaign runs/campaign_7500.toml
+	test -f runs/out/dense_box_10k/packing.h5 || $(BIN)/tdem pack runs/dense_box_10k.toml
+	$(BIN)/tdem etc runs/dense_box_10k.toml
 
 clean:
 	rm -rf $(VENV) runs/out .pytest_cache
