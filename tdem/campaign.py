@@ -82,20 +82,16 @@ def _scene_text(campaign_text: str, packing: Path, law: str) -> str:
 
 
 def build_packings(campaign_path: Path, out_dir: Path, *, threads: int, quiet: bool) -> list:
-    from .pack import build, read_pack_table
+    from .pack import build, built_packings, read_pack_table
     generator, params = read_pack_table(campaign_path)
     if generator != "bed":
         raise UserError(f"{campaign_path}: pack.generator: a pressure campaign needs the bed "
                         "generator")
     pdir = out_dir / "packings"
     expected = [pdir / f"packing_{p:.4g}Pa.h5" for p in params["pressures_pa"]]
-    done = pdir / "params.json"
-    if done.exists() and all(p.exists() for p in expected):
-        old = json.loads(done.read_text())
-        old.pop("output_dir", None)
-        if old == {k: v for k, v in params.items() if k != "output_dir"}:
-            print(f"tdem campaign: reusing the {len(expected)} packings in {pdir}/", flush=True)
-            return expected
+    if built_packings(campaign_path, pdir) and all(p.exists() for p in expected):
+        print(f"tdem campaign: reusing the {len(expected)} packings in {pdir}/", flush=True)
+        return expected
     build(campaign_path, pdir, threads=threads, quiet=quiet)
     missing = [p for p in expected if not p.exists()]
     if missing:

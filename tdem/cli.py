@@ -22,14 +22,23 @@ def _cmd_run(args):
     scene = load_scene(args.scene, out_dir=Path(args.out) if args.out else None)
     packing = Path(args.packing) if args.packing else None
     if packing is None and scene.pack is not None:
-        from .pack import build, default_out_dir
-        made = build(Path(args.scene), Path(args.out) if args.out else default_out_dir(
-            Path(args.scene)), quiet=args.quiet)
+        from .pack import build, built_packings, default_out_dir
+        pack_dir = Path(args.out) if args.out else default_out_dir(Path(args.scene))
+        made = built_packings(Path(args.scene), pack_dir)
+        if made:
+            print(f"tdem run: using {', '.join(map(str, made))} (made by tdem pack from this "
+                  "[pack] table)", flush=True)
+        else:
+            made = build(Path(args.scene), pack_dir, quiet=args.quiet)
         if len(made) != 1:
             raise UserError(f"{args.scene}: pack: the [pack] table made {len(made)} packings; "
                             "a scene runs on one (use `tdem campaign` for a pressure series)")
         packing = made[0]
-    run_scene(scene, packing, quiet=args.quiet, threads=args.threads)
+    if args.checkpoint_every < 0:
+        raise UserError(f"--checkpoint-every: expected a number of output times >= 0, got "
+                        f"{args.checkpoint_every}")
+    run_scene(scene, packing, quiet=args.quiet, threads=args.threads,
+              checkpoint_every=args.checkpoint_every, resume=args.resume)
 
 
 def _scene_and_packing(args):
@@ -212,6 +221,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="output folder (default: runs/out/<scene name>/)")
     p.add_argument("--threads", type=int, default=None, help="numba threads (default: all)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    p.add_argument("--checkpoint-every", type=int, default=0, metavar="K",
+                   help="write a checkpoint every K output times (transient runs)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue from the checkpoint of an interrupted run (same bits)")
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("calibrate", help="calibrate the haddad law's C_t on a packing by a "

@@ -1,6 +1,7 @@
 """``tdem pack SCENE.toml``: build packings with YADE from a scene's ``[pack]`` table."""
 from __future__ import annotations
 
+import json
 import time
 import tomllib
 from pathlib import Path
@@ -43,6 +44,25 @@ def read_pack_table(scene_path: Path) -> tuple[str, dict]:
 def default_out_dir(scene_path: Path) -> Path:
     scene_path = Path(scene_path)
     return scene_path.resolve().parent / "out" / scene_path.stem
+
+
+def built_packings(scene_path: Path, out_dir: Path | None = None) -> list[Path] | None:
+    """The packings an earlier `tdem pack` of this scene wrote in ``out_dir``, if its
+    params.json equals the scene's [pack] table now (else None: they must be built again)."""
+    generator, params = read_pack_table(scene_path)
+    out_dir = Path(out_dir) if out_dir else default_out_dir(scene_path)
+    done = out_dir / "params.json"
+    made = sorted(out_dir.glob("packing*.h5"))
+    if not done.exists() or not made:
+        return None
+    try:
+        old = json.loads(done.read_text())
+    except json.JSONDecodeError:
+        return None
+    old.pop("output_dir", None)
+    if old != {k: v for k, v in params.items() if k != "output_dir"}:
+        return None
+    return made
 
 
 def build(scene_path: Path, out_dir: Path | None = None, *, threads: int = 1,

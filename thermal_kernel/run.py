@@ -1,6 +1,7 @@
 """Running a scene: packing + law -> network -> solver -> ``thermal.h5``."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -8,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .checkpoint import checkpoint_path, read_checkpoint, write_checkpoint
 from .network import assemble
 from .output import write_thermal
 from .packing import read_packing
@@ -43,9 +45,65 @@ def _progress_bar(total_steps, end_time, quiet):
     return bar, progress
 
 
+def _transient(net, start, times, scene, threads, progress):
+    """One explicit or theta-scheme run from ``start`` (array or state) through ``times``."""
+    solver = scene.solver
+    if solver.method == "explicit":
+        dt = None if math.isnan(solver.dt) else solver.dt
+        try:
+            return run_explicit(net, start, times, dt=dt, safety=solver.safety,
+                                allow_unstable=solver.allow_unstable, progress=progress,
+                                threads=threads)
+        except UnstableTimeStepError as e:
+            raise SceneError(f"{scene.path}: solver.dt: {e}") from None
+    return run_implicit(net, start, times, dt=solver.dt, theta=solver.theta, progress=progress)
+
+
+def _run_with_checkpoints(net, T0, scene, threads, progress, every, resumed, n_particles):
+    """The transient in chunks of ``every`` output times, a checkpoint after each; or from a
+    checkpoint ``resumed`` = (state, outputs, totals). Returns (ThermalResult over all output
+    times, checkpoint path)."""
+    times = np.asarray(scene.solver.output_times, dtype=np.float64)
+    ckpt = checkpoint_path(scene.output)
+    outputs = {key: [] for key in ("times", "temperature_k", "boundary_heat_flow_w",
+                                   "boundary_energy_j", "source_energy_j", "stored_energy_j")}
+    totals = {"steps": 0, "wall_seconds": 0.0, "step_seconds": 0.0}
+    start = T0
+    if resumed is not None:
+        start, done, totals = resumed
+        for key in outputs:
+            outputs[key].append(done[key])
+        times = times[times > start.time_s]
+        print(f"  resuming from {ckpt} at t = {start.time_s:.6g} s ({len(done['times'])} "
+              f"outputs done, {len(times)} to go)", flush=True)
+    size = every if every > 0 else max(len(times), 1)
+    last = None
+    for i in range(0, len(times), size):
+        last = _transient(net, start, times[i:i + size], scene, threads, progress)
+        start = last.state
+        for key in outputs:
+            outputs[key].append(getattr(last, key))
+        totals = {"steps": totals["steps"] + last.steps,
+                  "wall_seconds": totals["wall_seconds"] + last.wall_seconds,
+                  "step_seconds": totals["step_seconds"] + last.info.get("step_seconds", 0.0)}
+        if every > 0:
+            write_checkpoint(ckpt, last.state, {k: np.concatenate(v) for k, v in outputs.items()},
+                             totals, scene.text, n_particles)
+    joined = {k: np.concatenate(v) for k, v in outputs.items()}
+    cups = (net.n_active_contacts * totals["steps"] / totals["step_seconds"]
+            if totals["step_seconds"] > 0 else float("nan"))
+    return dataclasses.replace(last, **joined, steps=int(totals["steps"]),
+                               wall_seconds=float(totals["wall_seconds"]),
+                               contact_updates_per_second=cups), ckpt
+
+
 def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = False,
-              threads: int | None = None) -> RunSummary:
-    """Run ``scene`` (its packing, or ``packing_path``) and write its output file."""
+              threads: int | None = None, checkpoint_every: int = 0,
+              resume: bool = False) -> RunSummary:
+    """Run ``scene`` (its packing, or ``packing_path``) and write its output file.
+
+    Transient runs can write a checkpoint every ``checkpoint_every`` output times (beside the
+    output, ``<name>.checkpoint.h5``, removed when the run ends) and ``resume`` from it."""
     packing = read_packing(packing_path or scene.packing)
     problem, info = build_problem(scene, packing)
     t_assemble = time.perf_counter()
@@ -58,25 +116,24 @@ def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = F
               f"{packing.n_particles} particles, {net.n_active_contacts} conducting contacts "
               f"({net.n_zero_contacts} with H = 0)", flush=True)
         print(f"  network: {net.clusters.summary()}", flush=True)
+    ckpt = None
     if solver.method == "steady":
+        if checkpoint_every or resume:
+            raise SceneError(f"{scene.path}: solver.method: a steady solve has no checkpoints "
+                             "(--checkpoint-every and --resume are for transient runs)")
         result = solve_steady(net, T0)
-    elif solver.method == "explicit":
-        dt = None if math.isnan(solver.dt) else solver.dt
-        bar, progress = _progress_bar(0, solver.end_time, quiet)
-        try:
-            result = run_explicit(net, T0, solver.output_times, dt=dt, safety=solver.safety,
-                                  allow_unstable=solver.allow_unstable, progress=progress,
-                                  threads=threads)
-        except UnstableTimeStepError as e:
-            raise SceneError(f"{scene.path}: solver.dt: {e}") from None
-        finally:
-            if bar is not None:
-                bar.close()
     else:
+        resumed = None
+        if resume:     # checked before anything runs or prints
+            resumed = read_checkpoint(checkpoint_path(scene.output), scene.text,
+                                      packing.n_particles)
+            if resumed[0].time_s >= solver.output_times[-1]:
+                raise SceneError(f"{checkpoint_path(scene.output)}: --resume: the checkpoint "
+                                 "already holds every output time (delete it to run again)")
         bar, progress = _progress_bar(0, solver.end_time, quiet)
         try:
-            result = run_implicit(net, T0, solver.output_times, dt=solver.dt,
-                                  theta=solver.theta, progress=progress)
+            result, ckpt = _run_with_checkpoints(net, T0, scene, threads, progress,
+                                                 checkpoint_every, resumed, packing.n_particles)
         finally:
             if bar is not None:
                 bar.close()
@@ -98,6 +155,8 @@ def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = F
                         source_energy_j=result.source_energy_j,
                         capacity_j_k=net.capacity_j_k, initial_temperature_k=T0,
                         boundary_names=result.boundary_names, attrs=attrs)
+    if ckpt is not None and ckpt.exists():
+        ckpt.unlink()            # the output is complete: the checkpoint has served
     if not quiet:
         _print_summary(result, out)
     return RunSummary(output=out, result=result, network=net, scene=scene)
