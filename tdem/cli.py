@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -104,23 +105,27 @@ def _cmd_post(args):
     if not thermal.exists():
         raise UserError(f"{thermal}: file not found (give a run folder or its thermal.h5)")
     s = post_run(thermal, n_bins=args.bins, halo_ratio=args.halo)
-    print(f"tdem post: {thermal} ({s['law']}, {s['n_particles']} particles, "
-          f"p = {s['pressure_pa']:.4g} Pa)")
-    print(f"  gamma = k_eff/k_p  {s['gamma']:.5g}   95 % CI [{s['gamma_ci95'][0]:.5g}, "
-          f"{s['gamma_ci95'][1]:.5g}], profile residual {s['gamma_residual_rms_k']:.3g} K")
+    pressure = (f", p = {s['pressure_pa']:.4g} Pa" if math.isfinite(s["pressure_pa"]) else "")
+    print(f"tdem post: {thermal} ({s['law']}, {s['n_particles']} particles{pressure})")
+    if s["gamma"] is None:
+        print("  gamma = k_eff/k_p  no profile fit: a steady run has no transient (the steady "
+              "ETC below is the answer)")
+    else:
+        print(f"  gamma = k_eff/k_p  {s['gamma']:.5g}   95 % CI [{s['gamma_ci95'][0]:.5g}, "
+              f"{s['gamma_ci95'][1]:.5g}], profile residual {s['gamma_residual_rms_k']:.3g} K")
     print(f"  gamma (steady ETC) {s['gamma_steady']:.5g}   heat in/out balance "
           f"{s['steady_balance']:.1e}")
     print("  gamma mean field   " + ", ".join(f"{k} {v:.4g}" for k, v in
                                               s["gamma_mean_field"].items()))
-    print(f"  tau (middle)       {s['tau_s']:.5g} s (from the time series: "
-          f"{s['tau_series_s']:.5g} s)")
+    series = ("" if s["tau_series_s"] is None
+              else f" (from the time series: {s['tau_series_s']:.5g} s)")
+    print(f"  tau (middle)       {s['tau_s']:.5g} s{series}")
     if "flux_cov_halo" in s:
         print(f"  heat flux (steady) CoV of |q| {s['flux_cov_raw']:.3f} per particle, "
               f"{s['flux_cov_halo']:.3f} with a halo of {s['flux_halo_ratio']:g} R "
               f"({s['flux_interior_particles']} interior particles); mean axial q / (Q/A) "
               f"{s['flux_mean_over_q_per_area']:.3f}")
-    print(f"  wrote {thermal.parent / 'post'}/ (profiles.png/.csv, flux_section.png/.csv, "
-          "summary.json)")
+    print(f"  wrote {thermal.parent / 'post'}/ ({', '.join(s['files'])})")
 
 
 def _floats(text, what):

@@ -115,9 +115,13 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
     z = packing.position[:, axis] - z0
     edges = np.linspace(0.0, length, n_bins + 1)
     profiles = binned_profile(z, packing.radius, temperature, edges, weights=conducting)
-    fit = fit_gamma(times, edges, profiles, conductivity_w_mk=kp,
-                    volumetric_capacity_j_m3k=rho_c_bed, t_bottom=bottom.value,
-                    t_top=top.value, t_initial=t_initial)
+    # a steady run (its one output at t = inf) has no transient: no profile fit, no series tau
+    transient = bool(np.all(np.isfinite(times)))
+    fit = None
+    if transient:
+        fit = fit_gamma(times, edges, profiles, conductivity_w_mk=kp,
+                        volumetric_capacity_j_m3k=rho_c_bed, t_bottom=bottom.value,
+                        t_top=top.value, t_initial=t_initial)
 
     steady = solve_steady(net, np.asarray(initial))
     t_steady = steady.temperature_k[-1]
@@ -133,8 +137,11 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
     w_mid = partial_volumes(z, packing.radius, mid)[:, 0] * conducting
     tau_net = characteristic_time_network(net, t_steady, initial, w_mid)
     section = (temperature @ w_mid) / w_mid.sum()
-    tau_series = characteristic_time_series(times, section, float(t_steady @ w_mid / w_mid.sum()),
-                                            float(initial @ w_mid / w_mid.sum()))
+    tau_series = None
+    if transient:
+        tau_series = float(characteristic_time_series(
+            times, section, float(t_steady @ w_mid / w_mid.sum()),
+            float(initial @ w_mid / w_mid.sum())))
 
     # heat flux per particle at steady state (002 eq. 20) and its Halo average (eq. 22-23)
     q_raw = particle_flux(packing.position, packing.radius, packing.pair, packing.branch,
@@ -158,7 +165,7 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
     r_mean = float(packing.radius.mean())
     z_mean = 2.0 * touching.sum() / packing.n_particles
     for law in MEAN_FIELD_LAWS:
-        prob, _ = build_problem(dataclasses.replace(scene, law=law), packing)
+        prob, _ = build_problem(dataclasses.replace(scene, law=law, law_params={}), packing)
         h_mean = float(np.mean(prob.conductance_w_k[touching])) if touching.any() else 0.0
         mean_field[law] = phi * z_mean * h_mean / (2 * math.pi * r_mean * kp)
 
@@ -171,20 +178,31 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
         "solid_fraction": phi, "mean_coordination": float(z_mean),
         "mean_normal_force_n": float(stats["mean_normal_force_n"]),
         "rattlers": int(np.count_nonzero(~conducting)),
-        "gamma": fit.gamma, "gamma_ci95": list(fit.ci95), "gamma_residual_rms_k": fit.residual_rms_k,
+        "gamma": fit.gamma if fit else None, "gamma_ci95": list(fit.ci95) if fit else None,
+        "gamma_residual_rms_k": fit.residual_rms_k if fit else None,
         "gamma_steady": k_steady / kp, "steady_balance": balance,
-        "tau_s": tau_net, "tau_series_s": float(tau_series),
+        "tau_s": tau_net, "tau_series_s": tau_series,
         "gamma_mean_field": mean_field, "length_m": length, "wall_gap_m": wall_gap,
         "n_bins": n_bins,
         "run_wall_seconds": float(attrs.get("wall_seconds", float("nan"))),
         **flux_stats,
     }
-    write_text_atomic(out_dir / "summary.json", json.dumps(summary, indent=1))
-    if plots:
+    summary["files"] = ["summary.json"]
+    if plots and fit is not None:
+        summary["files"] += ["profiles.png", "profiles.csv"]
         _plot_profiles(out_dir, times, edges, profiles, fit, length, bottom.value, top.value,
                        t_initial, summary)
+    if plots:
+        summary["files"] += ["flux_section.png", "flux_section.csv"]
         _plot_flux_section(out_dir, packing, axis, q_raw, q_halo, summary)
+    # last: a complete summary.json means the whole post-processing is there (campaign resume)
+    write_text_atomic(out_dir / "summary.json", json.dumps(summary, indent=1))
     return summary
+
+
+def _pressure_label(summary):
+    p = summary["pressure_pa"]
+    return f", p = {p / 1e5:.3g} bar" if math.isfinite(p) else ""
 
 
 def _plot_profiles(out_dir, times, edges, profiles, fit, length, t_b, t_t, t_i, summary):
@@ -204,7 +222,7 @@ def _plot_profiles(out_dir, times, edges, profiles, fit, length, t_b, t_t, t_i, 
         rows += [f"{t},{c},{p},{m}" for c, p, m in zip(centres, profiles[k], model)]
     ax.set_xlabel("height above the bottom held spheres (mm)")
     ax.set_ylabel("temperature (K)")
-    ax.set_title(f"{summary['law']}, p = {summary['pressure_pa'] / 1e5:.3g} bar: "
+    ax.set_title(f"{summary['law']}{_pressure_label(summary)}: "
                  f"gamma = {fit.gamma:.4g} (dots tdem, dashes slab solution)", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -237,7 +255,7 @@ def _plot_flux_section(out_dir, packing, axis, q_raw, q_halo, summary):
         ax.set_title(name + (f": CoV {cov:.3f}" if cov is not None else ""), fontsize=9)
     axes[0].set_ylabel(f"{'xyz'[axis]} (mm)")
     fig.colorbar(sc, ax=axes, label="|q| (W/m^2), steady state")
-    fig.suptitle(f"{summary['law']}, p = {summary['pressure_pa'] / 1e5:.3g} bar: heat flux in "
+    fig.suptitle(f"{summary['law']}{_pressure_label(summary)}: heat flux in "
                  f"the section {'xyz'[depth]} = {centre[depth] * 1e3:.3g} mm", fontsize=10)
     savefig_atomic(fig, out_dir / "flux_section.png", dpi=110)
     plt.close(fig)

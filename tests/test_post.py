@@ -12,6 +12,7 @@ Tolerances, and why:
 - tau from a finely sampled time series equals the network's exact tau within 1 %;
 - power law: recovers a, b, c of noise-free data to 1e-6.
 """
+import json
 import math
 from pathlib import Path
 
@@ -209,3 +210,29 @@ output_times = [20.0, 40.0, 80.0, 150.0, 300.0, 600.0]
         phi * z_mean * h / (2 * math.pi * radius * 205.0), rel=1e-9)
     assert (math.pi / 6) * 6 * h / (2 * math.pi * (pitch / 2) * 205.0) == pytest.approx(
         gamma_exact, rel=1e-12)
+
+
+def test_post_of_a_steady_run_reports_the_steady_etc_and_no_fit(tmp_path, capsys):
+    """A steady run has no transient: `tdem post` says so instead of fitting one output at
+    t = inf, and gives the lattice's closed-form steady gamma (a law with parameters, haddad,
+    also checks that the mean-field laws do not inherit them)."""
+    from thermal_kernel.lattice import simple_cubic_packing
+    from thermal_kernel.packing import write_packing
+    pitch, delta = 4e-3, 4e-6
+    radius = (pitch + delta) / 2
+    write_packing(tmp_path / "lattice.h5", simple_cubic_packing(
+        (3, 3, 9), spacing_m=pitch, radius_m=radius, young_pa=5e10, poisson=0.2))
+    scene = tmp_path / "steady.toml"
+    scene.write_text('packing = "lattice.h5"\nlaw = "haddad"\n[law_params]\nct = 0.8\n'
+                     + BED_THERMAL.replace('on = "plate"', 'on = "zmax"')
+                     + '[solver]\nmethod = "steady"\n')
+    assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    assert main(["post", str(tmp_path / "out")]) == 0
+    printed = capsys.readouterr().out
+    assert "no profile fit" in printed and "nan" not in printed.lower()
+    s = json.loads((tmp_path / "out" / "post" / "summary.json").read_text())
+    assert s["gamma"] is None and s["tau_series_s"] is None
+    # haddad on a lattice: H = k C_t pi R_m^2 / d between layers a apart -> k_eff = H / a
+    h = 205.0 * 0.8 * math.pi * radius ** 2 / pitch
+    assert s["gamma_steady"] == pytest.approx(h / (pitch * 205.0), rel=1e-9)
+    assert not (tmp_path / "out" / "post" / "profiles.png").exists()
