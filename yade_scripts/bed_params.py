@@ -71,11 +71,18 @@ PARAMS = {
     "inertial_number": dict(kind="float", default=1e-3, minimum=1e-9,
                             help="the plate speed is limited so that I = (v/H) d sqrt(rho/p) "
                                  "stays below this (-)"),
+    "soft_inertial_number": dict(kind="float", default=1e-3, minimum=1e-9,
+                                 help="the same limit while the modulus is softened (approach "
+                                      "to the preload, re-stiffening); that state is re-relaxed "
+                                      "at the real modulus before any dump (-)"),
     "unbalanced_force_target": dict(kind="float", default=1e-3, minimum=1e-9,
                                     help="a state is dumped once YADE's unbalanced-force ratio "
                                          "is below this (-)"),
     "pressure_tolerance": dict(kind="float", default=0.01, minimum=1e-6,
                                help="relative tolerance on the plate pressure at a dump (-)"),
+    "settle_damping": dict(kind="float", default=0.4, minimum=0.0,
+                           help="Cundall damping while the settled bed relaxes under gravity "
+                                "after the fall (-, < 1)"),
     "timestep_safety": dict(kind="float", default=0.5, minimum=1e-3,
                             help="time step = this x the P-wave time step r sqrt(rho/E) (-)"),
     "cloud_solid_fraction": dict(kind="float", default=0.3, minimum=0.01,

@@ -91,7 +91,8 @@ GENERATOR = "yade_scripts/compressed_bed.py"
 SETTLE_KEYS = ("n_particles", "particle_radius_m", "radius_spread", "cylinder_radius_m",
                "cylinder_segments", "density", "young_pa", "poisson", "restitution", "friction",
                "wall_young_pa", "wall_poisson", "wall_friction", "gravity_m_s2",
-               "settle_young_pa", "density_scaling", "damping", "unbalanced_force_target",
+               "settle_young_pa", "density_scaling", "damping", "settle_damping",
+               "unbalanced_force_target",
                "timestep_safety", "cloud_solid_fraction", "seed")
 CHUNK = 10            # steps between two plate updates / convergence checks
 APPROACH = 0.9        # the plate is driven (kinematic) up to this fraction of the target...
@@ -158,6 +159,7 @@ def read_params():
         ("wall_poisson", p["wall_poisson"] < 0.5, "a value < 0.5"),
         ("restitution", p["restitution"] <= 1.0, "a value in (0, 1]"),
         ("damping", p["damping"] < 1.0, "a value in [0, 1)"),
+        ("settle_damping", p["settle_damping"] < 1.0, "a value in [0, 1)"),
         ("timestep_safety", p["timestep_safety"] <= 1.0, "a value in (0, 1]"),
         ("pressure_tolerance", p["pressure_tolerance"] < 0.5, "a value < 0.5"),
         ("preload_fraction", p["preload_fraction"] <= 1.0, "a value in (0, 1]"),
@@ -266,6 +268,8 @@ class Bed:
         self.dead_load = 0.0      # permanent z force applied to the plate (N)
         self.steps_at_last_dump = 0
         self.wall_at_last_dump = time.time()
+        self.i_target = p["inertial_number"]
+        self.soft_imax = 0.0      # largest inertial number while softened (not in a dump's I)
 
     # --- building ---------------------------------------------------------------------------
     def build(self):
@@ -415,9 +419,10 @@ class Bed:
         return -self.plate.state.vel[2]
 
     def inertial_speed(self, p_now):
-        """Plate speed at which I = (v/H) d sqrt(rho_eff/p_ref) equals the target."""
+        """Plate speed at which I = (v/H) d sqrt(rho_eff/p_ref) equals the target of the stage
+        (``inertial_number`` at the real modulus, ``soft_inertial_number`` while softened)."""
         p_ref = max(p_now, self.p_weight)
-        return (self.p["inertial_number"] * self.plate_height() / self.d_mean
+        return (self.i_target * self.plate_height() / self.d_mean
                 * math.sqrt(p_ref / self.rho_eff))
 
     def inertial_number(self, v, p_now):
@@ -468,7 +473,7 @@ class Bed:
                 break
             if O.iter - start > p["max_steps"]:
                 run_error(f"max_steps: the fall did not end within {p['max_steps']} steps")
-        self.newton.damping = p["damping"]
+        self.newton.damping = p["settle_damping"]
         self.stepper.maxDt = 1e300
         self.use_stepper(True)
         start = O.iter
@@ -489,6 +494,7 @@ class Bed:
         self.drive_plate(0.0)
         self.settled_height = top
         O.tags["tdem_settled_height"] = repr(top)
+        self.newton.damping = p["damping"]
         self.progress("settle", f"settled: height {top:.5g} m, unbalanced {unb:.3e}", force=True)
 
     def load_settled(self, path):
@@ -516,6 +522,7 @@ class Bed:
         self.stepper.active = False
         O.dt = O.dt / root
         self.stepper.active = True
+        self.stage_inertial_number()
 
     def check_steps(self, start, stage, target, p_now, unb):
         if O.iter - start > self.p["max_steps"]:
@@ -577,9 +584,17 @@ class Bed:
             self.progress(stage, f"unbalanced {unb:.2e}  E {self.young_now:.3g} Pa")
             self.check_steps(start, stage, 0.0, 0.0, unb)
 
+    def stage_inertial_number(self):
+        """The plate's inertial-number target: ``soft_inertial_number`` while the modulus is
+        softened (that state is re-relaxed at the real modulus before any dump),
+        ``inertial_number`` at the real modulus."""
+        soft = self.young_now < self.p["young_pa"] * (1.0 - 1e-9)
+        self.i_target = self.p["soft_inertial_number" if soft else "inertial_number"]
+
     def compress(self, target):
         p = self.p
         imax = 0.0
+        self.stage_inertial_number()
         if self.young_now < p["young_pa"] and p["preload_fraction"] < 1.0:
             # softened: load only to the preload, re-stiffen there, then go on at the real E
             preload = p["preload_fraction"] * target
@@ -614,6 +629,10 @@ class Bed:
                          f"{target:.4g} Pa")
                 if self.young_now < p["young_pa"]:
                     imax, _ = self.relax(target, "stiffen", 0.05, loose, imax)
+        # the softened stages' plate motion is recorded apart (inertial_number_softened): the
+        # dump's inertial_number covers the stages at the real modulus only
+        self.soft_imax = max(self.soft_imax, imax)
+        imax = 0.0
         if not dump:
             return self.relax(target, "preload", 0.05, 10 * p["unbalanced_force_target"], imax)
         return self.relax(target, "hold", p["pressure_tolerance"],
@@ -737,11 +756,16 @@ class Bed:
             # motion); the plate speed is chosen to keep it at most `inertial_number`.
             inertial_number=imax,
             inertial_number_target=p["inertial_number"],
+            # the same, over the plate motion at the softened modulus (preload, re-stiffening)
+            # that preceded this dump (0: none), and its target
+            inertial_number_softened=self.soft_imax,
+            inertial_number_softened_target=p["soft_inertial_number"],
             unbalanced_force_ratio=unb,
             unbalanced_force_target=p["unbalanced_force_target"],
             max_particle_speed_m_s=max(speeds) / math.sqrt(self.scale),
             settle_young_pa=p["settle_young_pa"],
             damping=p["damping"],
+            settle_damping=p["settle_damping"],
             timestep_s=O.dt,
             steps=O.iter,
             stage_steps=O.iter - self.steps_at_last_dump,
@@ -760,6 +784,7 @@ class Bed:
                       yade_id=np.arange(n))
         self.steps_at_last_dump = O.iter
         self.wall_at_last_dump = now
+        self.soft_imax = 0.0
         plate_sum = float(np.sum(w_force[w_index == 1])) / self.area if len(w_force) else 0.0
         self.log(f"wrote {path}: N {n}, phi {attrs['solid_fraction']:.4f}, "
                  f"Z {attrs['mean_coordination']:.3f}, contacts {len(pairs)} "
