@@ -34,11 +34,13 @@ from yade.wrapper import (FrictMat, ForceResetter, InsertionSortCollider,  # noq
                           Bo1_Sphere_Aabb, Bo1_Wall_Aabb, Bo1_Facet_Aabb, InteractionLoop,
                           Ig2_Sphere_Sphere_ScGeom, Ig2_Wall_Sphere_ScGeom,
                           Ig2_Facet_Sphere_ScGeom, Ip2_FrictMat_FrictMat_MindlinPhys,
-                          Law2_ScGeom_MindlinPhys_Mindlin, NewtonIntegrator, Sphere)
+                          Law2_ScGeom_MindlinPhys_Mindlin, NewtonIntegrator, Sphere,
+                          GlobalStiffnessTimeStepper)
 from yade.minieigenHP import Matrix3  # noqa: E402
 
 import params as P  # noqa: E402
 from neighbours import neighbour_pairs  # noqa: E402
+from tiling import carve, repetitions, tile  # noqa: E402
 from tdem_dump import write_packing  # noqa: E402
 
 
@@ -102,6 +104,21 @@ class Container:
             return (rad + r <= self.radius) & (c[:, 2] - r >= 0) & (c[:, 2] + r <= self.size[2])
         return np.linalg.norm(c - self.centre, axis=1) + r <= self.radius
 
+    def inside_scalar(self):
+        """inside() for one sphere as plain floats: f(x, y, z, r) -> bool (the cloud's hot loop)."""
+        sx, sy, sz = (float(v) for v in self.size)
+        cx, cy, cz = (float(v) for v in self.centre)
+        rad = float(self.radius)
+        if self.shape == "periodic":
+            return lambda x, y, z, r: True
+        if self.shape == "box":
+            return lambda x, y, z, r: (x - r >= 0 and y - r >= 0 and z - r >= 0 and
+                                       x + r <= sx and y + r <= sy and z + r <= sz)
+        if self.shape == "cylinder":
+            return lambda x, y, z, r: (math.hypot(x - cx, y - cy) + r <= rad and z - r >= 0
+                                       and z + r <= sz)
+        return lambda x, y, z, r: math.sqrt((x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2) + r <= rad
+
     def walls(self):
         walls = []
         if self.shape in ("box", "cylinder"):
@@ -155,21 +172,55 @@ def make_cloud(p):
     shrink = (CLOUD_SOLID_FRACTION / EXPECTED_SOLID_FRACTION[p["shape"]]) ** (1.0 / 3.0)
     small = radii * shrink
     rng = np.random.default_rng(p["seed"] + 1)
-    centres = np.empty((n, 3))
     periodic = p["shape"] == "periodic"
+    # A grid of cells at least one largest diameter wide: a candidate can only overlap spheres
+    # in its own and the 26 neighbouring cells, so each test is local. Plain Python floats per
+    # candidate (numpy calls on 3-vectors cost more than the arithmetic); the draws are the
+    # same stream as one rng.random(3) per try, so the accept/reject decisions, and the cloud,
+    # are those of the all-pairs test this replaced.
+    size = [float(x) for x in box.size]
+    ncell = [max(1, int(x // (2.0 * small[0]))) for x in size]
+    width = [x / m for x, m in zip(size, ncell)]
+    inside = box.inside_scalar()
+    grid = {}
+    xs, ys, zs, rs = [], [], [], []
+    offsets = [(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)]
+    buffer, used = [], 0
     for k in range(n):
+        rk = float(small[k])
         for _ in range(100000):
-            c = rng.random(3) * box.size
-            if not box.inside(c, small[k])[0]:
+            if used == len(buffer):
+                buffer, used = (rng.random((4096, 3)) * box.size).tolist(), 0
+            x, y, z = buffer[used]
+            used += 1
+            if not inside(x, y, z, rk):
                 continue
-            d = centres[:k] - c
-            if periodic:
-                d -= np.round(d / box.size) * box.size
-            if k == 0 or np.min(np.einsum("ij,ij->i", d, d) - (small[:k] + small[k]) ** 2) > 0:
-                centres[k] = c
-                break
+            home = (min(int(x / width[0]), ncell[0] - 1), min(int(y / width[1]), ncell[1] - 1),
+                    min(int(z / width[2]), ncell[2] - 1))
+            near = set()
+            for off in offsets:
+                key = (home[0] + off[0], home[1] + off[1], home[2] + off[2])
+                if periodic:
+                    key = (key[0] % ncell[0], key[1] % ncell[1], key[2] % ncell[2])
+                near.update(grid.get(key, ()))
+            free = True
+            for q in near:
+                dx, dy, dz = xs[q] - x, ys[q] - y, zs[q] - z
+                if periodic:
+                    dx -= round(dx / size[0]) * size[0]
+                    dy -= round(dy / size[1]) * size[1]
+                    dz -= round(dz / size[2]) * size[2]
+                if dx * dx + dy * dy + dz * dz - (rs[q] + rk) ** 2 <= 0:
+                    free = False
+                    break
+            if not free:
+                continue
+            xs.append(x), ys.append(y), zs.append(z), rs.append(rk)
+            grid.setdefault(home, []).append(k)
+            break
         else:
             fail("n_particles: could not place the initial cloud", code=3)
+    centres = np.array([xs, ys, zs]).T
     return centres, small, box, radii
 
 
@@ -182,8 +233,9 @@ def stiffness_stages(p):
     real = p["young_pa"]
     soft = min(real, p["softening_factor"] * p["confining_pressure_pa"])
     stages = [soft]
-    while stages[-1] * 10.0 < real:
-        stages.append(stages[-1] * 10.0)
+    factor = p["stiffen_factor"]
+    while stages[-1] * factor < real:
+        stages.append(stages[-1] * factor)
     if stages[-1] < real:
         stages.append(real)
     return stages
@@ -245,6 +297,15 @@ def build_scene(p, centres, radii, box, young):
                         [Law2_ScGeom_MindlinPhys_Mindlin()]),
         NewtonIntegrator(damping=p["damping"]),
     ]
+    if p["time_step"] == "density_scaling":
+        # Every sphere's mass is scaled so that its own critical step (from its current contact
+        # stiffnesses) equals targetDt: small spheres no longer set the step of all. The static
+        # state does not depend on masses (no gravity), only the path to it does.
+        O.engines = O.engines[:-1] + [GlobalStiffnessTimeStepper(
+            densityScaling=True, timestepSafetyCoefficient=0.8, timeStepUpdateInterval=10,
+            targetDt=1.0), O.engines[-1]]
+        # (a property that needs the time stepper already in O.engines)
+        O.engines[-1].densityScaling = True
     return (mat, plane_mat, facet_mat), np.array(sphere_ids), wall_of_body, collider
 
 
@@ -304,7 +365,9 @@ def compress(p, centres, radii, box):
             max(p["unbalanced_force_target"], 1e-2)
         e_star = young / (2.0 * (1.0 - p["poisson"] ** 2))
         overlap_scale = (p_target / e_star) ** (2.0 / 3.0)   # typical delta/R at the target
-        O.dt = 0.5 * utils.PWaveTimeStep()
+        if p["time_step"] == "p_wave":
+            # the P-wave bound of the smallest sphere, at the stage's modulus
+            O.dt = 0.5 * utils.PWaveTimeStep()
         settled = 0
         while True:
             O.run(every, True)
@@ -343,6 +406,43 @@ def solid_fraction(box):
                if isinstance(b.shape, Sphere)) / box.volume
 
 
+def tile_cell(p, cell_box, position, radius, pair, branch, overlap, normal_force,
+              contact_radius):
+    """method = "tiled": copies of the relaxed periodic cell side by side, carved to the
+    requested shape (yade_scripts/tiling.py). The domain is sized for n_particles at the
+    cell's solid fraction; returns the carved arrays, its walls (cut surfaces) and the
+    attributes that describe the tiling."""
+    cell = cell_box.size
+    phi_cell = float(np.sum(4.0 / 3.0 * np.pi * radius ** 3) / cell_box.volume)
+    mean_volume = float(np.mean(4.0 / 3.0 * np.pi * radius ** 3))
+    box = Container(p["shape"], p["n_particles"] * mean_volume / phi_cell, p["aspect"])
+    reps = repetitions(cell, box.size)
+    position_t, source, pair_t, pair_source = tile(position, cell, pair, branch, reps)
+    keep = box.inside(position_t, np.zeros(len(position_t)))
+    new_index, rows, pair_c = carve(keep, pair_t)
+    rows_cell = pair_source[rows]
+    position = position_t[keep]
+    radius = radius[source[keep]]
+    walls = box.walls()
+    wall_particle, wall_index, wall_overlap = [], [], []
+    for w, wall in enumerate(walls):
+        dist = box.distance_to_wall(wall, position)
+        near = np.flatnonzero(dist < (1.0 + p["wall_gap_tolerance"]) * radius)
+        wall_particle.append(near)
+        wall_index.append(np.full(len(near), w, dtype=np.int32))
+        wall_overlap.append(radius[near] - dist[near])
+    wall_particle = np.concatenate(wall_particle).astype(np.int64)
+    info = {"cell_particles": int(len(source) // int(np.prod(reps))),
+            "cell_size_m": np.asarray(cell, dtype=float),
+            "periodicity_length_m": np.asarray(cell, dtype=float),
+            "tiles": int(np.prod(reps)), "tile_repetitions": np.asarray(reps, dtype=np.int64),
+            "cell_solid_fraction": phi_cell}
+    return (box, position, radius, pair_c, branch[rows_cell], overlap[rows_cell],
+            normal_force[rows_cell], contact_radius[rows_cell], walls, wall_particle,
+            np.concatenate(wall_index), np.concatenate(wall_overlap),
+            np.zeros(len(wall_particle)), info)
+
+
 def main():
     if len(sys.argv) != 2:
         fail("usage: yade -n -x dense_packing.py params.json")
@@ -356,11 +456,21 @@ def main():
         if not isinstance(inc, dict) or set(inc) - {"centre", "radius", "phase"} \
                 or "centre" not in inc or "radius" not in inc:
             fail(f"inclusions[{k}]: expected {{centre = [fx, fy, fz], radius = f, phase = id}}")
+    if p["method"] == "tiled":
+        if p["shape"] == "periodic":
+            fail("method: \"tiled\" carves a box, cylinder or sphere out of copies of a periodic "
+                 "cell; for a periodic domain use method = \"direct\"")
+        if p["n_particles"] < p["cell_particles"]:
+            fail(f"cell_particles: expected at most n_particles ({p['n_particles']}) for "
+                 f"method = \"tiled\", got {p['cell_particles']}")
     t0 = time.time()
-    centres, radii0, box, radii_drawn = make_cloud(p)
+    # tiled: the YADE relaxation is that of a periodic cell of cell_particles spheres
+    p_relax = dict(p, shape="periodic", n_particles=p["cell_particles"]) \
+        if p["method"] == "tiled" else p
+    centres, radii0, box, radii_drawn = make_cloud(p_relax)
     log(f"cloud: {len(radii0)} spheres in a {box.shape} domain {box.size[0]:.4g} x "
         f"{box.size[1]:.4g} x {box.size[2]:.4g} m (seed {p['seed']})")
-    compress_seconds, sphere_ids, wall_of_body, collider = compress(p, centres, radii0, box)
+    compress_seconds, sphere_ids, wall_of_body, collider = compress(p_relax, centres, radii0, box)
     # The quasi-static quality of the packing: YADE's state at the end of the relaxation, with
     # its tangential (friction) forces. The rebuilt contacts below carry normal forces only.
     unbalanced = utils.unbalancedForce()
@@ -441,6 +551,18 @@ def main():
     wall_overlap = np.array(wall_overlap, dtype=float)
     wall_force = np.array(wall_force, dtype=float)
 
+    cell_info = {}
+    if p["method"] == "tiled":
+        (box, position, radius, pair, branch, overlap, normal_force, contact_radius, walls,
+         wall_particle, wall_index, wall_overlap, wall_force, cell_info) = tile_cell(
+            p, box, position, radius, pair, branch, overlap, normal_force, contact_radius)
+        periodic = False
+        n = len(radius)
+        sphere_ids = None
+        log(f"tiled: {cell_info['tiles']} copies of the {cell_info['cell_particles']}-sphere "
+            f"cell carved to a {box.shape} {box.size[0]:.4g} x {box.size[1]:.4g} x "
+            f"{box.size[2]:.4g} m: {n} spheres, {len(pair)} neighbour pairs")
+
     lo, hi = np.zeros(3), box.size.copy()
     phase = np.zeros(n, dtype=np.int32)
     extent = hi - lo
@@ -512,7 +634,12 @@ def main():
         "gap_tolerance": p["gap_tolerance"], "wall_gap_tolerance": p["wall_gap_tolerance"],
         "wall_segments": p["wall_segments"],
         "wall_contact_model": "Hertz with R* = r and E* = E / (2 (1 - nu^2)): a flat wall of "
-                              "the particles' material (curved walls: facets, locally flat)",
+                              "the particles' material (curved walls: facets, locally flat)"
+        if p["method"] == "direct" else
+        "cut surface of a tiled periodic packing: spheres within (1 + wall_gap_tolerance) r "
+        "of it, overlap = r - distance, no force (nothing was pressed against them)",
+        "method": p["method"], "time_step": p["time_step"],
+        "stiffen_factor": p["stiffen_factor"], **cell_info,
         "contacts_touching_without_yade_force": n_untracked,
         "radius_distribution": p["radius_distribution"],
         "radius_mean_requested_m": p["radius_mean_m"],

@@ -37,6 +37,21 @@ PARAMS = {
                              help="compression starts with E = min(young_pa, this x confining "
                                   "pressure) and raises E tenfold per stage to young_pa, "
                                   "re-relaxing at each (speed only: the dump is at young_pa)"),
+    "time_step": dict(kind="str", default="density_scaling", choices=["density_scaling", "p_wave"],
+                      help="density_scaling: YADE's GlobalStiffnessTimeStepper scales each "
+                           "sphere's mass so that all have the same critical step (the static "
+                           "state does not depend on masses); p_wave: 0.5 x the P-wave step of "
+                           "the smallest sphere (the path before 2026-11)"),
+    "stiffen_factor": dict(kind="float", default=10.0, minimum=1.5,
+                           help="factor by which E is raised per stage from the softened start "
+                                "to young_pa, -"),
+    "method": dict(kind="str", default="direct", choices=["direct", "tiled"],
+                   help="direct: relax all n_particles in the domain with its walls; tiled: "
+                        "relax a periodic cell of cell_particles spheres, copy it side by side "
+                        "and carve the domain out of the copies (no walls pressed on the "
+                        "spheres; periodicity length = the cell)"),
+    "cell_particles": dict(kind="int", default=10000, minimum=20,
+                           help="tiled: spheres in the periodic cell that is copied"),
     "damping": dict(kind="float", default=0.5, minimum=0.0,
                     help="YADE's non-viscous (local) damping of the compression, 0..1"),
     "unbalanced_force_target": dict(kind="float", default=1e-3, minimum=1e-9,
