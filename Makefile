@@ -5,7 +5,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-APT_PACKAGES := yade python3-h5py python3-venv
+APT_PACKAGES := yade python3-h5py python3-scipy python3-venv
 
 .PHONY: demo test deps apt validate bench clean
 
@@ -19,7 +19,7 @@ deps: apt $(VENV)/.installed
 
 # Installs only when something is missing, so a second `make` costs nothing.
 apt:
-	@if ! command -v yade >/dev/null 2>&1 || ! /usr/bin/python3 -c "import h5py" >/dev/null 2>&1 \
+	@if ! command -v yade >/dev/null 2>&1 || ! /usr/bin/python3 -c "import h5py, scipy" >/dev/null 2>&1 \
 	    || ! $(PYTHON) -m venv --help >/dev/null 2>&1; then \
 	  echo "installing Debian packages: $(APT_PACKAGES)"; \
 	  $(SUDO) apt-get update && \
