@@ -28,7 +28,7 @@ class PackingStats:
     n_particles: int
     n_bulk: int
     solid_fraction: float          # whole domain (the file's attribute)
-    solid_fraction_bulk: float     # the file's attribute (same definition for every path)
+    solid_fraction_bulk: float     # sampled: share of points of the bulk region inside a sphere
     z_nonrattler: float            # touching sphere-sphere contacts per bulk non-rattler
     z_with_gaps: float             # touching + gap neighbours per bulk particle
     rattler_fraction: float        # bulk particles without a touching contact
@@ -41,7 +41,10 @@ class PackingStats:
 def bulk_mask(packing: Packing, margin_m: float) -> np.ndarray:
     """Particles whose centre is at least ``margin_m`` inside the domain: inside the box shrunk
     by the margin, and inside every cylinder / sphere wall shrunk by it."""
-    x = packing.position
+    return _bulk_points(packing, packing.position, margin_m)
+
+
+def _bulk_points(packing: Packing, x: np.ndarray, margin_m: float) -> np.ndarray:
     mask = np.all((x >= packing.domain_lo + margin_m) & (x <= packing.domain_hi - margin_m)
                   | np.asarray(packing.periodic)[None, :], axis=1)
     for kind, point, normal, radius in zip(packing.wall_kind, packing.wall_point,
@@ -53,6 +56,36 @@ def bulk_mask(packing: Packing, margin_m: float) -> np.ndarray:
         elif kind == "sphere":
             mask &= np.linalg.norm(x - point, axis=1) <= radius - margin_m
     return mask
+
+
+def sampled_solid_fraction(packing: Packing, region: np.ndarray, spacing_m: float,
+                           rng_seed: int = 0) -> float:
+    """Solid fraction of a region by sampling: the share of points (a jittered grid of the
+    given spacing over the domain, kept where ``region(points)`` is true) that lie inside a
+    sphere. Unlike counting whole spheres by their centre (whose error grows with the spread of
+    sphere volumes: ~0.02 for 700 spheres of sigma/mean 0.3), its error is that of the
+    structure itself."""
+    rng = np.random.default_rng(rng_seed)
+    lo, hi = packing.domain_lo, packing.domain_hi
+    axes = [np.arange(a + 0.5 * spacing_m, b, spacing_m) for a, b in zip(lo, hi)]
+    tree = cKDTree(packing.position)
+    r_max = float(packing.radius.max())
+    inside = total = 0
+    for x in axes[0]:                       # one slab of points at a time (memory)
+        yy, zz = np.meshgrid(axes[1], axes[2], indexing="ij")
+        pts = np.column_stack([np.full(yy.size, x), yy.ravel(), zz.ravel()])
+        pts += rng.uniform(-0.5, 0.5, pts.shape) * spacing_m
+        pts = pts[region(pts)]
+        if not len(pts):
+            continue
+        dist, idx = tree.query(pts, k=8, distance_upper_bound=r_max)
+        hit = np.zeros(len(pts), bool)
+        valid = np.isfinite(dist)
+        rad = np.where(valid, packing.radius[np.minimum(idx, packing.n_particles - 1)], 0.0)
+        hit = np.any(valid & (dist < rad), axis=1)
+        inside += int(hit.sum())
+        total += len(pts)
+    return inside / max(total, 1)
 
 
 def radial_distribution(position: np.ndarray, centres_mask: np.ndarray, density_m3: float,
@@ -91,12 +124,16 @@ def packing_stats(packing: Packing) -> PackingStats:
     deviator = fabric - np.trace(fabric) / 3.0 * np.eye(3)
     extent = packing.domain_hi - packing.domain_lo
     volume = float(packing.attrs.get("domain_volume_m3", np.prod(extent)))
+    margin = 2.0 * d_mean
+    region = lambda pts: _bulk_points(packing, pts, margin)      # noqa: E731
+    spacing = d_mean / 4.0 if n <= 200_000 else d_mean / 2.0
+    phi_bulk = sampled_solid_fraction(packing, region, spacing)
     r, g = radial_distribution(packing.position, bulk, n / volume,
                                RDF_MAX_OVER_DIAMETER * d_mean, RDF_BINS)
     return PackingStats(
         n_particles=n, n_bulk=int(bulk.sum()),
         solid_fraction=float(packing.attrs.get("solid_fraction", math.nan)),
-        solid_fraction_bulk=float(packing.attrs.get("solid_fraction_bulk", math.nan)),
+        solid_fraction_bulk=phi_bulk,
         z_nonrattler=float(z_touch[nonrattler].mean()) if nonrattler.any() else 0.0,
         z_with_gaps=float(z_all[bulk].mean()) if bulk.any() else 0.0,
         rattler_fraction=float(1.0 - nonrattler.sum() / max(bulk.sum(), 1)),

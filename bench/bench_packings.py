@@ -1,0 +1,252 @@
+"""Benchmark of the dense packing paths (issue: packings at scale). Measures, does not assert.
+
+    .venv/bin/python bench/bench_packings.py [--cases CASES] [--reuse]
+
+Each case builds a dense box (runs/dense_box.toml's [pack]: Gaussian radii sigma/mean 0.3, 1 bar,
+steel, gap_tolerance 0.1) with one path at one N and seed by running ``tdem pack`` as a separate
+process, and records its whole-process wall time, the peak resident memory of the process tree
+(YADE included), the DEM steps of the relaxation and the comparison statistics of
+``tdem_post/packing_compare.py`` (bulk phi, Z of the non-rattlers, Z with gaps, rattlers,
+fabric, RDF) plus the steady gamma = k_eff/k_p of the force-based ``pipe`` law in a flux test along
+x. Results go to bench/results/packings.csv and packings.md (quoted by docs/packings.md) and
+the RDF figure packings_rdf.png. With --reuse a case whose packing exists is not built again (its
+time and memory are read from the case's bench.json): the benchmark resumes case by case.
+
+Paths:
+  reference  method direct, time_step p_wave (the generator before 2026-11: 0.5 x the P-wave
+             step of the smallest sphere)
+  ds         method direct, time_step density_scaling (YADE's GlobalStiffnessTimeStepper with
+             per-sphere density scaling)
+  tiled      method tiled: a periodic cell of cell_particles spheres relaxed with density
+             scaling, copied side by side and carved to the box
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from tdem_post.files import savefig_atomic, write_text_atomic  # noqa: E402
+from tdem_post.packing_compare import as_row, packing_stats, rdf_distance  # noqa: E402
+from thermal_kernel.packing import read_packing  # noqa: E402
+
+OUT = ROOT / "bench" / "out" / "packings"
+RESULTS = ROOT / "bench" / "results"
+BASE_SCENE = ROOT / "runs" / "dense_box.toml"
+
+PATHS = {
+    "reference": dict(method="direct", time_step="p_wave"),
+    "ds": dict(method="direct", time_step="density_scaling"),
+    "tiled": dict(method="tiled", time_step="density_scaling"),
+}
+
+
+def parse_case(text: str) -> dict:
+    """'path:N:seed[:cell]' -> case dict."""
+    parts = text.split(":")
+    path, n, seed = parts[0], int(float(parts[1])), int(parts[2])
+    cell = int(float(parts[3])) if len(parts) > 3 else None
+    if path not in PATHS:
+        raise SystemExit(f"bench_packings: unknown path {path!r} (known: {', '.join(PATHS)})")
+    label = f"{path}_{n}_s{seed}" + (f"_c{cell}" if cell else "")
+    return dict(path=path, n=n, seed=seed, cell=cell, label=label)
+
+
+DEFAULT_CASES = (
+    [f"reference:2000:{s}" for s in (1, 2, 3)] + [f"ds:2000:{s}" for s in (1, 2, 3)]
+    + [f"reference:10000:{s}" for s in (1, 2, 3)] + [f"ds:10000:{s}" for s in (1, 2, 3)]
+    + [f"tiled:10000:{s}:2000" for s in (1, 2, 3)]
+    + ["tiled:100000:1:10000", "tiled:1000000:1:10000"]
+)
+
+
+def scene_text(case: dict) -> str:
+    """runs/dense_box.toml with the case's [pack] values."""
+    text = BASE_SCENE.read_text()
+    extra = dict(PATHS[case["path"]], n_particles=case["n"], seed=case["seed"],
+                 max_seconds=14400.0)
+    if case["cell"]:
+        extra["cell_particles"] = case["cell"]
+    lines = []
+    in_pack = False
+    for line in text.splitlines():
+        if line.startswith("["):
+            in_pack = line.strip() == "[pack]"
+            lines.append(line)
+            if in_pack:
+                lines += [f"{k} = {json.dumps(v)}" for k, v in extra.items()]
+            continue
+        if in_pack and line.split("=")[0].strip() in extra:
+            continue
+        lines.append(line)
+    return "\n".join(lines) + "\n"
+
+
+def build(case: dict, reuse: bool) -> dict:
+    """Run tdem pack for one case (or reuse it); return its timing record."""
+    folder = OUT / case["label"]
+    record_path = folder / "bench.json"
+    if reuse and record_path.exists() and (folder / "packing.h5").exists():
+        return json.loads(record_path.read_text())
+    folder.mkdir(parents=True, exist_ok=True)
+    scene = folder / "scene.toml"
+    scene.write_text(scene_text(case))
+    cmd = [str(ROOT / ".venv" / "bin" / "tdem"), "pack", str(scene), "--out", str(folder),
+           "--quiet"]
+    start = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - start
+    output = proc.stdout.read()
+    (folder / "tdem_pack.log").write_text(output)
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(f"bench_packings: {case['label']} failed: {output.strip().splitlines()[-1]}")
+    record = dict(case, wall_seconds=wall, peak_rss_mb=usage.ru_maxrss / 1024.0,
+                  load_at_start=os.getloadavg()[0])
+    write_text_atomic(record_path, json.dumps(record, indent=1))
+    return record
+
+
+def pipe_gamma(packing_path: Path) -> float:
+    """Steady gamma = k_eff/k_p of the pipe law (003 eq. 40; force-based) on the packing, flux
+    test along x between the two x faces (thermal_kernel/calibrate.flux_test)."""
+    from thermal_kernel.calibrate import flux_test
+    from thermal_kernel.scene import load_scene
+    scene_path = packing_path.parent / "pipe_scene.toml"
+    scene_path.write_text(
+        'law = "pipe"\n[material]\nconductivity = 33.0\ndensity = 7800.0\n'
+        'heat_capacity = 460.0\nyoung_pa = 2.1e11\npoisson = 0.3\n[initial]\n'
+        'temperature = 0.5\n[solver]\nmethod = "steady"\n')
+    scene = load_scene(scene_path)
+    test = flux_test(scene, read_packing(packing_path), "x")
+    return test.effective_w_mk / 33.0
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="*", default=DEFAULT_CASES,
+                        help="path:N:seed[:cell_particles], e.g. tiled:100000:1:10000")
+    parser.add_argument("--reuse", action="store_true",
+                        help="do not rebuild a case whose packing and bench.json exist")
+    parser.add_argument("--skip-build", action="store_true",
+                        help="only tabulate the cases already built")
+    args = parser.parse_args(argv)
+    rows, stats = [], {}
+    for text in args.cases:
+        case = parse_case(text)
+        folder = OUT / case["label"]
+        if args.skip_build and not (folder / "bench.json").exists():
+            continue
+        print(f"bench_packings: {case['label']} ...", flush=True)
+        record = build(case, reuse=args.reuse or args.skip_build)
+        packing = read_packing(folder / "packing.h5")
+        st = packing_stats(packing)
+        stats[case["label"]] = st
+        row = dict(label=case["label"], path=case["path"], n_target=case["n"],
+                   seed=case["seed"], cell_particles=case["cell"] or "",
+                   wall_seconds=record["wall_seconds"], peak_rss_mb=record["peak_rss_mb"],
+                   compression_steps=int(packing.attrs.get("compression_steps", -1)),
+                   **as_row(st))
+        row["gamma_pipe"] = pipe_gamma(folder / "packing.h5") if st.n_particles <= 2_000_000 \
+            else float("nan")
+        rows.append(row)
+        print(f"  {row['n_particles']} spheres, {row['wall_seconds']:.0f} s, "
+              f"{row['peak_rss_mb']:.0f} MB, phi_bulk {row['solid_fraction_bulk']:.4f}, "
+              f"Z_nr {row['z_nonrattler']:.3f}, Z_gaps {row['z_with_gaps']:.3f}, rattlers "
+              f"{100 * row['rattler_fraction']:.1f} %, gamma_pipe {row['gamma_pipe']:.4g}",
+              flush=True)
+    if not rows:
+        return 0
+    import pandas as pd
+    table = pd.DataFrame(rows)
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(RESULTS / "packings.csv", table.to_csv(index=False))
+    write_text_atomic(RESULTS / "packings.md", summary_markdown(table, stats))
+    plot_rdf(stats, RESULTS / "packings_rdf.png")
+    print(f"bench_packings: {RESULTS / 'packings.md'}")
+    return 0
+
+
+def summary_markdown(table, stats) -> str:
+    """Per (path, N): mean and spread over seeds, and the differences to the reference at the
+    same N with the issue's tolerances."""
+    cols = ["solid_fraction_bulk", "z_nonrattler", "z_with_gaps", "rattler_fraction",
+            "fabric_deviator", "gamma_pipe", "wall_seconds", "peak_rss_mb", "compression_steps",
+            "n_particles"]
+    groups = table.groupby(["n_target", "path", "cell_particles"], sort=True)
+    out = ["| N (target) | path | cell | seeds | N | wall (s) | peak RSS (MB) | DEM steps | "
+           "φ bulk | Z non-rattlers | Z with gaps | rattlers (%) | fabric dev. | γ pipe | "
+           "RDF diff. to ref. |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for (n_target, path, cell), g in groups:
+        m = g[cols].mean(numeric_only=True)
+        s = g[cols].std(numeric_only=True).fillna(0.0)
+        ref = table[(table.n_target == n_target) & (table.path == "reference")]
+        rdf = ""
+        if len(ref) and path != "reference":
+            pairs = [rdf_distance(stats[a], stats[b]) for a in g.label for b in ref.label]
+            rdf = f"{np.mean(pairs):.3f}"
+        elif path == "reference" and len(g) > 1:
+            labels = list(g.label)
+            pairs = [rdf_distance(stats[a], stats[b]) for i, a in enumerate(labels)
+                     for b in labels[i + 1:]]
+            rdf = f"({np.mean(pairs):.3f} seed to seed)"
+        out.append(
+            f"| {n_target:,} | {path} | {cell or ''} | {len(g)} | {m.n_particles:,.0f} | "
+            f"{m.wall_seconds:.0f} ± {s.wall_seconds:.0f} | {m.peak_rss_mb:.0f} | "
+            f"{m.compression_steps:,.0f} | "
+            f"{m.solid_fraction_bulk:.4f} ± {s.solid_fraction_bulk:.4f} | "
+            f"{m.z_nonrattler:.3f} ± {s.z_nonrattler:.3f} | {m.z_with_gaps:.3f} ± "
+            f"{s.z_with_gaps:.3f} | {100 * m.rattler_fraction:.1f} ± "
+            f"{100 * s.rattler_fraction:.1f} | {m.fabric_deviator:.4f} | "
+            f"{m.gamma_pipe:.4g} ± {s.gamma_pipe:.2g} | {rdf} |")
+    out += ["", "Differences to the reference at the same N (mean over seeds; the issue's "
+            "tolerances: φ 0.005, Z non-rattlers 3 %, Z with gaps 2 %, rattlers 2 points, "
+            "γ pipe 3 %):", "",
+            "| N | path | Δφ bulk | ΔZ non-rattlers | ΔZ with gaps | Δrattlers (points) | "
+            "Δγ pipe | speed-up (wall) |", "|---|---|---|---|---|---|---|---|"]
+    for (n_target, path, cell), g in groups:
+        ref = table[(table.n_target == n_target) & (table.path == "reference")]
+        if path == "reference" or not len(ref):
+            continue
+        a, b = g.mean(numeric_only=True), ref.mean(numeric_only=True)
+        out.append(
+            f"| {n_target:,} | {path}{' c' + str(cell) if cell else ''} | "
+            f"{a.solid_fraction_bulk - b.solid_fraction_bulk:+.4f} | "
+            f"{100 * (a.z_nonrattler / b.z_nonrattler - 1):+.1f} % | "
+            f"{100 * (a.z_with_gaps / b.z_with_gaps - 1):+.1f} % | "
+            f"{100 * (a.rattler_fraction - b.rattler_fraction):+.1f} | "
+            f"{100 * (a.gamma_pipe / b.gamma_pipe - 1):+.1f} % | "
+            f"{b.wall_seconds / a.wall_seconds:.1f}× |")
+    return "\n".join(out) + "\n"
+
+
+def plot_rdf(stats, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7, 4))
+    styles = {"reference": "-", "ds": "--", "tiled": ":"}
+    for label, st in stats.items():
+        ax.plot(st.rdf_r_over_d, st.rdf, styles.get(label.split("_")[0], "-"), lw=1,
+                label=label)
+    ax.set_xlabel("centre distance / mean diameter")
+    ax.set_ylabel("g(r), bulk")
+    ax.legend(fontsize=6, ncol=2)
+    savefig_atomic(fig, path, dpi=120)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
