@@ -180,6 +180,25 @@ def write_results(rows, variants, seeds, pressures, scene, stem):
             means.append(fmt_s(float(np.mean(vals))) if vals else "")
         label = f"**{st}**" if st == "total" else st
         out.append(f"| {label} | " + " | ".join(cells + means) + " |")
+    # steps do not depend on the host's load: the load-free measure of the work per stage
+    out += ["", "### Time steps per stage (thousands; independent of the host's load)", "",
+            "| stage | " + " | ".join(f"{n} s{s}" for n in names for s in seeds)
+            + " | " + " | ".join(f"{n} mean" for n in names) + " |",
+            "|---" * (1 + len(names) * (len(seeds) + 1)) + "|"]
+    for st in stages[:-1] + ["total"]:
+        cells, means = [], []
+        for n in names:
+            if st == "total":
+                vals = [sum(get[(n, s, x)]["steps"] for x in stages[:-1] if (n, s, x) in get)
+                        for s in seeds if (n, s, "total") in get]
+                cells += [f"{v / 1e3:.1f}" for v in vals] + [""] * (len(seeds) - len(vals))
+            else:
+                vals = [get[(n, s, st)]["steps"] for s in seeds if (n, s, st) in get]
+                cells += [f"{get[(n, s, st)]['steps'] / 1e3:.1f}" if (n, s, st) in get else ""
+                          for s in seeds]
+            means.append(f"{np.mean(vals) / 1e3:.1f}" if vals else "")
+        label = f"**{st}**" if st == "total" else st
+        out.append(f"| {label} | " + " | ".join(cells + means) + " |")
     ref = names[0]
     tot = {n: [get[(n, s, "total")]["stage_s"] for s in seeds if (n, s, "total") in get]
            for n in names}

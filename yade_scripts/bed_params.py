@@ -58,7 +58,7 @@ PARAMS = {
                                   "first pressure at the real modulus; a softened network "
                                   "re-stiffened under load keeps lateral stress, which the real "
                                   "loading then dilutes (-, <= 1)"),
-    "stiffen_factor": dict(kind="float", default=2.0, minimum=1.01,
+    "stiffen_factor": dict(kind="float", default=10.0, minimum=1.01,
                            help="factor by which the modulus is raised per re-stiffening "
                                 "step (-)"),
     "density_scaling": dict(kind="float", default=1.0, minimum=1.0,
@@ -68,10 +68,10 @@ PARAMS = {
     "damping": dict(kind="float", default=0.4, minimum=0.0,
                     help="Cundall (local, non-viscous) damping of NewtonIntegrator in the "
                          "quasi-static stages (-, < 1)"),
-    "inertial_number": dict(kind="float", default=1e-3, minimum=1e-9,
+    "inertial_number": dict(kind="float", default=3e-3, minimum=1e-9,
                             help="the plate speed is limited so that I = (v/H) d sqrt(rho/p) "
                                  "stays below this (-)"),
-    "soft_inertial_number": dict(kind="float", default=1e-3, minimum=1e-9,
+    "soft_inertial_number": dict(kind="float", default=1e-2, minimum=1e-9,
                                  help="the same limit while the modulus is softened (approach "
                                       "to the preload, re-stiffening); that state is re-relaxed "
                                       "at the real modulus before any dump (-)"),
@@ -80,10 +80,10 @@ PARAMS = {
                                          "is below this (-)"),
     "pressure_tolerance": dict(kind="float", default=0.01, minimum=1e-6,
                                help="relative tolerance on the plate pressure at a dump (-)"),
-    "settle_damping": dict(kind="float", default=0.4, minimum=0.0,
+    "settle_damping": dict(kind="float", default=0.7, minimum=0.0,
                            help="Cundall damping while the settled bed relaxes under gravity "
                                 "after the fall (-, < 1)"),
-    "timestep_safety": dict(kind="float", default=0.5, minimum=1e-3,
+    "timestep_safety": dict(kind="float", default=0.8, minimum=1e-3,
                             help="time step = this x the P-wave time step r sqrt(rho/E) (-)"),
     "cloud_solid_fraction": dict(kind="float", default=0.3, minimum=0.01,
                                  help="solid fraction of the initial random cloud; its "

@@ -15,13 +15,17 @@ What it does, and why (measured figures in the report / docs):
 
 1. A random, non-overlapping cloud (solid fraction ``cloud_solid_fraction``) fills the cylinder.
 2. It settles under gravity with a softened modulus ``settle_young_pa`` (the critical time step
-   grows as E^-1/2), first with little numerical damping (free fall), then with ``damping`` and an
-   adaptive time step (GlobalStiffnessTimeStepper: the real contact stiffness, much softer than the
-   P-wave bound at low stress) until the unbalanced-force ratio is below the target.
+   grows as E^-1/2), first with little numerical damping (free fall), then with ``settle_damping``
+   (default 0.7, stronger than the 0.4 of the loading stages: the bed only has to come to rest)
+   and an adaptive time step (GlobalStiffnessTimeStepper: the real contact stiffness, much softer
+   than the P-wave bound at low stress) until the unbalanced-force ratio is below the target.
+   Every stage uses that stepper with ``timestep_safety`` (default 0.8, YADE's own default).
 3. The top plate is driven down (kinematic) at the speed v_I at which the inertial number
    I = (v/H) d sqrt(rho_eff/p_ref) equals ``inertial_number`` (H the bed height, d the mean
    diameter, rho_eff the scaled density, p_ref = max(plate pressure, weight of the bed / plate
-   area)) until the plate pressure is 90 % of the target. Then the plate is set free along z
+   area); default 3e-3; ``soft_inertial_number``, default 1e-2, while the modulus is softened,
+   a state that is re-relaxed at the real modulus before any dump) until the plate pressure is
+   90 % of the target. Then the plate is set free along z
    (mass = the bed's mass) and carries the target force as a dead load, its speed limited to
    v_I / 2: the bed relaxes under a constant plate load and the pressure converges to the target
    by itself.
@@ -29,7 +33,8 @@ What it does, and why (measured figures in the report / docs):
    (``preload_fraction`` x the first pressure, default 10 %; with the modulus first raised under
    gravity, if needed, so that the mean overlap there stays <= 2 % of r: E* >= 6000 p), and
    re-stiffened to the real modulus under that constant load (modulus x ``stiffen_factor`` per
-   step, every existing contact updated, the bed relaxed between steps; shared/FINDINGS.md:
+   step, default 10: three steps from 5e7 to 5e10 Pa; every existing contact updated, the bed
+   relaxed between steps; shared/FINDINGS.md:
    a softened network must be re-relaxed at the real stiffness). A network softened and
    re-stiffened under load keeps some lateral (cylinder) stress; loading on to the first
    pressure at the real modulus dilutes it (on the 2,000 bed at 0.28 bar, preloading at 10 %
@@ -752,8 +757,9 @@ class Bed:
             gravity_m_s2=p["gravity_m_s2"],
             # I = gamma_dot d sqrt(rho_eff / p_ref): gamma_dot = plate speed / bed height,
             # d the mean diameter, rho_eff the (scaled) density, p_ref = max(plate pressure,
-            # bed weight / plate area). Maximum over the stage that made this file (0: no plate
-            # motion); the plate speed is chosen to keep it at most `inertial_number`.
+            # bed weight / plate area). Maximum over the plate motion at the real modulus in the
+            # stage that made this file (0: none); the plate speed is chosen to keep it at most
+            # `inertial_number`.
             inertial_number=imax,
             inertial_number_target=p["inertial_number"],
             # the same, over the plate motion at the softened modulus (preload, re-stiffening)
