@@ -43,7 +43,8 @@ from thermal_kernel.packing import read_packing  # noqa: E402
 
 OUT = ROOT / "bench" / "out" / "packings"
 RESULTS = ROOT / "bench" / "results"
-BASE_SCENE = ROOT / "runs" / "dense_box.toml"
+BASE_SCENES = {shape: ROOT / "runs" / f"dense_{shape}.toml"
+               for shape in ("box", "cylinder", "sphere")}
 
 PATHS = {
     "reference": dict(method="direct", time_step="p_wave"),
@@ -53,14 +54,19 @@ PATHS = {
 
 
 def parse_case(text: str) -> dict:
-    """'path:N:seed[:cell]' -> case dict."""
+    """'path:N:seed[:cell[:shape]]' -> case dict (shape: box, cylinder or sphere; the
+    cylinder and the sphere take runs/dense_cylinder.toml / dense_sphere.toml's [pack])."""
     parts = text.split(":")
     path, n, seed = parts[0], int(float(parts[1])), int(parts[2])
-    cell = int(float(parts[3])) if len(parts) > 3 else None
+    cell = int(float(parts[3])) if len(parts) > 3 and parts[3] else None
+    shape = parts[4] if len(parts) > 4 else "box"
     if path not in PATHS:
         raise SystemExit(f"bench_packings: unknown path {path!r} (known: {', '.join(PATHS)})")
-    label = f"{path}_{n}_s{seed}" + (f"_c{cell}" if cell else "")
-    return dict(path=path, n=n, seed=seed, cell=cell, label=label)
+    if shape not in BASE_SCENES:
+        raise SystemExit(f"bench_packings: unknown shape {shape!r} (known: {', '.join(BASE_SCENES)})")
+    label = (f"{path}_{n}_s{seed}" + (f"_c{cell}" if cell else "")
+             + ("" if shape == "box" else f"_{shape}"))
+    return dict(path=path, n=n, seed=seed, cell=cell, shape=shape, label=label)
 
 
 DEFAULT_CASES = (
@@ -73,7 +79,7 @@ DEFAULT_CASES = (
 
 def scene_text(case: dict) -> str:
     """runs/dense_box.toml with the case's [pack] values."""
-    text = BASE_SCENE.read_text()
+    text = BASE_SCENES[case["shape"]].read_text()
     extra = dict(PATHS[case["path"]], n_particles=case["n"], seed=case["seed"],
                  max_seconds=14400.0)
     if case["cell"]:
@@ -118,7 +124,7 @@ def build(case: dict, reuse: bool) -> dict:
     return record
 
 
-def pipe_gamma(packing_path: Path) -> float:
+def pipe_gamma(packing_path: Path, shape: str) -> float:
     """Steady gamma = k_eff/k_p of the pipe law (003 eq. 40; force-based) on the packing, flux
     test along x between the two x faces (thermal_kernel/calibrate.flux_test)."""
     from thermal_kernel.calibrate import flux_test
@@ -129,7 +135,9 @@ def pipe_gamma(packing_path: Path) -> float:
         'heat_capacity = 460.0\nyoung_pa = 2.1e11\npoisson = 0.3\n[initial]\n'
         'temperature = 0.5\n[solver]\nmethod = "steady"\n')
     scene = load_scene(scene_path)
-    test = flux_test(scene, read_packing(packing_path), "x")
+    if shape == "sphere":
+        return float("nan")                  # no two opposite faces
+    test = flux_test(scene, read_packing(packing_path), "z" if shape == "cylinder" else "x")
     return test.effective_w_mk / 33.0
 
 
@@ -153,12 +161,13 @@ def main(argv=None) -> int:
         packing = read_packing(folder / "packing.h5")
         st = packing_stats(packing)
         stats[case["label"]] = st
-        row = dict(label=case["label"], path=case["path"], n_target=case["n"],
+        row = dict(label=case["label"], path=case["path"], shape=case["shape"],
+                   n_target=case["n"],
                    seed=case["seed"], cell_particles=case["cell"] or "",
                    wall_seconds=record["wall_seconds"], peak_rss_mb=record["peak_rss_mb"],
                    compression_steps=int(packing.attrs.get("compression_steps", -1)),
                    **as_row(st))
-        row["gamma_pipe"] = pipe_gamma(folder / "packing.h5") if st.n_particles <= 2_000_000 \
+        row["gamma_pipe"] = pipe_gamma(folder / "packing.h5", case["shape"]) if st.n_particles <= 2_000_000 \
             else float("nan")
         rows.append(row)
         print(f"  {row['n_particles']} spheres, {row['wall_seconds']:.0f} s, "
@@ -184,15 +193,16 @@ def summary_markdown(table, stats) -> str:
     cols = ["solid_fraction_bulk", "z_nonrattler", "z_with_gaps", "rattler_fraction",
             "fabric_deviator", "gamma_pipe", "wall_seconds", "peak_rss_mb", "compression_steps",
             "n_particles"]
-    groups = table.groupby(["n_target", "path", "cell_particles"], sort=True)
-    out = ["| N (target) | path | cell | seeds | N | wall (s) | peak RSS (MB) | DEM steps | "
+    groups = table.groupby(["shape", "n_target", "path", "cell_particles"], sort=True)
+    out = ["| shape | N (target) | path | cell | seeds | N | wall (s) | peak RSS (MB) | DEM steps | "
            "φ bulk | Z non-rattlers | Z with gaps | rattlers (%) | fabric dev. | γ pipe | "
            "RDF diff. to ref. |",
-           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for (n_target, path, cell), g in groups:
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for (shape, n_target, path, cell), g in groups:
         m = g[cols].mean(numeric_only=True)
         s = g[cols].std(numeric_only=True).fillna(0.0)
-        ref = table[(table.n_target == n_target) & (table.path == "reference")]
+        ref = table[(table.n_target == n_target) & (table.path == "reference")
+                    & (table.shape == shape)]
         rdf = ""
         if len(ref) and path != "reference":
             pairs = [rdf_distance(stats[a], stats[b]) for a in g.label for b in ref.label]
@@ -203,7 +213,7 @@ def summary_markdown(table, stats) -> str:
                      for b in labels[i + 1:]]
             rdf = f"({np.mean(pairs):.3f} seed to seed)"
         out.append(
-            f"| {n_target:,} | {path} | {cell or ''} | {len(g)} | {m.n_particles:,.0f} | "
+            f"| {shape} | {n_target:,} | {path} | {cell or ''} | {len(g)} | {m.n_particles:,.0f} | "
             f"{m.wall_seconds:.0f} ± {s.wall_seconds:.0f} | {m.peak_rss_mb:.0f} | "
             f"{m.compression_steps:,.0f} | "
             f"{m.solid_fraction_bulk:.4f} ± {s.solid_fraction_bulk:.4f} | "
@@ -214,15 +224,17 @@ def summary_markdown(table, stats) -> str:
     out += ["", "Differences to the reference at the same N (mean over seeds; the issue's "
             "tolerances: φ 0.005, Z non-rattlers 3 %, Z with gaps 2 %, rattlers 2 points, "
             "γ pipe 3 %):", "",
-            "| N | path | Δφ bulk | ΔZ non-rattlers | ΔZ with gaps | Δrattlers (points) | "
-            "Δγ pipe | speed-up (wall) |", "|---|---|---|---|---|---|---|---|"]
-    for (n_target, path, cell), g in groups:
-        ref = table[(table.n_target == n_target) & (table.path == "reference")]
+            "| shape | N | path | Δφ bulk | ΔZ non-rattlers | ΔZ with gaps | "
+            "Δrattlers (points) | Δγ pipe | speed-up (wall) |",
+            "|---|---|---|---|---|---|---|---|---|"]
+    for (shape, n_target, path, cell), g in groups:
+        ref = table[(table.n_target == n_target) & (table.path == "reference")
+                    & (table.shape == shape)]
         if path == "reference" or not len(ref):
             continue
         a, b = g.mean(numeric_only=True), ref.mean(numeric_only=True)
         out.append(
-            f"| {n_target:,} | {path}{' c' + str(cell) if cell else ''} | "
+            f"| {shape} | {n_target:,} | {path}{' c' + str(cell) if cell else ''} | "
             f"{a.solid_fraction_bulk - b.solid_fraction_bulk:+.4f} | "
             f"{100 * (a.z_nonrattler / b.z_nonrattler - 1):+.1f} % | "
             f"{100 * (a.z_with_gaps / b.z_with_gaps - 1):+.1f} % | "

@@ -68,7 +68,14 @@ def sampled_solid_fraction(packing: Packing, region: np.ndarray, spacing_m: floa
     rng = np.random.default_rng(rng_seed)
     lo, hi = packing.domain_lo, packing.domain_hi
     axes = [np.arange(a + 0.5 * spacing_m, b, spacing_m) for a, b in zip(lo, hi)]
-    tree = cKDTree(packing.position)
+    periodic = bool(np.all(packing.periodic))
+    if periodic:            # images across the cell's faces count (minimum image)
+        size = hi - lo
+        wrapped = (packing.position - lo) % size
+        wrapped[wrapped >= size] = 0.0
+        tree = cKDTree(wrapped, boxsize=size)
+    else:
+        tree = cKDTree(packing.position)
     r_max = float(packing.radius.max())
     inside = total = 0
     for x in axes[0]:                       # one slab of points at a time (memory)
@@ -76,6 +83,8 @@ def sampled_solid_fraction(packing: Packing, region: np.ndarray, spacing_m: floa
         pts = np.column_stack([np.full(yy.size, x), yy.ravel(), zz.ravel()])
         pts += rng.uniform(-0.5, 0.5, pts.shape) * spacing_m
         pts = pts[region(pts)]
+        if periodic:
+            pts = (pts - lo) % size
         if not len(pts):
             continue
         dist, idx = tree.query(pts, k=8, distance_upper_bound=r_max)
@@ -126,7 +135,7 @@ def packing_stats(packing: Packing) -> PackingStats:
     volume = float(packing.attrs.get("domain_volume_m3", np.prod(extent)))
     margin = 2.0 * d_mean
     region = lambda pts: _bulk_points(packing, pts, margin)      # noqa: E731
-    spacing = d_mean / 4.0 if n <= 200_000 else d_mean / 2.0
+    spacing = d_mean / (6.0 if n <= 20_000 else 4.0 if n <= 200_000 else 2.0)
     phi_bulk = sampled_solid_fraction(packing, region, spacing)
     r, g = radial_distribution(packing.position, bulk, n / volume,
                                RDF_MAX_OVER_DIAMETER * d_mean, RDF_BINS)

@@ -452,27 +452,65 @@ def tile_cell(p, cell_box, position, radius, pair, branch, overlap, normal_force
             np.zeros(len(wall_particle)), info)
 
 
-def main():
-    if len(sys.argv) != 2:
-        fail("usage: yade -n -x dense_packing.py params.json")
+STATE_KEYS = ("box", "position", "radius", "pair", "branch", "overlap", "normal_force",
+              "contact_radius", "walls", "wall_particle", "wall_index", "wall_overlap",
+              "wall_force", "periodic", "n", "sphere_ids", "unbalanced", "pressure",
+              "pressure_normal", "compress_seconds", "compress_steps", "radii_drawn",
+              "n_untracked")
+
+
+def read_cell_packing(p):
+    """method = "tiled" with cell_packing: the relaxed periodic cell of an earlier run (a
+    packing.h5 of shape "periodic", e.g. made by tdem pack), copied instead of relaxing a new
+    one. Its geometry, forces and modulus are used as they are; the run's own material keys
+    must agree with the file's (one modulus, one pressure)."""
+    import h5py
+    path = p["cell_packing"]
     try:
-        p = P.read_params_json(sys.argv[1], "dense")
-    except P.ParamError as e:
-        fail(str(e))
-    except (OSError, ValueError) as e:
-        fail(f"{sys.argv[1]}: {e}")
-    for k, inc in enumerate(p["inclusions"]):
-        if not isinstance(inc, dict) or set(inc) - {"centre", "radius", "phase"} \
-                or "centre" not in inc or "radius" not in inc:
-            fail(f"inclusions[{k}]: expected {{centre = [fx, fy, fz], radius = f, phase = id}}")
-    if p["method"] == "tiled":
-        if p["shape"] == "periodic":
-            fail("method: \"tiled\" carves a box, cylinder or sphere out of copies of a periodic "
-                 "cell; for a periodic domain use method = \"direct\"")
-        if p["n_particles"] < p["cell_particles"]:
-            fail(f"cell_particles: expected at most n_particles ({p['n_particles']}) for "
-                 f"method = \"tiled\", got {p['cell_particles']}")
-    t0 = time.time()
+        f = h5py.File(path, "r")
+    except OSError as e:
+        fail(f"cell_packing: cannot read {path} ({e})")
+    with f:
+        periodic = np.asarray(f["domain"].attrs.get("periodic", [False] * 3), dtype=bool)
+        if not periodic.all() or f.attrs.get("shape") != "periodic":
+            fail(f"cell_packing: {path}: expected a periodic cell (shape \"periodic\"), got "
+                 f"shape {f.attrs.get('shape')!r}")
+        for key in ("young_pa", "poisson", "confining_pressure_pa", "gap_tolerance"):
+            if not math.isclose(float(f.attrs[key]), float(p[key]), rel_tol=1e-12):
+                fail(f"cell_packing: {path}: {key} is {float(f.attrs[key])!r} in the cell, "
+                     f"{p[key]!r} in the parameters (they must agree)")
+        attrs = dict(f.attrs)
+        hi = np.asarray(f["domain"].attrs["hi"], dtype=float)
+        lo = np.asarray(f["domain"].attrs["lo"], dtype=float)
+        position = f["particles/position"][...] - lo
+        radius = f["particles/radius"][...]
+        pair = f["contacts/pair"][...]
+        branch = f["contacts/branch"][...]
+        overlap = f["contacts/overlap"][...]
+        normal_force = f["contacts/normal_force"][...]
+        contact_radius = f["contacts/contact_radius"][...] if "contact_radius" in f["contacts"] \
+            else np.sqrt(np.clip(overlap, 0, None) * radius[pair[:, 0]] * radius[pair[:, 1]]
+                         / (radius[pair[:, 0]] + radius[pair[:, 1]]))
+    size = hi - lo
+    box = Container("periodic", float(np.prod(size)), size / size.max())
+    log(f"cell: {len(radius)} spheres from {path} (seed {attrs.get('seed')}), cell "
+        f"{size[0]:.4g} x {size[1]:.4g} x {size[2]:.4g} m")
+    return dict(box=box, position=position, radius=radius, pair=pair, branch=branch,
+                overlap=overlap, normal_force=normal_force, contact_radius=contact_radius,
+                walls=[], wall_particle=np.zeros(0, np.int64),
+                wall_index=np.zeros(0, np.int32), wall_overlap=np.zeros(0),
+                wall_force=np.zeros(0), periodic=True, n=len(radius), sphere_ids=None,
+                unbalanced=float(attrs["unbalanced_force_ratio"]),
+                pressure=float(attrs["pressure_pa"]),
+                pressure_normal=float(attrs["mean_stress_from_dumped_forces_pa"]),
+                compress_seconds=0.0, compress_steps=0,
+                radii_drawn=radius / float(attrs["radius_growth_factor"]),
+                n_untracked=int(attrs.get("contacts_touching_without_yade_force", 0)))
+
+
+def relax_cell_or_domain(p):
+    """Cloud, compression in YADE and the contacts of the relaxed state, rebuilt from the
+    final geometry (the domain itself, or the periodic cell of method = "tiled")."""
     # tiled: the YADE relaxation is that of a periodic cell of cell_particles spheres
     p_relax = dict(p, shape="periodic", n_particles=p["cell_particles"]) \
         if p["method"] == "tiled" else p
@@ -561,6 +599,39 @@ def main():
     wall_overlap = np.array(wall_overlap, dtype=float)
     wall_force = np.array(wall_force, dtype=float)
 
+    return {k: v for k, v in locals().items() if k in STATE_KEYS}
+
+
+def main():
+    if len(sys.argv) != 2:
+        fail("usage: yade -n -x dense_packing.py params.json")
+    try:
+        p = P.read_params_json(sys.argv[1], "dense")
+    except P.ParamError as e:
+        fail(str(e))
+    except (OSError, ValueError) as e:
+        fail(f"{sys.argv[1]}: {e}")
+    for k, inc in enumerate(p["inclusions"]):
+        if not isinstance(inc, dict) or set(inc) - {"centre", "radius", "phase"} \
+                or "centre" not in inc or "radius" not in inc:
+            fail(f"inclusions[{k}]: expected {{centre = [fx, fy, fz], radius = f, phase = id}}")
+    if p["method"] == "tiled":
+        if p["shape"] == "periodic":
+            fail("method: \"tiled\" carves a box, cylinder or sphere out of copies of a periodic "
+                 "cell; for a periodic domain use method = \"direct\"")
+        if p["n_particles"] < p["cell_particles"]:
+            fail(f"cell_particles: expected at most n_particles ({p['n_particles']}) for "
+                 f"method = \"tiled\", got {p['cell_particles']}")
+    t0 = time.time()
+    if p["method"] == "tiled" and p["cell_packing"]:
+        state = read_cell_packing(p)
+    else:
+        state = relax_cell_or_domain(p)
+    (box, position, radius, pair, branch, overlap, normal_force, contact_radius, walls,
+     wall_particle, wall_index, wall_overlap, wall_force, periodic, n, sphere_ids, unbalanced,
+     pressure, pressure_normal, compress_seconds, compress_steps, radii_drawn,
+     n_untracked) = (state[k] for k in STATE_KEYS)
+
     cell_info = {}
     if p["method"] == "tiled":
         (box, position, radius, pair, branch, overlap, normal_force, contact_radius, walls,
@@ -648,7 +719,7 @@ def main():
         if p["method"] == "direct" else
         "cut surface of a tiled periodic packing: spheres within (1 + wall_gap_tolerance) r "
         "of it, overlap = r - distance, no force (nothing was pressed against them)",
-        "method": p["method"], "time_step": p["time_step"],
+        "method": p["method"], "time_step": p["time_step"], "cell_packing": p["cell_packing"],
         "stiffen_factor": p["stiffen_factor"], **cell_info,
         "contacts_touching_without_yade_force": n_untracked,
         "radius_distribution": p["radius_distribution"],

@@ -52,6 +52,10 @@ PARAMS = {
                         "spheres; periodicity length = the cell)"),
     "cell_particles": dict(kind="int", default=10000, minimum=20,
                            help="tiled: spheres in the periodic cell that is copied"),
+    "cell_packing": dict(kind="str", default="",
+                         help="tiled: a periodic packing.h5 made earlier (shape \"periodic\", "
+                              "same young_pa, poisson, confining_pressure_pa, gap_tolerance) to "
+                              "copy instead of relaxing a new cell; its seed and radii are kept"),
     "damping": dict(kind="float", default=0.5, minimum=0.0,
                     help="YADE's non-viscous (local) damping of the compression, 0..1"),
     "unbalanced_force_target": dict(kind="float", default=1e-3, minimum=1e-9,
