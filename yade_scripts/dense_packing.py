@@ -633,6 +633,32 @@ def main():
      n_untracked) = (state[k] for k in STATE_KEYS)
 
     cell_info = {}
+    if p["method"] == "tiled" and not p["cell_packing"]:
+        # the relaxed cell itself, for later runs (cell_packing = ".../cell.h5")
+        touching = overlap > 0
+        cell_attrs = {
+            "generator": "yade_scripts/dense_packing.py", "seed": int(p["seed"]),
+            "shape": "periodic", "domain_volume_m3": float(box.volume),
+            "solid_fraction": float(np.sum(4.0 / 3.0 * np.pi * radius ** 3) / box.volume),
+            "mean_coordination": float(2.0 * touching.sum() / n),
+            "mean_coordination_with_gaps": float(2.0 * len(pair) / n),
+            "pressure_pa": float(pressure), "confining_pressure_pa": p["confining_pressure_pa"],
+            "mean_stress_from_dumped_forces_pa": float(pressure_normal),
+            "young_pa": p["young_pa"], "young_pa_used": p["young_pa"], "poisson": p["poisson"],
+            "density": p["density"], "friction": p["friction"],
+            "unbalanced_force_ratio": float(unbalanced), "gap_tolerance": p["gap_tolerance"],
+            "radius_growth_factor": float(radius.mean() / radii_drawn.mean()),
+            "contacts_touching_without_yade_force": n_untracked,
+            "time_step": p["time_step"], "compression_seconds": compress_seconds,
+            "compression_steps": int(compress_steps), "method": "direct",
+            "radius_distribution": p["radius_distribution"]}
+        out_cell = os.path.join(p["output_dir"], "cell.h5")
+        write_packing(out_cell, position, radius, np.zeros(n, dtype=np.int32), pair, overlap,
+                      normal_force, branch, [], np.zeros(0, np.int64), np.zeros(0, np.int32),
+                      np.zeros(0), np.zeros(0), np.zeros(3), box.size.copy(), [True] * 3,
+                      cell_attrs, contact_radius=contact_radius, wall_contact_radius=np.zeros(0))
+        log(f"wrote {out_cell}: the relaxed periodic cell ({n} spheres; reuse it with "
+            f"cell_packing = \"{out_cell}\")")
     if p["method"] == "tiled":
         (box, position, radius, pair, branch, overlap, normal_force, contact_radius, walls,
          wall_particle, wall_index, wall_overlap, wall_force, cell_info) = tile_cell(
