@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 APT_PACKAGES := yade python3-h5py python3-scipy python3-venv
 
-.PHONY: demo test deps apt validate bench clean
+.PHONY: demo test deps apt validate bench bench-packings clean
 
 demo: deps
 	$(BIN)/tdem demo
@@ -37,6 +37,12 @@ bench: deps
 	$(BIN)/python bench/bench_explicit.py > bench/results/explicit_layout.txt
 	$(BIN)/python bench/bench_explicit.py --memory 8e6 >> bench/results/explicit_layout.txt
 	$(BIN)/python bench/bench_solvers.py
+
+# Packing paths side by side (hours: the reference relaxes 10,000 spheres for ~1 h per seed);
+# resumable (--reuse keeps the cases already built). Writes bench/results/packings.{csv,md,png},
+# quoted by docs/packings.md.
+bench-packings: deps
+	$(BIN)/python bench/bench_packings.py --reuse
 
 # Long validation: the 7,500-sphere pressure campaign of the pipe-model paper (YADE ~15 min,
 # thermal ~3 min), quoted in docs/campaign.md; the ETC of composites on the 10,000-sphere dense
