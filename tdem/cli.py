@@ -12,9 +12,20 @@ RUNS = Path(__file__).resolve().parent.parent / "runs"
 
 
 def _cmd_pack(args):
-    from .pack import build
-    build(Path(args.scene), Path(args.out) if args.out else None, threads=args.threads,
-          quiet=args.quiet)
+    from .pack import build, build_seeds
+    out = Path(args.out) if args.out else None
+    if args.seeds is not None:
+        if args.threads != 1:
+            raise UserError("--threads: yade-batch runs each seed on one YADE thread "
+                            "(deterministic); use --jobs for parallel seeds")
+        try:
+            seeds = [int(x) for x in args.seeds.split(",") if x.strip()]
+        except ValueError:
+            raise UserError(f"--seeds: expected comma-separated integers, got {args.seeds!r}") \
+                from None
+        build_seeds(Path(args.scene), seeds, out, jobs=args.jobs, quiet=args.quiet)
+        return
+    build(Path(args.scene), out, threads=args.threads, quiet=args.quiet)
 
 
 def _cmd_run(args):
@@ -216,7 +227,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("pack", help="build packing(s) with YADE from a scene's [pack] table")
     p.add_argument("scene", help="scene TOML file with a [pack] table")
     p.add_argument("--out", help="output folder (default: runs/out/<scene name>/ beside the scene)")
-    p.add_argument("--threads", type=int, default=1, help="YADE threads (-j), default 1")
+    p.add_argument("--threads", type=int, default=1,
+                   help="YADE threads (-j), default 1 (more is not deterministic)")
+    p.add_argument("--seeds", help="comma-separated seeds: one packing each, in <out>/seed_<s>/, "
+                                   "run as one yade-batch table (dense generator)")
+    p.add_argument("--jobs", type=int, default=2,
+                   help="with --seeds: YADE jobs at a time (yade-batch -j), default 2")
     p.add_argument("--quiet", action="store_true", help="do not stream YADE's output")
     p.set_defaults(func=_cmd_pack)
 

@@ -65,6 +65,33 @@ def built_packings(scene_path: Path, out_dir: Path | None = None) -> list[Path] 
     return made
 
 
+def build_seeds(scene_path: Path, seeds: list[int], out_dir: Path | None = None, *,
+                jobs: int = 2, quiet: bool = False) -> list[Path]:
+    """One packing per seed, as one yade-batch table (``jobs`` YADE processes at a time, one
+    thread each): ``<out>/seed_<s>/packing.h5``. Print each one's statistics."""
+    generator, params = read_pack_table(scene_path)
+    out_dir = Path(out_dir) if out_dir else default_out_dir(scene_path)
+    if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0:
+        raise UserError(f"--seeds: expected distinct seeds >= 0, got {seeds}")
+    if jobs < 1:
+        raise UserError(f"--jobs: expected a number of parallel YADE jobs >= 1, got {jobs}")
+    dirs = [out_dir / f"seed_{s}" for s in seeds]
+    print(f"tdem pack: {scene_path} -> {out_dir}/seed_<s>/ (generator {generator}, seeds "
+          f"{', '.join(map(str, seeds))}, yade-batch with {jobs} job(s) at a time, 1 YADE "
+          f"thread each)", flush=True)
+    try:
+        wall = yade.run_batch(generator, [dict(params, seed=s) for s in seeds], dirs,
+                              jobs=jobs, quiet=quiet)
+    except yade.YadeError as e:
+        raise UserError(str(e)) from None
+    made = [d / "packing.h5" for d in dirs]
+    for path in made:
+        print(f"{path}:", flush=True)
+        print(format_statistics(packing_statistics(read_packing(path))), flush=True)
+    print(f"tdem pack: {len(made)} packing(s) in {wall:.1f} s", flush=True)
+    return made
+
+
 def build(scene_path: Path, out_dir: Path | None = None, *, threads: int = 1,
           quiet: bool = False) -> list[Path]:
     """Build the packing(s) of a scene and print their statistics; return the files made."""

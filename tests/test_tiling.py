@@ -106,3 +106,16 @@ def test_repetitions_cover_the_domain():
     reps = tiling.repetitions(cell, [2.0, 2.1, 0.2])
     assert reps.tolist() == [2, 2, 1]
     assert np.all(reps * cell >= [2.0, 2.1, 0.2])
+
+
+def test_seeds_refused_for_the_bed_generator(tmp_path):
+    """--seeds goes through yade-batch only for generators that read a batch table: one line,
+    exit 2, before YADE starts."""
+    import subprocess
+    import sys
+    scene = tmp_path / "bed.toml"
+    scene.write_text('law = "pipe"\n[pack]\ngenerator = "bed"\n')
+    proc = subprocess.run([sys.executable, "-m", "tdem.cli", "pack", str(scene), "--seeds", "1,2"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "--seeds" in proc.stderr

@@ -603,14 +603,16 @@ def relax_cell_or_domain(p):
 
 
 def main():
-    if len(sys.argv) != 2:
-        fail("usage: yade -n -x dense_packing.py params.json")
+    params_path = P.params_path_from_argv_or_batch(sys.argv, "dense_packing.py")
+    if params_path is None:
+        fail("usage: yade -n -x dense_packing.py params.json (or yade-batch TABLE "
+             "dense_packing.py with a params_json column)")
     try:
-        p = P.read_params_json(sys.argv[1], "dense")
+        p = P.read_params_json(params_path, "dense")
     except P.ParamError as e:
         fail(str(e))
     except (OSError, ValueError) as e:
-        fail(f"{sys.argv[1]}: {e}")
+        fail(f"{params_path}: {e}")
     for k, inc in enumerate(p["inclusions"]):
         if not isinstance(inc, dict) or set(inc) - {"centre", "radius", "phase"} \
                 or "centre" not in inc or "radius" not in inc:

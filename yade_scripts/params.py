@@ -103,3 +103,17 @@ def read_params_json(path, generator):
     with open(path) as f:
         table = json.load(f)
     return resolve(load_schema(generator), table)
+
+
+def params_path_from_argv_or_batch(argv, script):
+    """The params.json of a generator run: ``yade -x SCRIPT params.json``, or, under
+    ``yade-batch TABLE SCRIPT``, the ``params_json`` column of the job's table line (YADE sets
+    YADE_BATCH=table:line for each job). None when neither is given."""
+    if len(argv) == 2:
+        return argv[1]
+    if os.environ.get("YADE_BATCH"):
+        from yade import utils
+        utils.readParamsFromTable(params_json="", noTableOk=False)
+        from yade.params import table
+        return table.params_json or None
+    return None
