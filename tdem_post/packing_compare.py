@@ -21,6 +21,8 @@ from thermal_kernel.packing import Packing
 
 RDF_BINS = 40               # bins of the radial distribution function over 0 ... RDF_MAX
 RDF_MAX_OVER_DIAMETER = 2.0  # centre distance / mean diameter (inside the bulk margin)
+MAX_RDF_CENTRES = 200_000    # more bulk spheres than this: the RDF of a seeded subset
+MAX_SAMPLE_POINTS = 2e7      # the sampled solid fraction's grid is coarsened beyond this
 
 
 @dataclass(frozen=True)
@@ -136,8 +138,15 @@ def packing_stats(packing: Packing) -> PackingStats:
     margin = 2.0 * d_mean
     region = lambda pts: _bulk_points(packing, pts, margin)      # noqa: E731
     spacing = d_mean / (6.0 if n <= 20_000 else 4.0 if n <= 200_000 else 2.0)
+    spacing = max(spacing, (volume / MAX_SAMPLE_POINTS) ** (1.0 / 3.0))
     phi_bulk = sampled_solid_fraction(packing, region, spacing)
-    r, g = radial_distribution(packing.position, bulk, n / volume,
+    rdf_centres = bulk.copy()
+    if bulk.sum() > MAX_RDF_CENTRES:            # a seeded subset: the histogram's noise is small
+        keep = np.random.default_rng(1).choice(np.flatnonzero(bulk), MAX_RDF_CENTRES,
+                                               replace=False)
+        rdf_centres[:] = False
+        rdf_centres[keep] = True
+    r, g = radial_distribution(packing.position, rdf_centres, n / volume,
                                RDF_MAX_OVER_DIAMETER * d_mean, RDF_BINS)
     return PackingStats(
         n_particles=n, n_bulk=int(bulk.sum()),
