@@ -1,14 +1,17 @@
 """Checkpoints of a long transient run (``tdem run --checkpoint-every K``, ``--resume``).
 
 A checkpoint holds the solver's state after an output time (temperatures, time, step count,
-energy ledger, dt) and every output recorded so far, with the scene's text and the particle count
-so that a resume on another scene or packing is refused. It is written to a temporary name and
+energy ledger, dt) and every output recorded so far, with the scene's text, the particle count
+and a content hash of the packing (:func:`packing_sha256`: its arrays, not its file's bytes) so
+that a resume on another scene or packing -- also another packing of the same size -- is
+refused. It is written to a temporary name and
 renamed (a run killed while writing keeps the previous checkpoint). Resuming continues from the
 state through the remaining output times; because every output interval is cut into the same
 equal steps either way, the result equals the uninterrupted run bit for bit (tested).
 """
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
 
@@ -27,8 +30,34 @@ def checkpoint_path(output: Path) -> Path:
     return output.with_name(output.stem + ".checkpoint.h5")
 
 
+# the packing's content, in this order, for its hash (attrs are provenance: left out)
+_PACKING_ARRAYS = ("position", "radius", "phase", "pair", "overlap", "normal_force", "branch",
+                   "wall_point", "wall_normal", "wall_radius", "wall_particle", "wall_index",
+                   "wall_overlap", "wall_normal_force", "domain_lo", "domain_hi", "periodic",
+                   "contact_radius", "wall_contact_radius")
+
+
+def packing_sha256(packing) -> str:
+    """sha256 (hex) of a packing's content: every array (name, dtype, shape, little-endian
+    bytes) and the walls' names and kinds. Equal for the same packing read from a copy."""
+    h = hashlib.sha256()
+    for name in _PACKING_ARRAYS:
+        a = getattr(packing, name, None)
+        h.update(name.encode() + b"\0")
+        if a is None:
+            h.update(b"none\0")
+            continue
+        a = np.ascontiguousarray(a)
+        a = a.astype(a.dtype.newbyteorder("<"), copy=False)
+        h.update(f"{a.dtype.str}{a.shape}".encode() + b"\0")
+        h.update(a.tobytes())
+    for name in ("wall_name", "wall_kind"):
+        h.update(name.encode() + b"\0" + "\0".join(map(str, getattr(packing, name))).encode())
+    return h.hexdigest()
+
+
 def write_checkpoint(path: Path, state: SolverState, outputs: dict, totals: dict,
-                     scene_text: str, n_particles: int) -> Path:
+                     scene_text: str, n_particles: int, packing_hash: str = "") -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
@@ -36,6 +65,7 @@ def write_checkpoint(path: Path, state: SolverState, outputs: dict, totals: dict
         f.attrs["format"] = "tdem-checkpoint"
         f.attrs["scene"] = scene_text
         f.attrs["n_particles"] = n_particles
+        f.attrs["packing_sha256"] = packing_hash
         g = f.create_group("state")
         g.create_dataset("temperature_k", data=state.temperature_k)
         g.create_dataset("boundary_energy_j", data=state.boundary_energy_j)
@@ -50,8 +80,11 @@ def write_checkpoint(path: Path, state: SolverState, outputs: dict, totals: dict
     return path
 
 
-def read_checkpoint(path: Path, scene_text: str, n_particles: int):
-    """(state, outputs, totals) of a checkpoint made by the same scene on the same packing."""
+def read_checkpoint(path: Path, scene_text: str, n_particles: int, packing_hash: str = "",
+                    packing_path=None):
+    """(state, outputs, totals) of a checkpoint made by the same scene on the same packing
+    (same particle count and, when ``packing_hash`` is given, the same content hash; the error
+    names ``packing_path``)."""
     path = Path(path)
     if not path.exists():
         raise SceneError(f"{path}: --resume: no checkpoint to resume from (run with "
@@ -67,6 +100,18 @@ def read_checkpoint(path: Path, scene_text: str, n_particles: int):
                 raise SceneError(f"{path}: n_particles: the checkpoint has "
                                  f"{int(f.attrs['n_particles'])} particles, the packing "
                                  f"{n_particles}")
+            if packing_hash:
+                stored = str(f.attrs.get("packing_sha256", ""))
+                where = packing_path if packing_path is not None else path
+                if not stored:
+                    raise SceneError(f"{path}: packing_sha256: the checkpoint does not identify "
+                                     "its packing (made by an older tdem); delete it and run "
+                                     "again")
+                if stored != packing_hash:
+                    raise SceneError(f"{where}: --resume: not the packing the checkpoint {path} "
+                                     f"was made on (content sha256 {packing_hash[:12]}, "
+                                     f"checkpoint {stored[:12]}); resume with that packing, or "
+                                     "delete the checkpoint")
             g = f["state"]
             state = SolverState(
                 temperature_k=g["temperature_k"][()], time_s=float(g.attrs["time_s"]),

@@ -3,19 +3,20 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .checkpoint import checkpoint_path, read_checkpoint, write_checkpoint
+from .checkpoint import checkpoint_path, packing_sha256, read_checkpoint, write_checkpoint
 from .network import assemble
 from .output import write_thermal
 from .packing import read_packing
 from .problem import build_problem
 from .scene import Scene, SceneError
-from .solvers import UnstableTimeStepError
+from .solvers import UnstableTimeStepError, check_physics
 from .solvers.explicit import run_explicit
 from .solvers.implicit import run_implicit
 from .solvers.steady import solve_steady
@@ -56,10 +57,13 @@ def _transient(net, start, times, scene, threads, progress):
                                 threads=threads)
         except UnstableTimeStepError as e:
             raise SceneError(f"{scene.path}: solver.dt: {e}") from None
-    return run_implicit(net, start, times, dt=solver.dt, theta=solver.theta, progress=progress)
+    return run_implicit(net, start, times, dt=solver.dt, theta=solver.theta,
+                        scheme=solver.scheme, startup_steps=solver.startup_steps,
+                        progress=progress)
 
 
-def _run_with_checkpoints(net, T0, scene, threads, progress, every, resumed, n_particles):
+def _run_with_checkpoints(net, T0, scene, threads, progress, every, resumed, n_particles,
+                          packing_hash=""):
     """The transient in chunks of ``every`` output times, a checkpoint after each; or from a
     checkpoint ``resumed`` = (state, outputs, totals). Returns (ThermalResult over all output
     times, checkpoint path)."""
@@ -88,7 +92,7 @@ def _run_with_checkpoints(net, T0, scene, threads, progress, every, resumed, n_p
                   "step_seconds": totals["step_seconds"] + last.info.get("step_seconds", 0.0)}
         if every > 0:
             write_checkpoint(ckpt, last.state, {k: np.concatenate(v) for k, v in outputs.items()},
-                             totals, scene.text, n_particles)
+                             totals, scene.text, n_particles, packing_hash)
     joined = {k: np.concatenate(v) for k, v in outputs.items()}
     cups = (net.n_active_contacts * totals["steps"] / totals["step_seconds"]
             if totals["step_seconds"] > 0 else float("nan"))
@@ -105,6 +109,7 @@ def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = F
     Transient runs can write a checkpoint every ``checkpoint_every`` output times (beside the
     output, ``<name>.checkpoint.h5``, removed when the run ends) and ``resume`` from it."""
     packing = read_packing(packing_path or scene.packing)
+    packing_hash = packing_sha256(packing)
     problem, info = build_problem(scene, packing)
     t_assemble = time.perf_counter()
     net = assemble(problem)
@@ -126,17 +131,22 @@ def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = F
         resumed = None
         if resume:     # checked before anything runs or prints
             resumed = read_checkpoint(checkpoint_path(scene.output), scene.text,
-                                      packing.n_particles)
+                                      packing.n_particles, packing_hash,
+                                      packing_path=packing_path or scene.packing)
             if resumed[0].time_s >= solver.output_times[-1]:
                 raise SceneError(f"{checkpoint_path(scene.output)}: --resume: the checkpoint "
                                  "already holds every output time (delete it to run again)")
         bar, progress = _progress_bar(0, solver.end_time, quiet)
         try:
             result, ckpt = _run_with_checkpoints(net, T0, scene, threads, progress,
-                                                 checkpoint_every, resumed, packing.n_particles)
+                                                 checkpoint_every, resumed, packing.n_particles,
+                                                 packing_hash)
         finally:
             if bar is not None:
                 bar.close()
+    check = check_physics(net, T0, result)
+    flags = tuple(result.flags) + tuple(f for f in check.flags if f not in result.flags)
+    result = dataclasses.replace(result, flags=flags)
     attrs = {
         "law": scene.law, "method": result.method, "dt": float(result.dt),
         "dt_max": float(result.dt_max), "dt_paper": float(result.dt_paper),
@@ -148,6 +158,13 @@ def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = F
         "n_conducting_contacts": int(net.n_active_contacts),
         "n_floating_clusters": net.clusters.n_floating, "n_rattlers": net.clusters.n_rattlers,
         "law_params": repr(info["law_params"]),
+        "packing_sha256": packing_hash,
+        # every run's physics checks (thermal_kernel.solvers.check_physics)
+        "max_principle_checked": int(check.max_principle_checked),
+        "max_principle_bounds_k": np.array(check.bounds_k, dtype=np.float64),
+        "max_principle_excess_relative": float(check.overshoot_relative),
+        "ledger_residual_relative": float(check.ledger_relative),
+        "check_messages": "\n".join(check.messages),
     }
     out = write_thermal(scene.output, times=result.times, temperatures=result.temperature_k,
                         boundary_heat_flow_w=result.boundary_heat_flow_w,
@@ -159,6 +176,9 @@ def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = F
         ckpt.unlink()            # the output is complete: the checkpoint has served
     if not quiet:
         _print_summary(result, out)
+    if check.messages:           # a suspect answer is said even with --quiet (one line)
+        print(f"tdem: warning: {out}: " + "; ".join(check.messages), file=sys.stderr,
+              flush=True)
     return RunSummary(output=out, result=result, network=net, scene=scene)
 
 

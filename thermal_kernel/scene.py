@@ -6,6 +6,7 @@ unknown keys, missing required keys, wrong types, unknown law names.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -19,6 +20,9 @@ class SceneError(ValueError):
 BOUNDARY_KINDS = ("temperature", "flux", "wall_temperature", "source")
 SOURCE_SHAPES = ("cylinder", "sphere", "box")
 METHODS = ("explicit", "implicit", "steady")
+# implicit time schemes (thermal_kernel/solvers/implicit.py); "auto": theta = 0.5 -> the default
+# second-order scheme "rannacher" (Crank-Nicolson with backward-Euler start-up), else "theta"
+SCHEMES = ("auto", "theta", "rannacher", "tr-bdf2")
 
 
 @dataclass(frozen=True)
@@ -55,7 +59,9 @@ class SolverConfig:
     dt: float = math.nan                   # NaN = from the stability bound (explicit) / required
     safety: float = 0.9                    # explicit: dt = safety * exact bound
     allow_unstable: bool = False
-    theta: float = 1.0                     # implicit: 1 backward Euler, 0.5 Crank-Nicolson
+    theta: float = 1.0                     # implicit: 1 backward Euler, 0.5 second order
+    scheme: str = "theta"                  # implicit: resolved scheme (theta|rannacher|tr-bdf2)
+    startup_steps: int | None = None       # rannacher / tr-bdf2: backward-Euler start-up steps
 
 
 @dataclass(frozen=True)
@@ -267,6 +273,7 @@ def load_scene(path, known_laws=None, out_dir=None) -> Scene:
     dt = sol.number("dt", positive=True) if sol.has("dt") else math.nan
     if method == "implicit" and math.isnan(dt):
         sol.fail("dt", "missing required key (the implicit method needs a time step)")
+    theta_given = sol.has("theta")
     solver = SolverConfig(
         method=method, end_time=end_time, output_times=output_times, dt=dt,
         safety=sol.number("safety", default=0.9, positive=True),
@@ -274,6 +281,8 @@ def load_scene(path, known_laws=None, out_dir=None) -> Scene:
         theta=sol.number("theta", default=1.0, minimum=0.5))
     if solver.theta > 1.0:
         sol.fail("theta", f"expected 0.5 <= theta <= 1, got {solver.theta}")
+    scheme, startup = _scheme(sol, method, solver.theta, theta_given)
+    solver = dataclasses.replace(solver, scheme=scheme, startup_steps=startup)
     if solver.safety > 1.0 and not solver.allow_unstable:
         sol.fail("safety", f"expected a number <= 1 (the bound is exact), got {solver.safety}")
     sol.done()
@@ -289,6 +298,35 @@ def load_scene(path, known_laws=None, out_dir=None) -> Scene:
                  materials=materials, young_pa=young, poisson=poisson,
                  initial_temperature=initial_temperature, boundaries=tuple(boundaries),
                  solver=solver, output=output, text=text)
+
+
+def _scheme(sol: _Table, method: str, theta: float, theta_given: bool):
+    """(scheme, startup_steps) of the implicit solver: ``scheme = "auto"`` (default) gives the
+    default second-order scheme "rannacher" for theta = 0.5 and the plain theta-scheme
+    otherwise; ``scheme = "theta"`` with theta = 0.5 is plain Crank-Nicolson (can ring)."""
+    given = sol.has("scheme")
+    scheme = sol.string("scheme", default="auto", choices=SCHEMES)
+    startup = None
+    if sol.has("startup_steps"):
+        value = sol.table["startup_steps"]
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            sol.fail("startup_steps", f"expected an integer >= 0, got {value!r}")
+        sol.table.pop("startup_steps")
+        startup = int(value)
+    if method != "implicit":
+        if given:
+            sol.fail("scheme", f"only for method = \"implicit\" (method is {method!r})")
+        if startup is not None:
+            sol.fail("startup_steps", f"only for method = \"implicit\" (method is {method!r})")
+        return "theta", None
+    if scheme == "auto":
+        scheme = "rannacher" if theta == 0.5 else "theta"
+    if scheme in ("rannacher", "tr-bdf2") and theta_given and theta != 0.5:
+        sol.fail("theta", f"theta = {theta} is for scheme = \"theta\"; scheme = {scheme!r} is "
+                          "second order (leave theta out or give 0.5)")
+    if startup is not None and scheme == "theta":
+        sol.fail("startup_steps", "only for scheme = \"rannacher\" or \"tr-bdf2\"")
+    return scheme, startup
 
 
 def _boundary(t: _Table) -> Boundary:
