@@ -3,8 +3,8 @@
 Asserted: a run that writes checkpoints gives the same bits as one that does not (explicit and
 Crank-Nicolson), and removes its checkpoint when it ends; a run killed (SIGKILL) after its first
 checkpoint, then resumed, writes exactly the temperatures, heat flows and ledger of the
-uninterrupted run; resuming with another scene, without a checkpoint, or a steady solve with
-checkpoints are one-line errors.
+uninterrupted run; resuming with another scene, another packing of the same size (content
+hash), without a checkpoint, or a steady solve with checkpoints are one-line errors.
 """
 import os
 import signal
@@ -126,3 +126,51 @@ def test_resume_errors_are_one_line(lattice):
     (lattice / "st.toml").write_text(SCENE + 'method = "steady"\n')
     steady = tdem("run", lattice / "st.toml", "--out", lattice / "p", "--checkpoint-every", 1)
     assert steady.returncode == 2 and "steady" in steady.stderr
+
+
+def test_resume_on_another_packing_of_the_same_size_is_refused(lattice):
+    """The checkpoint stores the packing's content hash: a packing with the same particle count
+    but other positions is refused (exit 2, one line naming the packing file); the packing it
+    was made on, or a copy of it, resumes."""
+    import shutil
+    from thermal_kernel.checkpoint import packing_sha256, write_checkpoint
+    from thermal_kernel.packing import read_packing
+    from thermal_kernel.solvers import SolverState
+    text = SCENE + 'method = "explicit"\nend_time = 1.0\noutput_times = [0.5, 1.0]\n'
+    (lattice / "s.toml").write_text(text)
+    write_packing(lattice / "other.h5", simple_cubic_packing((16, 16, 16), spacing_m=1.1e-3))
+    shutil.copy(lattice / "lattice.h5", lattice / "copy.h5")
+    same = packing_sha256(read_packing(lattice / "lattice.h5"))
+    other = packing_sha256(read_packing(lattice / "other.h5"))
+    assert other != same and packing_sha256(read_packing(lattice / "copy.h5")) == same
+    n = 16 ** 3
+    state = SolverState(temperature_k=np.full(n, 300.0), time_s=0.5, step=10,
+                        boundary_energy_j=np.zeros(2), source_energy_j=0.0,
+                        reference_temperature_k=np.full(n, 300.0), dt_s=0.005, method="explicit")
+    outputs = dict(times=[0.5], temperature_k=np.full((1, n), 300.0),
+                   boundary_heat_flow_w=np.zeros((1, 2)), boundary_energy_j=np.zeros((1, 2)),
+                   source_energy_j=[0.0], stored_energy_j=[0.0])
+    ckpt = lattice / "o" / "thermal.checkpoint.h5"
+
+    def leave_checkpoint(packing_hash):
+        write_checkpoint(ckpt, state, outputs, dict(steps=10, wall_seconds=0.1,
+                                                    step_seconds=0.1), text, n, packing_hash)
+
+    leave_checkpoint(other)                        # made on other.h5, resumed on lattice.h5
+    r = tdem("run", lattice / "s.toml", "--out", lattice / "o", "--resume", "--quiet")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "lattice.h5" in r.stderr and "--resume" in r.stderr and "Traceback" not in r.stderr
+    assert ckpt.exists() and not (lattice / "o" / "thermal.h5").exists()
+    # the same packing, and a copy of it given with --packing, resume
+    for packing in (None, lattice / "copy.h5"):
+        leave_checkpoint(same)
+        args = ("--packing", packing) if packing else ()
+        r = tdem("run", lattice / "s.toml", "--out", lattice / "o", "--resume", "--quiet",
+                 *args)
+        assert r.returncode == 0, r.stderr
+        assert not ckpt.exists()
+        assert list(read(lattice / "o" / "thermal.h5")["time"]) == [0.5, 1.0]
+    # and a checkpoint that does not identify its packing is refused, not trusted
+    leave_checkpoint("")
+    r = tdem("run", lattice / "s.toml", "--out", lattice / "o", "--resume", "--quiet")
+    assert r.returncode == 2 and "packing_sha256" in r.stderr and r.stderr.count("\n") == 1
