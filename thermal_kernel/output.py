@@ -6,8 +6,11 @@ Layout (SI units, documented in docs/solvers.md):
   boundary at that time); boundary_energy (K, B) J and source_energy (K,) J (cumulative since
   t0); stored_energy_change (K,) J = sum_p C_p (T_p - T0_p); capacity (N,) J/K;
   boundary_names (B,) str. Attributes: law, method, dt, dt_max, steps, wall_seconds,
-  contact_updates_per_second, scene (TOML text), packing (path), tdem_version, git_hash, and
-  the solver's flags.
+  contact_updates_per_second, scene (TOML text), packing (path), packing_sha256 (content hash),
+  tdem_version, git_hash, and the flags (comma-separated: the solver's, and ``max_principle`` /
+  ``energy_ledger`` when the run's physics checks fail, with max_principle_checked,
+  max_principle_bounds_k, max_principle_excess_relative, ledger_residual_relative and
+  check_messages; see docs/solvers.md).
 """
 from __future__ import annotations
 
