@@ -87,7 +87,11 @@ def run_one(scripts, params, out_dir, force):
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "params.json"
     wanted = [out_dir / pressure_name(p) for p in params["pressures_pa"]]
-    if (not force and path.exists() and json.loads(path.read_text()) == params
+    def same(a, b):     # a run folder may have been moved: output_dir does not count
+        return ({k: v for k, v in a.items() if k != "output_dir"}
+                == {k: v for k, v in b.items() if k != "output_dir"})
+
+    if (not force and path.exists() and same(json.loads(path.read_text()), params)
             and all(f.exists() for f in wanted)):
         print(f"  {out_dir.relative_to(ROOT)}: done before, not run again", flush=True)
         return
