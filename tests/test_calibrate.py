@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
-from thermal_kernel.calibrate import calibrate_ct
+from thermal_kernel.calibrate import calibrate_axes, calibrate_ct, cross_section
 from thermal_kernel.lattice import simple_cubic_packing
 from thermal_kernel.laws import LAWS
-from thermal_kernel.packing import read_packing, write_packing
+from thermal_kernel.packing import PackingError, read_packing, write_packing
 from thermal_kernel.scene import SceneError, load_scene
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -99,3 +99,75 @@ def test_wrong_law_and_cli(tmp_path):
     expected = calibrate_ct(load_scene(good, known_laws=LAWS),
                             read_packing(DATA / "dense_box.h5"), "x").ct
     assert ct == pytest.approx(expected, abs=1e-6)
+
+
+# ---- cross-sections that are not a box face (issue 16, sec. 1): refused, never the bounding box
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "tdem.cli", *map(str, args)],
+                          capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.parametrize("dump", ["dense_cylinder.h5", "bed_small_4.05e+07Pa.h5"])
+@pytest.mark.parametrize("axis", ["x", "y"])
+def test_axis_across_a_cylinder_is_refused(tmp_path, dump, axis):
+    packing = read_packing(DATA / dump)
+    path = scene_file(tmp_path, DATA / dump)
+    with pytest.raises(SceneError) as info:
+        calibrate_ct(load_scene(path, known_laws=LAWS), packing, axis)
+    text = str(info.value)
+    assert text.startswith(f"{path}: --axis: ") and "\n" not in text
+    assert "'cylinder' is a cylinder along z" in text and "axes with one: z" in text
+    with pytest.raises(PackingError) as info:
+        cross_section(packing, "xyz".index(axis))
+    assert str(info.value).startswith(f"{DATA / dump}: walls: no cross-section area normal to "
+                                      f"{axis}: ")
+    proc = _cli("calibrate", path, "--axis", axis)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1
+    assert str(path) in proc.stderr and "--axis" in proc.stderr and "expected a box face" in \
+        proc.stderr
+
+
+def test_sphere_container_is_refused_on_every_axis(tmp_path):
+    packing = read_packing(DATA / "dense_sphere.h5")
+    path = scene_file(tmp_path, DATA / "dense_sphere.h5")
+    scene = load_scene(path, known_laws=LAWS)
+    for axis in "xyz":
+        with pytest.raises(SceneError, match="'surface' is a sphere"):
+            calibrate_ct(scene, packing, axis)
+    with pytest.raises(SceneError, match="no axis with a flux test"):
+        calibrate_axes(scene, packing, "all")
+    proc = _cli("calibrate", path)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert "x, y, z: wall 'surface' is a sphere" in proc.stderr
+
+
+def test_all_axes_on_a_cylinder_calibrates_only_along_it(tmp_path):
+    packing = read_packing(DATA / "dense_cylinder.h5")
+    path = scene_file(tmp_path, DATA / "dense_cylinder.h5")
+    scene = load_scene(path, known_laws=LAWS)
+    results, skipped, ct = calibrate_axes(scene, packing, "all")
+    assert [r.axis for r in results] == ["z"] and sorted(skipped) == ["x", "y"]
+    along = calibrate_ct(scene, packing, "z")
+    assert ct == along.ct
+    proc = _cli("calibrate", path)
+    assert proc.returncode == 0, proc.stderr
+    assert "axis x: skipped" in proc.stdout and "axis y: skipped" in proc.stdout
+    assert float(proc.stdout.strip().splitlines()[-1].split("=")[1]) == pytest.approx(along.ct,
+                                                                                     abs=1e-6)
+
+
+def test_all_axes_of_a_box_are_averaged(tmp_path):
+    packing = read_packing(DATA / "dense_box.h5")
+    scene = load_scene(scene_file(tmp_path, DATA / "dense_box.h5"), known_laws=LAWS)
+    results, skipped, ct = calibrate_axes(scene, packing, "all")
+    assert [r.axis for r in results] == ["x", "y", "z"] and skipped == {}
+    assert ct == pytest.approx(sum(calibrate_ct(scene, packing, a).ct for a in "xyz") / 3,
+                               rel=1e-12)
+
+
+def test_periodic_cell_has_no_axis(tmp_path):
+    scene = load_scene(scene_file(tmp_path, DATA / "dense_periodic.h5"), known_laws=LAWS)
+    with pytest.raises(SceneError, match="x, y, z: periodic"):
+        calibrate_axes(scene, read_packing(DATA / "dense_periodic.h5"), "all")

@@ -10,7 +10,8 @@ gives the calibrated value exactly, no iteration and no time marching.
 Test: the two faces normal to ``axis`` held at T_hot and T_cold (their particles: the wall
 contacts of a wall of that name, or the spheres reaching the domain face); lambda^e = Q L / (A dT)
 with L the domain length along the axis and A the cross-section (the box face, or pi R^2 for a
-cylinder wall along the axis). Heterogeneous packings: lambda is the conductivity of phase 0 (the
+cylinder wall along the axis); any other cross-section (a sphere container, a cylinder across
+the axis) is refused in one line, not replaced by the bounding-box face. Heterogeneous packings: lambda is the conductivity of phase 0 (the
 matrix), which is what the calibration is for.
 """
 from __future__ import annotations
@@ -22,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .network import assemble
-from .packing import Packing
+from .packing import Packing, PackingError
 from .problem import boundary_particles, build_problem
 from .scene import Boundary, Scene, SceneError, SolverConfig
 from .solvers.steady import solve_steady
@@ -45,8 +46,51 @@ class Calibration:
     n_cold: int
 
 
+def _axis_of(vector) -> str | None:
+    """'x', 'y' or 'z' if ``vector`` is parallel to that axis (to 1e-9), else None."""
+    v = np.abs(np.asarray(vector, dtype=float))
+    k = int(np.argmax(v))
+    return AXES[k] if abs(v[k] - 1.0) < 1e-9 else None
+
+
+def section_problem(packing: Packing, axis: int) -> str | None:
+    """Why the cross-section of ``packing`` normal to ``axis`` is neither a box face nor a
+    cylinder's disc (a cylinder wall along the axis); None if it is one of those.
+
+    Only those two have a constant, known area A, which lambda^e = Q L / (A dT) needs: a sphere
+    container, a cylinder lying across the axis or a tilted plane make A vary along the axis
+    (and the held "faces" are lines or points of the bounding box)."""
+    name = AXES[axis]
+    for wall, kind, normal in zip(packing.wall_name, packing.wall_kind, packing.wall_normal):
+        if kind == "sphere":
+            return (f"wall {wall!r} is a sphere: its sections are discs of varying radius, "
+                    "not the bounding-box face")
+        along = _axis_of(normal)
+        if kind == "cylinder" and along != name:
+            return (f"wall {wall!r} is a cylinder along {along or 'a tilted axis'}: its section "
+                    f"normal to {name} is not the bounding-box face")
+        if kind == "plane" and along is None:
+            return f"plane wall {wall!r} is not normal to x, y or z"
+    return None
+
+
+def flux_axes(packing: Packing) -> tuple[str, ...]:
+    """The axes along which the flux test is defined: not periodic, and the cross-section a box
+    face or a cylinder's disc."""
+    return tuple(a for k, a in enumerate(AXES)
+                 if not packing.periodic[k] and section_problem(packing, k) is None)
+
+
 def cross_section(packing: Packing, axis: int) -> float:
-    """Area normal to ``axis``: pi R^2 for a cylinder wall along the axis, else the box face."""
+    """Area normal to ``axis``: pi R^2 for a cylinder wall along the axis, else the box face.
+    Any other section (a sphere container, a cylinder across the axis) is refused
+    (:class:`PackingError`, one line) rather than replaced by the bounding-box face."""
+    problem = section_problem(packing, axis)
+    if problem is not None:
+        usable = ", ".join(flux_axes(packing)) or "none"
+        raise PackingError(f"{packing.path}: walls: no cross-section area normal to "
+                           f"{AXES[axis]}: {problem} (expected a box face or a cylinder along "
+                           f"{AXES[axis]}; axes with one: {usable})")
     for kind, normal, radius in zip(packing.wall_kind, packing.wall_normal, packing.wall_radius):
         if kind == "cylinder" and abs(abs(normal[axis]) - 1.0) < 1e-9:
             return math.pi * float(radius) ** 2
@@ -76,6 +120,11 @@ def flux_test(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.
     if packing.periodic[k]:
         raise SceneError(f"{scene.path}: --axis: {packing.path} is periodic along {axis}: the "
                          "flux test needs two opposite faces (a box, a cylinder along its axis)")
+    problem = section_problem(packing, k)
+    if problem is not None:
+        raise SceneError(f"{scene.path}: --axis: {packing.path} has no cross-section area "
+                         f"normal to {axis}: {problem} (expected a box face or a cylinder "
+                         f"along {axis}; axes with one: {', '.join(flux_axes(packing)) or 'none'})")
     faces = (f"{axis}min", f"{axis}max")
     test = dataclasses.replace(
         scene,
@@ -113,3 +162,30 @@ def calibrate_ct(scene: Scene, packing: Packing, axis: str = "x", t_hot: float =
         ct_used=ct_used, conductivity_w_mk=conductivity, effective_w_mk=test.effective_w_mk,
         heat_flow_w=test.heat_flow_w, balance=test.balance, length_m=test.length_m,
         area_m2=test.area_m2, axis=axis, n_hot=test.n_hot, n_cold=test.n_cold)
+
+
+def calibrate_axes(scene: Scene, packing: Packing, axes: str = "all", t_hot: float = 1.0,
+                   t_cold: float = 0.0):
+    """``tdem calibrate``: (calibrations, skipped, ct). ``axes`` "all" takes every axis of
+    :func:`flux_axes` and says why the others are skipped ({axis: reason}); one named axis that
+    has no flux test is refused (SceneError). ``ct`` is the mean over the calibrated axes: all
+    of them have a box-face cross-section, or there is one (a cylinder along its axis), so the
+    mean never mixes a bounding-box estimate with a true section."""
+    if axes != "all":
+        results = [calibrate_ct(scene, packing, a, t_hot, t_cold) for a in axes]
+        return results, {}, sum(r.ct for r in results) / len(results)
+    usable = flux_axes(packing)
+    skipped = {}
+    for k, a in enumerate(AXES):
+        if packing.periodic[k]:
+            skipped[a] = "periodic"
+        elif a not in usable:
+            skipped[a] = section_problem(packing, k)
+    if not usable:
+        raise SceneError(f"{scene.path}: --axis: {packing.path} has no axis with a flux test "
+                         "(expected a non-periodic axis whose cross-section is a box face or a "
+                         "cylinder's disc): " + "; ".join(
+                             f"{', '.join(a for a in skipped if skipped[a] == why)}: {why}"
+                             for why in dict.fromkeys(skipped.values())))
+    results = [calibrate_ct(scene, packing, a, t_hot, t_cold) for a in usable]
+    return results, skipped, sum(r.ct for r in results) / len(results)
