@@ -113,6 +113,23 @@ CORRUPTIONS = {
                    "wall_contacts/wall", "out of range 0..5"),
     "wall kind": (_replace("walls/kind", np.array(["plane"] * 5 + ["torus"], dtype=object)),
                   "walls/kind", "expected one of plane, cylinder"),
+    # impossible geometry (issue 16): each array well formed, the packing they describe is not
+    "negative phase": (lambda f: f["particles/phase"].__setitem__(3, -1),
+                       "particles/phase", "particle 3 has phase -1; expected a phase id >= 0"),
+    "centre outside the domain": (lambda f: f["particles/position"].__setitem__(
+        (5, 1), -0.5e-3), "particles/position", "particle 5 has its centre at y = -0.0005 m, "
+                                                 "outside the domain [0, 0.008]"),
+    "overlap beyond the radius": (lambda f: f["contacts/overlap"].__setitem__(2, 1.5e-3),
+                                  "contacts/overlap", "contact 2 (0, 20) has overlap 0.0015 m, "
+                                                      "larger than the smaller radius"),
+    "wall overlap beyond the radius": (lambda f: f["wall_contacts/overlap"].__setitem__(
+        4, 1.002e-3), "wall_contacts/overlap", "row 4 (particle 4) has overlap 0.001002 m, "
+                                               "larger than its radius 0.001001 m"),
+    "branch vector not joining the centres": (lambda f: f["contacts/branch"].__setitem__(
+        6, [0.0, 0.0, -2e-3]), "contacts/branch", "contact 6 (2, 3): the branch vector is 4 "
+                                                  "radii away from x_j - x_i"),
+    "zero branch vector": (lambda f: f["contacts/branch"].__setitem__(0, [0.0, 0.0, 0.0]),
+                           "contacts/branch", "contact 0 (0, 1)"),
 }
 
 
@@ -145,3 +162,121 @@ def test_not_hdf5(tmp_path):
     path.write_text("hello")
     with pytest.raises(PackingError, match="not an HDF5 file"):
         read_packing(path)
+
+
+# ---- valid geometry that the checks above must keep accepting
+
+DATA = __import__("pathlib").Path(__file__).resolve().parent / "data"
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in DATA.glob("*.h5")))
+def test_every_committed_packing_loads(name):
+    packing = read_packing(DATA / name)
+    assert packing.n_particles > 0 and packing.phase.min() >= 0
+
+
+def _tiling():
+    import importlib.util
+    path = __import__("pathlib").Path(__file__).resolve().parent.parent / "yade_scripts" / \
+        "tiling.py"
+    spec = importlib.util.spec_from_file_location("tdem_test_tiling_fmt", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _periodic_cell():
+    """A jittered simple-cubic periodic cell with its minimum-image neighbour pairs (all pairs
+    within 1.1 (r_i + r_j)): many contacts cross the periodic boundary."""
+    rng = np.random.default_rng(7)
+    shape, a = np.array([5, 4, 4]), 1e-3
+    cell = shape * a
+    position = np.indices(shape).reshape(3, -1).T * a + 0.5 * a \
+        + rng.uniform(-0.08, 0.08, (int(np.prod(shape)), 3)) * a
+    position -= np.floor(position / cell) * cell
+    radius = 0.5 * a * rng.uniform(0.9, 1.1, len(position))
+    d = position[None, :, :] - position[:, None, :]
+    d -= np.round(d / cell) * cell
+    dist = np.linalg.norm(d, axis=2)
+    i, j = np.nonzero((dist < 1.1 * (radius[:, None] + radius[None, :]))
+                      & np.triu(np.ones_like(dist, bool), 1))
+    branch = d[i, j]
+    overlap = radius[i] + radius[j] - np.linalg.norm(branch, axis=1)
+    return position, radius, cell, np.stack([i, j], 1), branch, overlap
+
+
+def _write(path, position, radius, pair, branch, overlap, walls, wp, wi, wo, lo, hi, periodic):
+    from thermal_kernel import packing_h5
+    n, m, k = len(radius), len(pair), len(wp)
+    packing_h5.write_packing(
+        path, position, radius, np.zeros(n, np.int32), pair, overlap,
+        np.where(overlap > 0, 1e-3, 0.0), branch, walls, np.asarray(wp, np.int64),
+        np.asarray(wi, np.int32), np.asarray(wo, float), np.zeros(k), lo, hi, periodic,
+        dict(generator="test", seed=0, solid_fraction=0.6, mean_coordination=2.0 * m / n,
+             pressure_pa=float("nan"), young_pa=2.1e11, poisson=0.3, density=7800.0))
+
+
+def test_periodic_cell_branch_is_the_minimum_image(tmp_path):
+    position, radius, cell, pair, branch, overlap = _periodic_cell()
+    crossing = np.abs(position[pair[:, 1]] - position[pair[:, 0]] - branch).max(axis=1) > 1e-4
+    assert crossing.sum() > 10           # contacts across the periodic boundary are tested
+    _write(tmp_path / "cell.h5", position, radius, pair, branch, overlap, [], [], [], [],
+           np.zeros(3), cell, [True] * 3)
+    assert read_packing(tmp_path / "cell.h5").n_contacts == len(pair)
+    # the same cell declared non-periodic: its wrapped branches no longer join the centres
+    _write(tmp_path / "flat.h5", position, radius, pair, branch, overlap, [], [], [], [],
+           np.zeros(3), cell, [False] * 3)
+    with pytest.raises(PackingError, match="contacts/branch: contact .* radii away from "
+                                           "x_j - x_i; expected"):
+        read_packing(tmp_path / "flat.h5")
+
+
+def test_tiled_and_carved_packing_loads(tmp_path):
+    """yade_scripts/tiling.py: copies of a periodic cell carved to a box. Spheres cut by the
+    faces stick out of the domain (centre inside) and their "wall contacts" on the cut surface
+    have overlap r - distance in [0, r] and no force; one centre lies exactly on a face
+    (overlap = r). All valid; an overlap beyond r or a centre outside is not."""
+    tiling = _tiling()
+    position, radius, cell, pair, branch, overlap = _periodic_cell()
+    reps = np.array([3, 2, 2])
+    pos_t, source, pair_t, pair_source = tiling.tile(position, cell, pair, branch, reps)
+    hi = reps * cell - 0.37e-3
+    hi[0] = pos_t[np.argmin(np.abs(pos_t[:, 0] - hi[0])), 0]      # a centre exactly on xmax
+    lo = np.full(3, 0.41e-3)
+    keep = np.all((pos_t >= lo) & (pos_t <= hi), axis=1)
+    new_index, rows, pair_c = tiling.carve(keep, pair_t)
+    pos_c, rad_c = pos_t[keep], radius[source[keep]]
+    walls, wp, wi, wo = [], [], [], []
+    for axis in range(3):
+        for side, bound in ((+1, lo), (-1, hi)):
+            normal = np.zeros(3)
+            normal[axis] = side
+            point = np.zeros(3)
+            point[axis] = bound[axis]
+            walls.append(dict(name=f"{'xyz'[axis]}{'min' if side > 0 else 'max'}", kind="plane",
+                              point=point, normal=normal, radius=float("nan")))
+            dist = (pos_c - point) @ normal
+            near = np.flatnonzero(dist < 1.1 * rad_c)
+            wp += near.tolist()
+            wi += [len(walls) - 1] * len(near)
+            wo += (rad_c[near] - dist[near]).tolist()
+    wo = np.array(wo)
+    assert np.any(wo == rad_c[wp]) and np.all(wo <= rad_c[wp]) and np.any(wo > 0.5 * rad_c[wp])
+    assert np.any(np.any((pos_c - rad_c[:, None] < lo) | (pos_c + rad_c[:, None] > hi), axis=1))
+    args = (pos_c, rad_c, pair_c, branch[pair_source[rows]], overlap[pair_source[rows]], walls,
+            wp, wi, wo, lo, hi, [False] * 3)
+    _write(tmp_path / "tiled.h5", *args)
+    back = read_packing(tmp_path / "tiled.h5")
+    assert back.n_particles == keep.sum() and back.n_contacts == len(pair_c)
+    # beyond round-off the same file is refused: an overlap 1e-6 r beyond the radius ...
+    deeper = wo.copy()
+    deeper[np.argmax(wo / rad_c[wp])] *= 1 + 1e-6
+    _write(tmp_path / "deep.h5", *args[:8], deeper, *args[9:])
+    with pytest.raises(PackingError, match="wall_contacts/overlap: .* larger than its radius"):
+        read_packing(tmp_path / "deep.h5")
+    # ... and a domain 1e-6 of a radius short of the centre on xmax
+    short = hi.copy()
+    short[0] -= 1e-6 * rad_c.min()
+    _write(tmp_path / "short.h5", *args[:10], short, args[11])
+    with pytest.raises(PackingError, match="particles/position: particle .* outside the domain"):
+        read_packing(tmp_path / "short.h5")

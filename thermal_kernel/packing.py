@@ -230,6 +230,9 @@ def read_packing(path) -> Packing:
         if np.any(dom["hi"] <= dom["lo"]):
             _fail(path, "domain/hi", f"expected hi > lo, got lo={dom['lo']}, hi={dom['hi']}")
 
+    _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_particle,
+                    wall_overlap, dom["lo"], dom["hi"], dom["periodic"])
+
     return Packing(position=position, radius=radius, phase=phase.astype(np.int32),
                    pair=pair.astype(np.int64), overlap=overlap, normal_force=normal_force,
                    branch=branch, wall_name=wall_name, wall_kind=wall_kind,
@@ -240,6 +243,70 @@ def read_packing(path) -> Packing:
                    domain_hi=dom["hi"], periodic=dom["periodic"], attrs=attrs,
                    contact_radius=contact_radius, wall_contact_radius=wall_contact_radius,
                    yade_id=yade_id, path=path)
+
+
+# Relative round-off allowed in the geometric checks below (positions of ~1e4 radii from the
+# origin lose ~1e-12 of a radius; anything beyond 1e-9 is a different geometry, not round-off).
+GEOMETRY_RTOL = 1e-9
+# Branch vectors: |branch - (x_j - x_i)| (periodic axes: to the nearest period) within this
+# fraction of the smaller radius.
+BRANCH_RTOL = 1e-6
+
+
+def _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_particle,
+                    wall_overlap, lo, hi, periodic):
+    """Arrays that are each well formed but describe an impossible packing: a negative phase
+    id, a centre outside the domain, an overlap beyond a radius, a branch vector that does not
+    join the two centres. Spheres may stick out of the domain (a tiled packing carved to a
+    shape keeps the spheres cut by its surface) and a wall overlap may reach the radius (their
+    wall contacts have overlap r - distance, 0 ... r): only the centre must be inside, and only
+    an overlap beyond the radius is refused."""
+    if phase.size and phase.min() < 0:
+        i = int(np.flatnonzero(phase < 0)[0])
+        _fail(path, "particles/phase", f"particle {i} has phase {int(phase[i])}; expected a "
+                                       "phase id >= 0")
+    extent = hi - lo
+    scale = np.abs(position).max(initial=0.0) + np.abs(lo).max() + np.abs(hi).max()
+    tol = GEOMETRY_RTOL * extent + 8 * np.finfo(float).eps * scale
+    outside = (position < lo - tol) | (position > hi + tol)
+    if outside.any():
+        i, axis = (int(v) for v in np.argwhere(outside)[0])
+        _fail(path, "particles/position",
+              f"particle {i} has its centre at {'xyz'[axis]} = {position[i, axis]:.6g} m, outside "
+              f"the domain [{lo[axis]:.6g}, {hi[axis]:.6g}] (domain/lo, domain/hi); expected every "
+              "centre inside the domain")
+    if pair.shape[0]:
+        i, j = pair[:, 0], pair[:, 1]
+        r_min = np.minimum(radius[i], radius[j])
+        too_deep = overlap > r_min * (1.0 + GEOMETRY_RTOL) + 8 * np.finfo(float).eps * scale
+        if too_deep.any():
+            c = int(np.flatnonzero(too_deep)[0])
+            _fail(path, "contacts/overlap",
+                  f"contact {c} ({int(i[c])}, {int(j[c])}) has overlap {overlap[c]:.6g} m, larger "
+                  f"than the smaller radius {r_min[c]:.6g} m; expected overlap <= the smaller "
+                  "radius")
+        residual = branch - (position[j] - position[i])
+        for axis in np.flatnonzero(periodic):        # the partner's image: any whole period
+            residual[:, axis] -= extent[axis] * np.round(residual[:, axis] / extent[axis])
+        error = np.linalg.norm(residual, axis=1)
+        allowed = BRANCH_RTOL * r_min + 8 * np.finfo(float).eps * scale
+        bad = error > allowed
+        if bad.any():
+            c = int(np.flatnonzero(bad)[0])
+            image = " (nearest periodic image)" if periodic.any() else ""
+            _fail(path, "contacts/branch",
+                  f"contact {c} ({int(i[c])}, {int(j[c])}): the branch vector is "
+                  f"{error[c] / r_min[c]:.3g} radii away from x_j - x_i{image}; expected the "
+                  f"vector from centre i to centre j (within {BRANCH_RTOL:g} of the radius)")
+    if wall_particle.size:
+        r = radius[wall_particle]
+        too_deep = wall_overlap > r * (1.0 + GEOMETRY_RTOL) + 8 * np.finfo(float).eps * scale
+        if too_deep.any():
+            c = int(np.flatnonzero(too_deep)[0])
+            _fail(path, "wall_contacts/overlap",
+                  f"row {c} (particle {int(wall_particle[c])}) has overlap {wall_overlap[c]:.6g} m, "
+                  f"larger than its radius {r[c]:.6g} m; expected overlap <= the radius (the "
+                  "centre on the wall's side)")
 
 
 def _check_index(path, name, index, n, what):
