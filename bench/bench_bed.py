@@ -7,7 +7,8 @@ side by side ("same packings, only faster").
     .venv/bin/python bench/bench_bed.py --variant old=0c04f14 --variant new=worktree \
         --variant sf10=worktree:'{"stiffen_factor": 10}'
 
-A variant is NAME=SOURCE[:JSON]: SOURCE is ``worktree`` (yade_scripts/ as it is now) or a git
+A variant is NAME=SOURCE[:JSON]: SOURCE is ``worktree`` (yade_scripts/ as it is now), an
+absolute folder holding a copy of yade_scripts/ and thermal_kernel/ (a candidate), or a git
 commit (its yade_scripts/ and thermal_kernel/ are extracted with ``git archive``, so an old
 generator runs with its own defaults); JSON holds parameter overrides on top of the scene's
 [pack] table. The first variant is the reference of the comparison.
@@ -68,6 +69,8 @@ def scripts_for(source):
     """Folder holding compressed_bed.py of a source ('worktree' or a git commit)."""
     if source == "worktree":
         return ROOT / "yade_scripts"
+    if source.startswith("/"):              # a folder holding yade_scripts/ (a candidate)
+        return Path(source) / "yade_scripts"
     commit = subprocess.run(["git", "rev-parse", "--short=12", source], cwd=ROOT, check=True,
                             capture_output=True, text=True).stdout.strip()
     dest = OUT / f"_scripts_{commit}"
