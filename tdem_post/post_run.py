@@ -78,6 +78,13 @@ def interior_mask(packing, margin_m):
 
 def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float = 3.0) -> dict:
     thermal_h5 = Path(thermal_h5)
+    if isinstance(n_bins, bool) or not isinstance(n_bins, (int, np.integer)) or n_bins < 1:
+        raise SceneError(f"{thermal_h5}: --bins: expected an integer >= 1 (profile bins), got "
+                         f"{n_bins!r}")
+    if isinstance(halo_ratio, bool) or not isinstance(halo_ratio, (int, float)) \
+            or not (math.isfinite(halo_ratio) and halo_ratio >= 0):
+        raise SceneError(f"{thermal_h5}: --halo: expected a number >= 0 (the Halo radius over "
+                         f"the particle radius; 0: no Halo), got {halo_ratio!r}")
     with h5py.File(thermal_h5, "r") as f:
         times = f["time"][()]
         temperature = f["temperature"][()]

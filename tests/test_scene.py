@@ -59,6 +59,14 @@ def test_good_scene(tmp_path):
         scene.law = "pipe"   # frozen
 
 
+SOURCE = """
+[[boundary]]
+kind = "source"
+shape = "sphere"
+value = 1e9
+radius_m = 0.002
+"""
+
 BAD = {
     "unknown top key": (GOOD + "\nfoo = 1\n", "foo: unknown key"),
     "unknown solver key": (GOOD.replace("end_time = 0.2", "end_time = 0.2\nend_tme = 3"),
@@ -89,6 +97,21 @@ BAD = {
     "duplicate boundary names": (GOOD.replace('kind = "flux"\non = "ymax"\nvalue = -1000.0',
                                               'kind = "temperature"\non = "ymin"\nvalue = 300.0'),
                                  "two boundaries share the name"),
+    # silent accepts refused (issue 16)
+    "theta for explicit": (GOOD.replace("end_time = 0.2", "end_time = 0.2\ntheta = 0.5"),
+                           'solver.theta: only for method = "implicit" (method is \'explicit\''),
+    "theta for steady": (GOOD.replace('method = "explicit"\nend_time = 0.2\n'
+                                      'output_times = [0.05, 0.1, 0.2]',
+                                      'method = "steady"\ntheta = 1.0'),
+                         'solver.theta: only for method = "implicit" (method is \'steady\''),
+    "dt for steady": (GOOD.replace('method = "explicit"\nend_time = 0.2\n'
+                                   'output_times = [0.05, 0.1, 0.2]', 'method = "steady"\ndt = 5.0'),
+                      "solver.dt: a steady solve has no time step"),
+    "source stops before it starts": (GOOD + SOURCE + "start_time = 0.1\nstop_time = 0.05\n",
+                                      "boundary[2].stop_time: expected a time after start_time "
+                                      "= 0.1 s, got 0.05 s"),
+    "source stops when it starts": (GOOD + SOURCE + "start_time = 0.1\nstop_time = 0.1\n",
+                                    "boundary[2].stop_time: expected a time after start_time"),
 }
 
 
@@ -101,3 +124,37 @@ def test_bad_scene(tmp_path, case):
     assert "\n" not in str(info.value)
     assert str(info.value).startswith(f"{path}: ")
     assert message in str(info.value), str(info.value)
+
+
+@pytest.mark.parametrize("shape", ["sphere", "box", "cylinder"])
+def test_source_time_intervals_match_the_sampled_region(shape):
+    """problem.source_time_intervals (the exact times a centre spends in a moving source, used
+    to refuse a source that never reaches a particle) against MovingSource.inside sampled on a
+    fine time grid: every sampled inside-time lies in the interval, and every interval longer
+    than two samples holds a sampled inside-time."""
+    import numpy as np
+    from thermal_kernel.problem import MovingSource, source_time_intervals
+    from thermal_kernel.scene import Boundary
+    rng = np.random.default_rng(3)
+    position = rng.uniform(-1.0, 1.0, (4000, 3))
+    b = Boundary(kind="source", name="s", value=1.0, shape=shape, centre_m=(-0.8, 0.1, -0.2),
+                 radius_m=0.3, depth_m=0.4, axis=(0.3, 0.2, 1.0), half_size_m=(0.2, 0.3, 0.25),
+                 velocity_m_s=(0.5, -0.1, 0.2))
+    t0, t1 = 0.2, 3.0
+    first, last = source_time_intervals(b, position, t0, t1)
+    times = np.linspace(t0, t1, 1401)
+    src = MovingSource(b, position, np.ones(len(position)))
+    inside = np.array([src.inside(t) for t in times])          # (times, particles)
+    hit = inside.any(axis=0)
+    assert 50 < hit.sum() < len(position) - 50
+    eps = 1e-9
+    for p in np.flatnonzero(hit):
+        ts = times[inside[:, p]]
+        assert first[p] - eps <= ts.min() and ts.max() <= last[p] + eps
+    step = times[1] - times[0]
+    long = (last - first) > 2 * step
+    assert np.all(hit[long])
+    # a source that is still touches only the centres inside it, at every time
+    still = Boundary(**{**b.__dict__, "velocity_m_s": (0.0, 0.0, 0.0)})
+    f, l_ = source_time_intervals(still, position, t0, t1)
+    np.testing.assert_array_equal(f <= l_, MovingSource(still, position, np.ones(4000)).inside(1.0))

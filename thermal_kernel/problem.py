@@ -80,6 +80,12 @@ def boundary_particles(scene: Scene, packing: Packing, on: str, where: str) -> n
         return np.unique(packing.wall_particle[packing.wall_index == w])
     if on in FACES:
         axis, side = FACES[on]
+        if packing.periodic[axis]:
+            raise SceneError(f"{scene.path}: {where}.on: {packing.path} is periodic along "
+                             f"{'xyz'[axis]}: {on!r} is no face (the spheres beside it touch "
+                             "those beside the opposite one across the periodic boundary); "
+                             f"expected a wall ({', '.join(packing.wall_name) or 'none'}) or "
+                             "a face of a non-periodic axis")
         x = packing.position[:, axis]
         r = packing.radius
         tol = 1e-9 * float(packing.domain_hi[axis] - packing.domain_lo[axis])
@@ -169,6 +175,7 @@ def build_problem(scene: Scene, packing: Packing):
         if len(sources) > 1:
             raise SceneError(f"{scene.path}: boundary: at most one source per scene")
         source_boundary, sb = sources[0]
+        _check_source_reaches(scene, packing, source_boundary, sb)
         source = MovingSource(sb, packing.position, capacity / (particles.density
                                                                  * particles.heat_capacity))
     problem = ThermalProblem(
@@ -183,6 +190,87 @@ def build_problem(scene: Scene, packing: Packing):
         source=source, source_boundary=int(source_boundary), boundary_names=tuple(names))
     info = {"law_params": params, "particles_on_two_temperature_boundaries": n_shared}
     return problem, info
+
+
+def source_window(scene: Scene, b) -> tuple[float, float]:
+    """The times (t0, t1) over which source ``b`` can act in the run: its [start_time,
+    stop_time] within [0, end_time] (steady: the whole of [start_time, stop_time], or the start
+    when it never stops)."""
+    end = scene.solver.end_time
+    if not math.isfinite(end):
+        end = b.stop_time if math.isfinite(b.stop_time) else b.start_time
+    return max(b.start_time, 0.0), min(b.stop_time, end)
+
+
+def source_time_intervals(b, position, t0, t1):
+    """(first, last) time in [t0, t1] at which each centre lies in the moving region of source
+    ``b`` (first > last: never). The region is convex and moves at constant velocity, so the
+    times a point spends inside form one interval: slabs give linear bounds, discs and balls a
+    quadratic."""
+    c0 = np.asarray(b.centre_m, dtype=float)
+    v = np.asarray(b.velocity_m_s, dtype=float)
+    d0 = np.asarray(position, dtype=float) - c0
+    n = len(d0)
+    first, last = np.full(n, float(t0)), np.full(n, float(t1))
+
+    def slab(offset, speed, half):
+        # |offset - speed t| <= half
+        nonlocal first, last
+        if not math.isfinite(half):
+            return
+        if speed == 0.0:
+            out = np.abs(offset) > half
+            first, last = np.where(out, np.inf, first), np.where(out, -np.inf, last)
+            return
+        a, b_ = (offset - half) / speed, (offset + half) / speed
+        first, last = np.maximum(first, np.minimum(a, b_)), np.minimum(last, np.maximum(a, b_))
+
+    def ball(offset, speed, radius):
+        # |offset - speed t|^2 <= radius^2, offset (n, k), speed (k,)
+        nonlocal first, last
+        a = float(speed @ speed)
+        c = np.einsum("ij,ij->i", offset, offset) - radius ** 2
+        if a == 0.0:
+            first, last = np.where(c > 0, np.inf, first), np.where(c > 0, -np.inf, last)
+            return
+        bb = offset @ speed
+        disc = bb * bb - a * c
+        root = np.sqrt(np.clip(disc, 0.0, None))
+        lo, hi = (bb - root) / a, (bb + root) / a
+        lo, hi = np.where(disc < 0, np.inf, lo), np.where(disc < 0, -np.inf, hi)
+        first, last = np.maximum(first, lo), np.minimum(last, hi)
+
+    if b.shape == "sphere":
+        ball(d0, v, b.radius_m)
+    elif b.shape == "box":
+        for k in range(3):
+            slab(d0[:, k], v[k], b.half_size_m[k])
+    else:
+        axis = np.asarray(b.axis, dtype=float)
+        axis = axis / np.linalg.norm(axis)
+        slab(d0 @ axis, float(v @ axis), b.depth_m / 2)
+        ball(d0 - np.outer(d0 @ axis, axis), v - (v @ axis) * axis, b.radius_m)
+    return first, last
+
+
+def _check_source_reaches(scene, packing, index, b):
+    """A source whose region never holds a particle centre while it is on heats nothing: refused
+    (one line) rather than run as a silent no-op."""
+    where = f"boundary[{index}]"
+    t0, t1 = source_window(scene, b)
+    if t0 > t1:
+        raise SceneError(f"{scene.path}: {where}.start_time: the source starts at t = {t0:g} s, "
+                         f"after the run ends (end_time = {scene.solver.end_time:g} s); expected "
+                         "a start within the run")
+    first, last = source_time_intervals(b, packing.position, t0, t1)
+    if not np.any(first <= last):
+        moving = any(b.velocity_m_s)
+        when = f"between t = {t0:g} and {t1:g} s" if moving or t1 > t0 else f"at t = {t0:g} s"
+        raise SceneError(f"{scene.path}: {where}.centre_m: the {b.shape} source "
+                         f"{'moving from' if moving else 'at'} {list(b.centre_m)} m never "
+                         f"contains a particle centre of {packing.path} {when} (domain "
+                         f"{packing.domain_lo.tolist()} .. {packing.domain_hi.tolist()} m); "
+                         "expected a region that reaches the packing")
 
 
 def _cat(parts, dtype):

@@ -270,6 +270,12 @@ def load_scene(path, known_laws=None, out_dir=None) -> Scene:
             sol.fail("output_times", "expected increasing times")
         if output_times[0] < 0 or output_times[-1] > end_time * (1 + 1e-12):
             sol.fail("output_times", f"expected times in [0, end_time = {end_time}]")
+    if method == "steady" and sol.has("dt"):
+        sol.fail("dt", "a steady solve has no time step (dt is for method = \"explicit\" or "
+                       "\"implicit\")")
+    if method != "implicit" and sol.has("theta"):
+        sol.fail("theta", f"only for method = \"implicit\" (method is {method!r}: theta would "
+                          "be ignored)")
     dt = sol.number("dt", positive=True) if sol.has("dt") else math.nan
     if method == "implicit" and math.isnan(dt):
         sol.fail("dt", "missing required key (the implicit method needs a time step)")
@@ -347,6 +353,9 @@ def _boundary(t: _Table) -> Boundary:
             start_time=t.number("start_time", default=0.0, minimum=0.0),
             stop_time=t.number("stop_time", default=math.inf) if t.has("stop_time")
             else math.inf)
+        if b.stop_time <= b.start_time:
+            t.fail("stop_time", f"expected a time after start_time = {b.start_time:g} s, got "
+                                f"{b.stop_time:g} s (the source would never be on)")
         if shape == "box" and min(b.half_size_m) <= 0:
             t.fail("half_size_m", "expected three numbers > 0 for a box source")
         if sum(a * a for a in b.axis) == 0:

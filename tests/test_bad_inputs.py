@@ -1,0 +1,233 @@
+"""Bad inputs (issue 16, ../shared/bad-inputs/cases.tsv): each one is refused by the command line
+with exit status 2 and ONE line on stderr that names the file and the field, never a traceback,
+and leaves nothing in the output folder. Table-driven: a case is the command, a way to make its
+inputs in a scratch folder, and the words the line must hold.
+
+Covered so far: the "silent accepts" of section 1 (impossible packings, sources that heat
+nothing, solver keys that would be ignored, faces of a periodic axis, a negative Halo) and the
+calibration across a cylinder's axis. Only committed packings (tests/data) and copies of them
+edited with h5py are used: no YADE.
+"""
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from bed_scene import BED_THERMAL
+
+DATA = Path(__file__).resolve().parent / "data"
+BED = DATA / "bed_small_1.6e+06Pa.h5"
+PERIODIC = DATA / "dense_periodic.h5"
+
+
+def tdem(*args):
+    return subprocess.run([sys.executable, "-m", "tdem.cli", *map(str, args)],
+                          capture_output=True, text=True, timeout=300)
+
+
+def bed_scene(solver='method = "steady"\n', extra="", packing=BED, thermal=BED_THERMAL):
+    return f'packing = "{packing}"\nlaw = "pipe"\n{thermal}{extra}[solver]\n{solver}'
+
+
+# ---------------------------------------------------------------------------- packings
+
+def _edit(name, value_of):
+    """A copy of the bed with dataset ``name`` replaced by value_of(old array, file)."""
+    def make(tmp):
+        path = tmp / "packing.h5"
+        shutil.copy(BED, path)
+        with h5py.File(path, "r+") as f:
+            data = f[name][()]
+            new = value_of(data.copy(), f)
+            del f[name]
+            f[name] = new.astype(data.dtype)
+        return path
+    return make
+
+
+def _set(row, value):
+    def change(a, f):
+        a[row] = value
+        return a
+    return change
+
+
+def _far_branch(a, f):
+    a[10] = a[10] + np.array([0.0, 0.0, 3e-3])      # 1.5 mean radii off
+    return a
+
+
+def _outside(a, f):
+    a[7, 2] = f["domain"].attrs["hi"][2] + 1e-4     # centre above the domain
+    return a
+
+
+def _periodic_unwrapped(tmp):
+    path = tmp / "packing.h5"
+    shutil.copy(PERIODIC, path)
+    with h5py.File(path, "r+") as f:
+        x = f["particles/position"][()]
+        x[3, 0] += f["domain"].attrs["hi"][0] - f["domain"].attrs["lo"][0]   # one period out
+        f["particles/position"][...] = x
+    return path
+
+
+PACKINGS = {
+    "huge_overlap": (_edit("contacts/overlap", _set(4, 2.5e-3)), "contacts/overlap",
+                     "larger than the smaller radius"),
+    "huge_overlap_wall": (_edit("wall_contacts/overlap", _set(2, 2.5e-3)),
+                          "wall_contacts/overlap", "larger than its radius"),
+    "branch_inconsistent": (_edit("contacts/branch", _far_branch), "contacts/branch",
+                            "radii away from x_j - x_i"),
+    "branch_zero": (_edit("contacts/branch", _set(0, 0.0)), "contacts/branch",
+                    "expected the vector from centre i to centre j"),
+    "phase_negative": (_edit("particles/phase", _set(9, -2)), "particles/phase",
+                       "particle 9 has phase -2; expected a phase id >= 0"),
+    "positions_outside_domain": (_edit("particles/position", _outside), "particles/position",
+                                 "particle 7 has its centre at z ="),
+    "periodic_centre_a_period_out": (_periodic_unwrapped, "particles/position",
+                                     "particle 3 has its centre at x ="),
+}
+
+
+def assert_one_line(proc, *words):
+    assert proc.returncode == 2, (proc.returncode, proc.stderr)
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("tdem: error: ")
+    for w in words:
+        assert str(w) in lines[0], (w, lines[0])
+
+
+@pytest.mark.parametrize("case", sorted(PACKINGS))
+def test_bad_packing_info_and_run(tmp_path, case):
+    make, field, words = PACKINGS[case]
+    path = make(tmp_path)
+    proc = tdem("info", path)
+    assert_one_line(proc, f"{path}: {field}: ", words)
+    assert proc.stdout == ""
+    scene = tmp_path / "scene.toml"
+    scene.write_text(bed_scene())
+    out = tmp_path / "out"
+    proc = tdem("run", scene, "--packing", path, "--out", out, "--quiet")
+    assert_one_line(proc, f"{path}: {field}: ", words)
+    assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.parametrize("path", sorted(DATA.glob("*.h5")), ids=lambda p: p.name)
+def test_committed_packings_pass(path):
+    proc = tdem("info", path)
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+
+
+# ---------------------------------------------------------------------------- scenes
+
+SPHERE_SOURCE = '''
+[[boundary]]
+kind = "source"
+shape = "sphere"
+value = 1e9
+radius_m = 0.003
+{extra}'''
+TRANSIENT = 'method = "explicit"\nend_time = 0.5\n'
+PERIODIC_THERMAL = BED_THERMAL.replace('on = "zmin"', 'on = "xmin"').replace(
+    'on = "plate"', 'on = "xmax"')
+
+SCENES = {
+    # case: (scene text, --packing or None, field, words)
+    "theta_with_explicit": (bed_scene(TRANSIENT + "theta = 0.5\n"), None, "solver.theta",
+                            'only for method = "implicit"'),
+    "theta_with_steady": (bed_scene('method = "steady"\ntheta = 1.0\n'), None, "solver.theta",
+                          "method is 'steady'"),
+    "steady_with_dt": (bed_scene('method = "steady"\ndt = 5.0\n'), None, "solver.dt",
+                       "a steady solve has no time step"),
+    "source_stop_before_start": (
+        bed_scene(TRANSIENT, SPHERE_SOURCE.format(
+            extra="centre_m = [0, 0, 0.02]\nstart_time = 0.3\nstop_time = 0.1\n")),
+        None, "boundary[2].stop_time", "expected a time after start_time = 0.3 s"),
+    "source_outside_packing": (
+        bed_scene(TRANSIENT, SPHERE_SOURCE.format(extra="centre_m = [0.5, 0.5, 0.5]\n")),
+        None, "boundary[2].centre_m", "never contains a particle centre"),
+    "source_passes_by": (      # moves along x at y = 3 cm: beside the bed (radius 1 cm)
+        bed_scene(TRANSIENT, SPHERE_SOURCE.format(
+            extra="centre_m = [-0.05, 0.03, 0.02]\nvelocity_m_s = [0.2, 0, 0]\n")),
+        None, "boundary[2].centre_m", "between t = 0 and 0.5 s"),
+    "source_reaches_the_bed_after_the_end": (   # reaches x = -1 cm at t = 2 s > end_time
+        bed_scene(TRANSIENT, SPHERE_SOURCE.format(
+            extra="centre_m = [-0.05, 0, 0.02]\nvelocity_m_s = [0.02, 0, 0]\n")),
+        None, "boundary[2].centre_m", "never contains a particle centre"),
+    "source_starts_after_the_end": (
+        bed_scene(TRANSIENT, SPHERE_SOURCE.format(
+            extra="centre_m = [0, 0, 0.02]\nstart_time = 1.0\n")),
+        None, "boundary[2].start_time", "after the run ends (end_time = 0.5 s)"),
+    "temperature_on_periodic_faces": (
+        bed_scene(TRANSIENT, packing=PERIODIC, thermal=PERIODIC_THERMAL), None,
+        "boundary[0].on", f"{PERIODIC} is periodic along x: 'xmin' is no face"),
+    "flux_on_periodic_face": (
+        bed_scene(TRANSIENT, packing=PERIODIC, thermal=PERIODIC_THERMAL.replace(
+            'kind = "temperature"\non = "xmin"\nvalue = 500.0',
+            'kind = "flux"\non = "zmin"\nvalue = 100.0')), None,
+        "boundary[0].on", "is periodic along z: 'zmin' is no face"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SCENES))
+def test_bad_scene_run(tmp_path, case):
+    text, packing, field, words = SCENES[case]
+    scene = tmp_path / "scene.toml"
+    scene.write_text(text)
+    out = tmp_path / "out"
+    args = ["run", scene, "--out", out, "--quiet", "--threads", "1"]
+    proc = tdem(*args, *(["--packing", packing] if packing else []))
+    assert_one_line(proc, f"{scene}: {field}: ", words)
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_source_that_reaches_the_bed_runs(tmp_path):
+    """The counterpart of the source cases: the same moving source 10x faster crosses the bed
+    within the run, is accepted, and heats it (source energy > 0)."""
+    text = bed_scene(TRANSIENT, SPHERE_SOURCE.format(
+        extra="centre_m = [-0.05, 0, 0.02]\nvelocity_m_s = [0.2, 0, 0]\n"))
+    scene = tmp_path / "scene.toml"
+    scene.write_text(text)
+    proc = tdem("run", scene, "--out", tmp_path / "out", "--quiet", "--threads", "1")
+    assert proc.returncode == 0, proc.stderr
+    with h5py.File(tmp_path / "out" / "thermal.h5") as f:
+        assert f["source_energy"][-1] > 0
+
+
+# ---------------------------------------------------------------------------- post, calibrate
+
+@pytest.fixture(scope="module")
+def steady_run(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("steady")
+    scene = tmp / "scene.toml"
+    scene.write_text(bed_scene())
+    proc = tdem("run", scene, "--out", tmp / "run", "--quiet", "--threads", "1")
+    assert proc.returncode == 0, proc.stderr
+    return tmp / "run"
+
+
+@pytest.mark.parametrize("flag, value, words", [
+    ("--halo", "-1", "--halo: expected a number >= 0"),
+    ("--halo", "nan", "--halo: expected a number >= 0"),
+    ("--bins", "0", "--bins: expected an integer >= 1"),
+    ("--bins", "-3", "--bins: expected an integer >= 1"),
+])
+def test_bad_post_flags(steady_run, flag, value, words):
+    proc = tdem("post", steady_run, flag, value)
+    assert_one_line(proc, steady_run / "thermal.h5", words)
+    assert not (steady_run / "post").exists()
+
+
+def test_calibrate_across_the_bed_cylinder(tmp_path):
+    scene = tmp_path / "cal.toml"
+    scene.write_text(bed_scene().replace('law = "pipe"', 'law = "haddad"'))
+    proc = tdem("calibrate", scene, "--axis", "y")
+    assert_one_line(proc, f"{scene}: --axis: ", "'cylinder' is a cylinder along z",
+                    "expected a box face or a cylinder along y")
