@@ -16,7 +16,8 @@ Steps, each kept so that an interrupted campaign resumes where it stopped:
    not recomputed;
 3. ``results.csv`` (one row per case), ``gamma_p.png``/``tau_p.png`` (+ CSV) and ``report.md``
    with the power-law fits next to the paper's curves (003, Fig. 7 and 10) and the mean-field
-   predictions. Every file is written to a temporary name and renamed.
+   predictions; each case's ``flags`` (the attribute of its ``thermal.h5``: maximum principle,
+   energy ledger, solver flags) is a column of both, and flagged runs are listed. Every file is written to a temporary name and renamed.
 """
 from __future__ import annotations
 
@@ -33,6 +34,10 @@ from .errors import UserError
 from tdem_post.files import savefig_atomic, write_text_atomic
 
 PAPER_TAU = dict(a=1.945, b=0.1084, c=-1.332)       # 003 Fig. 10: tau = a p^b + c (p in bar)
+# flags of a run's thermal.h5 that make its numbers suspect (the others, e.g. rattlers or
+# floating_clusters, describe the network); "unknown": a run written before flags existed
+SUSPECT_FLAGS = ("max_principle", "energy_ledger", "dt_above_bound", "non_finite",
+                 "no_steady_state_in_floating_cluster", "unknown")
 
 
 def read_campaign(path: Path) -> tuple[dict, str]:
@@ -130,14 +135,16 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
             summary = post_run(thermal_path, n_bins=conf["n_bins"])
             for key in ("case_wall_seconds", "thermal_wall_seconds"):
                 summary[key] = old.get(key, float("nan"))
+            summary["flags"] = run_flags(thermal_path)
             write_text_atomic(summary_path, json.dumps(summary, indent=1))
             print(f"[{k}/{len(cases)}] {name}: thermal run kept, post-processed again: gamma "
                   f"{old['gamma']:.4g} -> {summary['gamma']:.4g} ({time.time() - t0:.1f} s)",
                   flush=True)
         elif summary_path.exists():
             summary = json.loads(summary_path.read_text())
-            print(f"[{k}/{len(cases)}] {name}: done before (gamma {summary['gamma']:.4g}), kept",
-                  flush=True)
+            summary["flags"] = run_flags(thermal_path, summary.get("flags"))
+            print(f"[{k}/{len(cases)}] {name}: done before (gamma {summary['gamma']:.4g}), kept"
+                  + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
         else:
             case_dir.mkdir(parents=True, exist_ok=True)
             scene_path = case_dir / "scene.toml"
@@ -149,14 +156,31 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
             summary = post_run(result.output, n_bins=conf["n_bins"])
             summary["case_wall_seconds"] = time.time() - t0
             summary["thermal_wall_seconds"] = run_seconds
+            summary["flags"] = run_flags(result.output)
             write_text_atomic(summary_path, json.dumps(summary, indent=1))
             print(f"[{k}/{len(cases)}] {name}: gamma {summary['gamma']:.4g} "
                   f"[{summary['gamma_ci95'][0]:.4g}, {summary['gamma_ci95'][1]:.4g}], steady "
                   f"{summary['gamma_steady']:.4g}, tau {summary['tau_s']:.4g} s "
-                  f"({summary['case_wall_seconds']:.1f} s)", flush=True)
+                  f"({summary['case_wall_seconds']:.1f} s)"
+                  + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
         rows.append(summary)
     report = write_report(out_dir, campaign_path, conf, rows, time.time() - start)
     return report
+
+
+def run_flags(thermal_path: Path, fallback: str | None = None) -> str:
+    """The ``flags`` attribute of a run's ``thermal.h5`` (comma-separated: the solver's flags and
+    the physics checks', ``max_principle`` / ``energy_ledger``; "" when the run is clean).
+    ``fallback`` (or "unknown") when the file or the attribute is missing."""
+    import h5py
+    try:
+        with h5py.File(thermal_path, "r") as f:
+            value = f.attrs.get("flags")
+    except (OSError, KeyError):
+        value = None
+    if value is None:
+        return "unknown" if fallback is None else fallback
+    return value.decode() if isinstance(value, bytes) else str(value)
 
 
 def _fit(p_bar, y):
@@ -183,6 +207,8 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
         **{f"gamma_mean_field_{k}": v for k, v in r["gamma_mean_field"].items()},
         "thermal_wall_seconds": r.get("thermal_wall_seconds", float("nan")),
         "case_wall_seconds": r.get("case_wall_seconds", float("nan")),
+        # the run's thermal.h5 flags ("none": clean; see docs/solvers.md)
+        "flags": r.get("flags", "unknown") or "none",
     } for r in rows]).sort_values(["law", "pressure_pa"])
     tmp = out_dir / "results.csv.tmp"
     table.to_csv(tmp, index=False)
@@ -205,15 +231,28 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
              "φ Z H̄ / (2π R̄ k_p) of each contact law on the same contacts; τ the characteristic "
              "time of the middle section (003 eq. 41).", "",
              "| p (bar) | law | Z | φ | mean F_n (N) | γ | 95 % CI | γ_steady | γ_mf bob | "
-             "γ_mf argento | γ_mf pipe | τ (s) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "γ_mf argento | γ_mf pipe | τ (s) | flags |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for _, r in table.iterrows():
         lines.append(
             f"| {r.pressure_pa / 1e5:.3g} | {r.law} | {r.mean_coordination:.2f} | "
             f"{r.solid_fraction:.4f} | {r.mean_normal_force_n:.3g} | {r.gamma:.4g} | "
             f"{r.gamma_ci95_low:.4g}–{r.gamma_ci95_high:.4g} | {r.gamma_steady:.4g} | "
             f"{r.gamma_mean_field_bob:.4g} | {r.gamma_mean_field_argento:.4g} | "
-            f"{r.gamma_mean_field_pipe:.4g} | {r.tau_s:.4g} |")
+            f"{r.gamma_mean_field_pipe:.4g} | {r.tau_s:.4g} | {r['flags']} |")
+    suspect = [(r, [f for f in r["flags"].split(",") if f in SUSPECT_FLAGS])
+               for _, r in table.iterrows()]
+    suspect = [(r, f) for r, f in suspect if f]
+    if suspect:
+        lines += ["", f"**{len(suspect)} of {len(table)} runs flagged: their numbers are "
+                      "suspect** (`flags` of their `thermal.h5`; `max_principle`: a "
+                      "temperature outside the range of the initial and boundary values, "
+                      "`energy_ledger`: heat in ≠ heat stored; docs/solvers.md): "
+                  + "; ".join(f"{r['pressure_pa'] / 1e5:.3g} bar {r['law']}: {', '.join(f)}"
+                              for r, f in suspect) + "."]
+    else:
+        lines += ["", "No run flagged by the maximum-principle and energy-ledger checks or the "
+                      "solver (other flags, e.g. `rattlers`, are information; docs/solvers.md)."]
     lines += ["", "## Fits over pressure (p in bar)", ""]
     for law, f in fits.items():
         g = table[table.law == law]
@@ -245,7 +284,7 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
                   f"{PAPER_TAU['c']:+} s (Fig. 10).", ""]
     write_text_atomic(out_dir / "report.md", "\n".join(lines))
     print(f"tdem campaign: report {out_dir / 'report.md'}", flush=True)
-    print(table[["pressure_pa", "law", "gamma", "gamma_steady", "tau_s"]].to_string(
+    print(table[["pressure_pa", "law", "gamma", "gamma_steady", "tau_s", "flags"]].to_string(
         index=False, float_format=lambda x: f"{x:.4g}"), flush=True)
     return dict(table=table, fits=fits, report=out_dir / "report.md")
 

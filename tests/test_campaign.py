@@ -9,20 +9,25 @@ grows with pressure (contact radii grow as F^(1/3)); pipe > bob
 (003 eq. 40 vs 34: 1.033 for equal spheres); the report names both laws; a second run reuses the
 packings and every case; a campaign killed after its second case resumes with the two finished
 cases kept and ends with the same table; --repost post-processes the kept runs to the same table.
+
+Without YADE (the committed 300-sphere beds stand in for the built packings): every case's
+``flags`` (the attribute of its thermal.h5) is a column of results.csv and of the report's
+table, and the flagged runs are listed; a clean campaign says none is flagged.
 """
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
+import h5py
 import pandas as pd
 import pytest
 
 from bed_scene import BED_THERMAL
 from tdem.yade import yade_environment
 
-pytestmark = [pytest.mark.yade,
-              pytest.mark.skipif(shutil.which("yade", path=yade_environment()["PATH"]) is None,
-                                 reason="Debian's yade is not installed")]
+needs_yade = pytest.mark.skipif(shutil.which("yade", path=yade_environment()["PATH"]) is None,
+                                reason="Debian's yade is not installed")
 
 CAMPAIGN = '''[campaign]
 laws = ["pipe", "bob"]
@@ -52,6 +57,8 @@ def campaign(path, out, *extra):
                           timeout=1200)
 
 
+@pytest.mark.yade
+@needs_yade
 def test_campaign_runs_and_resumes(tmp_path):
     path = tmp_path / "tiny.toml"
     path.write_text(CAMPAIGN)
@@ -106,6 +113,8 @@ def test_campaign_runs_and_resumes(tmp_path):
     pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv"), table, rtol=1e-12)
 
 
+@pytest.mark.yade
+@needs_yade
 def test_bad_campaign_is_one_line(tmp_path):
     path = tmp_path / "bad.toml"
     path.write_text(CAMPAIGN.replace('laws = ["pipe", "bob"]', 'laws = ["pipe", "bobby"]'))
@@ -113,3 +122,70 @@ def test_bad_campaign_is_one_line(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "campaign.laws" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+DATA = Path(__file__).resolve().parent / "data"
+BEDS = [DATA / "bed_small_1.6e+06Pa.h5", DATA / "bed_small_4.05e+07Pa.h5"]
+NO_PACK = CAMPAIGN.split("[pack]")[0].replace('["pipe", "bob"]', '["pipe"]') + BED_THERMAL + \
+    """
+[solver]
+method = "implicit"
+dt = 5.0
+end_time = 200.0
+output_times = [5.0, 10.0, 20.0, 50.0, 100.0, 200.0]
+"""
+
+
+def _campaign_on_committed_beds(tmp_path, monkeypatch, solver_extra, name):
+    from tdem import campaign as camp
+    monkeypatch.setattr(camp, "build_packings", lambda *a, **k: BEDS)
+    path = tmp_path / f"{name}.toml"
+    path.write_text(NO_PACK + solver_extra)
+    out = tmp_path / name
+    camp.run_campaign(path, out, threads=1, quiet=True)
+    return out, pd.read_csv(out / "results.csv", keep_default_na=False), \
+        (out / "report.md").read_text()
+
+
+def _case_flags(out):
+    """{pressure_pa: flags attribute of the case's thermal.h5 ("none" if empty)}."""
+    flags = {}
+    for bed in BEDS:
+        with h5py.File(bed) as f:
+            pressure = float(f.attrs["pressure_pa"])
+        with h5py.File(out / "cases" / f"{bed.stem}_pipe" / "thermal.h5") as f:
+            flags[pressure] = f.attrs["flags"] or "none"
+    return flags
+
+
+def test_report_shows_each_runs_flags(tmp_path, monkeypatch, capsys):
+    # plain Crank-Nicolson at dt = 5 s rings on the stiff 405-bar bed (tests/test_max_principle)
+    out, table, report = _campaign_on_committed_beds(
+        tmp_path, monkeypatch, 'theta = 0.5\nscheme = "theta"\n', "ringing")
+    flags = _case_flags(out)
+    high = max(flags)
+    assert "max_principle" in flags[high]
+    assert dict(zip(table.pressure_pa, table["flags"])) == flags
+    rows = [line for line in report.splitlines()
+            if line.startswith(f"| {high / 1e5:.3g} | pipe |")]
+    assert len(rows) == 1 and rows[0].rstrip().endswith(f"| {flags[high]} |")
+    assert "| flags |" in report
+    n_flagged = sum("max_principle" in v or "energy_ledger" in v for v in flags.values())
+    assert f"**{n_flagged} of 2 runs flagged: their numbers are suspect**" in report
+    assert f"{high / 1e5:.3g} bar pipe: max_principle" in report
+    # a second call keeps the finished cases and still reads their flags from thermal.h5
+    capsys.readouterr()
+    from tdem import campaign as camp
+    camp.run_campaign(tmp_path / "ringing.toml", out, threads=1, quiet=True)
+    assert "done before" in capsys.readouterr().out
+    again = pd.read_csv(out / "results.csv", keep_default_na=False)
+    assert list(again["flags"]) == list(table["flags"])
+
+
+def test_report_of_a_clean_campaign(tmp_path, monkeypatch):
+    # the default second-order scheme (Crank-Nicolson with Rannacher start-up) does not ring
+    out, table, report = _campaign_on_committed_beds(tmp_path, monkeypatch, "theta = 0.5\n",
+                                                     "clean")
+    assert all("max_principle" not in f and "energy_ledger" not in f for f in table["flags"])
+    assert dict(zip(table.pressure_pa, table["flags"])) == _case_flags(out)
+    assert "No run flagged" in report and "runs flagged" not in report
