@@ -140,6 +140,14 @@ PERIODIC_THERMAL = BED_THERMAL.replace('on = "zmin"', 'on = "xmin"').replace(
 
 SCENES = {
     # case: (scene text, --packing or None, field, words)
+    "law_params_beta_zero": (bed_scene().replace('law = "pipe"', 'law = "argento"')
+                             .replace("[material]", "[law_params]\nbeta = 0\n[material]"),
+                             None, "law_params.beta", "expected a number > 0, got 0"),
+    "law_params_ct_string": (bed_scene().replace('law = "pipe"', 'law = "haddad"')
+                             .replace("[material]", '[law_params]\nct = "big"\n[material]'),
+                             None, "law_params.ct", "expected a finite number, got 'big'"),
+    "poisson_0_6": (bed_scene().replace("poisson = 0.2", "poisson = 0.6"), None,
+                    "material.poisson", "expected a number in (-1, 0.5)"),
     "theta_with_explicit": (bed_scene(TRANSIENT + "theta = 0.5\n"), None, "solver.theta",
                             'only for method = "implicit"'),
     "theta_with_steady": (bed_scene('method = "steady"\ntheta = 1.0\n'), None, "solver.theta",

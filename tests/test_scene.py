@@ -110,6 +110,18 @@ BAD = {
     "source stops before it starts": (GOOD + SOURCE + "start_time = 0.1\nstop_time = 0.05\n",
                                       "boundary[2].stop_time: expected a time after start_time "
                                       "= 0.1 s, got 0.05 s"),
+    # law and material values checked on load, not inside the law (issue 16, sec. 2)
+    "ct negative": (GOOD.replace("ct = 0.8", "ct = -0.8"),
+                    "law_params.ct: expected a number > 0, got -0.8"),
+    "ct text": (GOOD.replace("ct = 0.8", 'ct = "big"'),
+                "law_params.ct: expected a finite number, got 'big'"),
+    "interface mean": (GOOD.replace("ct = 0.8", 'interface_mean = "median"'),
+                       "law_params.interface_mean: expected one of harmonic, arithmetic"),
+    "unknown law parameter": (GOOD.replace("ct = 0.8", "beta = 0.9"),
+                              "law_params.beta: unknown parameter of law 'haddad'"),
+    "poisson above 0.5": (GOOD.replace("heat_capacity = 900.0", "heat_capacity = 900.0\n"
+                                       "poisson = 0.6", 1),
+                          "material.poisson: expected a number in (-1, 0.5), got 0.6"),
     "source stops when it starts": (GOOD + SOURCE + "start_time = 0.1\nstop_time = 0.1\n",
                                     "boundary[2].stop_time: expected a time after start_time"),
 }

@@ -211,6 +211,7 @@ def load_scene(path, known_laws=None, out_dir=None) -> Scene:
     law_params = top.table.pop("law_params", {})
     if not isinstance(law_params, dict):
         top.fail("law_params", "expected a table")
+    _check_law_params(_Table(path, "law_params", law_params), law)
 
     mat = top.sub("material", required=True)
     phases = {}
@@ -226,7 +227,9 @@ def load_scene(path, known_laws=None, out_dir=None) -> Scene:
                        heat_capacity=mat.number("heat_capacity", positive=True))
     young = mat.number("young_pa", default=math.nan) if mat.has("young_pa") else math.nan
     if mat.has("poisson"):
-        poisson = mat.number("poisson", minimum=-1.0)
+        poisson = mat.number("poisson")
+        if not -1.0 < poisson < 0.5:
+            mat.fail("poisson", f"expected a number in (-1, 0.5), got {poisson!r}")
     else:
         poisson = math.nan
     if not math.isnan(young) and young <= 0:
@@ -304,6 +307,28 @@ def load_scene(path, known_laws=None, out_dir=None) -> Scene:
                  materials=materials, young_pa=young, poisson=poisson,
                  initial_temperature=initial_temperature, boundaries=tuple(boundaries),
                  solver=solver, output=output, text=text)
+
+
+def _check_law_params(t: _Table, law_name: str) -> None:
+    """The ``[law_params]`` of a registered law, checked here rather than inside the law (where
+    a bad value was a traceback): every key one of the law's parameters, a numeric parameter a
+    finite number > 0 (ct, beta), a text one a string, ``interface_mean`` one of its rules."""
+    from .laws import LAWS
+    law = LAWS.get(law_name)
+    if law is None:                  # a law outside the registry (tests): the law checks
+        return
+    for key in sorted(t.table):
+        if key not in law.defaults:
+            t.fail(key, f"unknown parameter of law {law_name!r} (known: "
+                        f"{', '.join(sorted(law.defaults)) or 'none'})")
+        default = law.defaults[key]
+        if key == "interface_mean":
+            from .laws.haddad import INTERFACE_MEANS
+            t.string(key, choices=INTERFACE_MEANS)
+        elif isinstance(default, str):
+            t.string(key)
+        elif isinstance(default, (int, float)) and not isinstance(default, bool):
+            t.number(key, positive=True)
 
 
 def _scheme(sol: _Table, method: str, theta: float, theta_given: bool):
