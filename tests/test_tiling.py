@@ -119,3 +119,24 @@ def test_seeds_refused_for_the_bed_generator(tmp_path):
                           capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "--seeds" in proc.stderr
+
+
+def test_cell_packing_checked_before_yade(tmp_path):
+    """A tiled scene whose cell_packing has walls, or another modulus, is refused by tdem pack in
+    one line (exit 2) before YADE starts."""
+    import subprocess
+    import sys
+    data = Path(__file__).resolve().parent / "data"
+    base = ('law = "haddad"\n[pack]\ngenerator = "dense"\nshape = "box"\nmethod = "tiled"\n'
+            'n_particles = 5000\ngap_tolerance = 0.1\ncell_packing = "{cell}"\n{extra}')
+    cases = [(data / "dense_box.h5", "", "expected a periodic cell"),
+             (data / "dense_periodic.h5", "young_pa = 5e9\n", "pack.young_pa"),
+             (tmp_path / "missing.h5", "", "pack.cell_packing")]
+    for cell, extra, expected in cases:
+        scene = tmp_path / "tiled.toml"
+        scene.write_text(base.format(cell=cell, extra=extra))
+        proc = subprocess.run([sys.executable, "-m", "tdem.cli", "pack", str(scene),
+                               "--out", str(tmp_path / "out")], capture_output=True, text=True)
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.strip().count("\n") == 0 and expected in proc.stderr, proc.stderr
+        assert not (tmp_path / "out").exists()
