@@ -22,7 +22,6 @@ Steps, each kept so that an interrupted campaign resumes where it stopped:
 from __future__ import annotations
 
 import json
-import os
 import re
 import time
 import tomllib
@@ -31,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
+from thermal_kernel.atomic import replacing
 from tdem_post.files import savefig_atomic, write_text_atomic
 
 PAPER_TAU = dict(a=1.945, b=0.1084, c=-1.332)       # 003 Fig. 10: tau = a p^b + c (p in bar)
@@ -210,9 +210,8 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
         # the run's thermal.h5 flags ("none": clean; see docs/solvers.md)
         "flags": r.get("flags", "unknown") or "none",
     } for r in rows]).sort_values(["law", "pressure_pa"])
-    tmp = out_dir / "results.csv.tmp"
-    table.to_csv(tmp, index=False)
-    os.replace(tmp, out_dir / "results.csv")
+    with replacing(out_dir / "results.csv") as tmp:
+        table.to_csv(tmp, index=False)
 
     fits = {}
     for law, g in table.groupby("law"):

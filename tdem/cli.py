@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -11,9 +12,61 @@ from .errors import UserError
 RUNS = Path(__file__).resolve().parent.parent / "runs"
 
 
+def _out_dir(args, flag="--out"):
+    """``--out`` as a Path (None when not given); refused when it names an existing file."""
+    if not getattr(args, "out", None):
+        return None
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"{out}: {flag}: expected a folder (made if missing), got an existing "
+                        "file")
+    return out
+
+
+def _threads(args, default=None):
+    """``--threads`` checked against the numba threads this process has (NUMBA_NUM_THREADS,
+    default: the CPUs); ``default`` when not given, capped at that number."""
+    if args.threads is None and default is None:
+        return None
+    import numba
+    most = numba.config.NUMBA_NUM_THREADS
+    if args.threads is None:
+        return min(default, most)
+    if not 1 <= args.threads <= most:
+        raise UserError(f"--threads: expected an integer from 1 to {most} (the numba threads "
+                        f"available: NUMBA_NUM_THREADS or the CPUs), got {args.threads}")
+    return args.threads
+
+
+def _positive(args, name):
+    """An integer option that counts threads or jobs: refused below 1, in one line."""
+    value = getattr(args, name)
+    if value < 1:
+        raise UserError(f"--{name.replace('_', '-')}: expected an integer >= 1, got {value}")
+    return value
+
+
+def _text_file(path, what):
+    """Refuse a scene/campaign path that is missing, a folder or not UTF-8, in one line."""
+    path = Path(path)
+    if not path.exists():
+        raise UserError(f"{path}: file not found")
+    if path.is_dir():
+        raise UserError(f"{path}: is a folder; expected a {what} TOML file")
+    try:
+        path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise UserError(f"{path}: not UTF-8 text (byte 0x{e.object[e.start]:02x} at offset "
+                        f"{e.start}); expected a {what} TOML file") from None
+    return path
+
+
 def _cmd_pack(args):
     from .pack import build, build_seeds
-    out = Path(args.out) if args.out else None
+    _text_file(args.scene, "scene")
+    _positive(args, "threads")
+    _positive(args, "jobs")
+    out = _out_dir(args)
     if args.seeds is not None:
         if args.threads != 1:
             raise UserError("--threads: yade-batch runs each seed on one YADE thread "
@@ -31,7 +84,8 @@ def _cmd_pack(args):
 def _cmd_run(args):
     from thermal_kernel.run import run_scene
     from thermal_kernel.scene import load_scene
-    scene = load_scene(args.scene, out_dir=Path(args.out) if args.out else None)
+    threads = _threads(args)
+    scene = load_scene(args.scene, out_dir=_out_dir(args))
     packing = Path(args.packing) if args.packing else None
     if packing is None and scene.pack is not None:
         from .pack import build, built_packings, default_out_dir
@@ -49,7 +103,7 @@ def _cmd_run(args):
     if args.checkpoint_every < 0:
         raise UserError(f"--checkpoint-every: expected a number of output times >= 0, got "
                         f"{args.checkpoint_every}")
-    run_scene(scene, packing, quiet=args.quiet, threads=args.threads,
+    run_scene(scene, packing, quiet=args.quiet, threads=threads,
               checkpoint_every=args.checkpoint_every, resume=args.resume)
 
 
@@ -98,14 +152,16 @@ def _cmd_demo(args):
     from .campaign import run_campaign
     scene = RUNS / "demo.toml"
     print(f"tdem demo: the default campaign {scene}", flush=True)
-    run_campaign(scene, Path(args.out) if args.out else None, threads=args.threads,
-                 yade_threads=args.yade_threads, quiet=args.quiet)
+    run_campaign(scene, _out_dir(args), threads=_threads(args, default=2),
+                 yade_threads=_positive(args, "yade_threads"), quiet=args.quiet)
 
 
 def _cmd_campaign(args):
     from .campaign import run_campaign
-    run_campaign(Path(args.campaign), Path(args.out) if args.out else None,
-                 threads=args.threads, yade_threads=args.yade_threads, quiet=args.quiet,
+    _text_file(args.campaign, "campaign")
+    run_campaign(Path(args.campaign), _out_dir(args),
+                 threads=_threads(args, default=2), yade_threads=_positive(args, "yade_threads"),
+                 quiet=args.quiet,
                  repost=args.repost)
 
 
@@ -115,6 +171,7 @@ def _cmd_post(args):
     thermal = path / "thermal.h5" if path.is_dir() else path
     if not thermal.exists():
         raise UserError(f"{thermal}: file not found (give a run folder or its thermal.h5)")
+    _check_thermal(thermal)
     s = post_run(thermal, n_bins=args.bins, halo_ratio=args.halo)
     pressure = (f", p = {s['pressure_pa']:.4g} Pa" if math.isfinite(s["pressure_pa"]) else "")
     print(f"tdem post: {thermal} ({s['law']}, {s['n_particles']} particles{pressure})")
@@ -139,6 +196,22 @@ def _cmd_post(args):
     print(f"  wrote {thermal.parent / 'post'}/ ({', '.join(s['files'])})")
 
 
+def _check_thermal(path):
+    """Refuse, in one line, a file that is not a run's output (a packing, not HDF5)."""
+    import h5py
+    try:
+        with h5py.File(path, "r") as f:
+            fmt = f.attrs.get("format", "")
+            ok = "time" in f and "temperature" in f
+    except OSError:
+        raise UserError(f"{path}: not an HDF5 file; expected a run's thermal.h5") from None
+    if not ok:
+        what = (" (a packing: run a scene on it with `tdem run`, then post the run)"
+                if fmt == "tdem-packing" else "")
+        raise UserError(f"{path}: format: expected a run's output (tdem-thermal, with datasets "
+                        f"time and temperature), got {fmt or 'no format'!r}{what}")
+
+
 def _floats(text, what):
     try:
         values = tuple(float(v) for v in text.split(","))
@@ -151,7 +224,7 @@ def _floats(text, what):
 
 def _cmd_etc(args):
     import csv
-    import os
+    from thermal_kernel.atomic import replacing
     from tdem_post.etc_sweep import etc_sweep, plot_etc
     from .pack import default_out_dir
     contrasts = _floats(args.contrasts, "--contrasts")
@@ -159,7 +232,7 @@ def _cmd_etc(args):
     if any(f >= 1 for f in fractions + (args.single_fraction,)):
         raise UserError("--fractions/--single-fraction: expected volume fractions below 1")
     scene, path, packing = _scene_and_packing(args)
-    out = Path(args.out) if args.out else default_out_dir(Path(args.scene)) / "etc"
+    out = _out_dir(args) or default_out_dir(Path(args.scene)) / "etc"
     print(f"tdem etc: {args.scene} on {path} ({packing.n_particles} particles), law "
           f"{scene.law}, steady flux tests along {args.axis} (002 sec. 4-5)", flush=True)
     print(f"  {'case':<11s}{'contrast':>9s}{'f':>8s}{'k/k_m':>9s}{'Maxwell':>9s}"
@@ -175,12 +248,11 @@ def _cmd_etc(args):
                           diameter_over_length=args.diameter_over_length, seed=args.seed,
                           axis=args.axis, progress=show)
     out.mkdir(parents=True, exist_ok=True)
-    tmp = out / "etc.csv.tmp"
-    with open(tmp, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    os.replace(tmp, out / "etc.csv")
+    with replacing(out / "etc.csv") as tmp:
+        with open(tmp, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
     plot_etc(rows, out / "etc.png", title=f"{Path(args.scene).name}: {packing.n_particles} "
              f"particles, law {scene.law}, k_m = {k_m:.4g} W/m/K in the flux test")
     print(f"  k_m (single phase) = {k_m:.6g} W/m/K; wrote {out}/etc.csv and etc.png")
@@ -197,12 +269,25 @@ def _cmd_info(args):
             f"{n} ({k})" for n, k in zip(packing.wall_name, packing.wall_kind)))
 
 
+def _output_file(args, suffix):
+    """``-o`` (default: the packing's name with ``suffix``): a file name ending in ``suffix``
+    whose folder exists."""
+    out = Path(args.output) if args.output else Path(args.packing).with_suffix(suffix)
+    if out.suffix.lower() != suffix:
+        raise UserError(f"{out}: -o: expected a file name ending in {suffix}")
+    if out.is_dir():
+        raise UserError(f"{out}: -o: is a folder; expected a {suffix} file name")
+    if not out.parent.is_dir():
+        raise UserError(f"{out}: -o: the folder {out.parent} does not exist")
+    return out
+
+
 def _cmd_export(args):
     from thermal_kernel.packing import read_packing
     from .export import packing_to_vtk, read_temperatures
     packing = read_packing(args.packing)
     temps = read_temperatures(args.thermal, packing.n_particles) if args.thermal else None
-    out = Path(args.output) if args.output else Path(args.packing).with_suffix(".vtu")
+    out = _output_file(args, ".vtu")
     packing_to_vtk(packing, out, temps)
     print(f"wrote {out} ({packing.n_particles} particles, {packing.n_contacts} contacts"
           + (f", temperatures at {len(temps[0])} output times" if temps else "") + ")")
@@ -212,7 +297,7 @@ def _cmd_plot(args):
     from thermal_kernel.packing import read_packing
     from tdem_post.packing_plots import plot_packing
     packing = read_packing(args.packing)
-    out = Path(args.output) if args.output else Path(args.packing).with_suffix(".png")
+    out = _output_file(args, ".png")
     plot_packing(packing, out)
     print(f"wrote {out}")
 
@@ -262,7 +347,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="run the default scene (runs/demo.toml) end to end")
     p.add_argument("--out", help="output folder (default: runs/out/demo/)")
-    p.add_argument("--threads", type=int, default=2, help="numba threads, default 2")
+    p.add_argument("--threads", type=int, default=None,
+                   help="numba threads, default 2 (at most the threads available)")
     p.add_argument("--yade-threads", type=int, default=1,
                    help="YADE threads (-j), default 1: reproducible packings for a seed")
     p.add_argument("--quiet", action="store_true")
@@ -272,7 +358,8 @@ def build_parser() -> argparse.ArgumentParser:
                                         "report (resumes where it stopped)")
     p.add_argument("campaign", help="campaign TOML ([pack] + [campaign] + thermal scene)")
     p.add_argument("--out", help="output folder (default: runs/out/<campaign name>/)")
-    p.add_argument("--threads", type=int, default=2, help="numba threads, default 2")
+    p.add_argument("--threads", type=int, default=None,
+                   help="numba threads, default 2 (at most the threads available)")
     p.add_argument("--yade-threads", type=int, default=1,
                    help="YADE threads (-j), default 1: reproducible packings for a seed")
     p.add_argument("--quiet", action="store_true", help="do not stream YADE's output")
@@ -332,13 +419,33 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
         args.func(args)
+        sys.stdout.flush()          # a closed pipe shows here, not at exit
     except (UserError, PackingError, YadeError, SceneError, NetworkError) as e:
         print(f"tdem: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("tdem: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:         # `tdem info ... | head`: the reader has gone, exit quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141                  # 128 + SIGPIPE, as a C tool killed by it
+    except OSError as e:            # the filesystem: a full disk, a read-only or missing folder
+        print(f"tdem: error: {_os_error(e)}", file=sys.stderr)
+        return 2
     return 0
+
+
+def _os_error(e: OSError) -> str:
+    """One line: the file (the destination of a rename) and what went wrong."""
+    name = e.filename2 if getattr(e, "filename2", None) else e.filename
+    what = e.strerror or str(e)
+    if name is not None:
+        name = str(name)
+        if name.endswith(".tmp") or ".tmp." in name:      # say the file the user asked for
+            name = name.replace(".tmp", "", 1) if ".tmp." in name else name[:-4]
+        what = f"{name}: {what}"
+    return " ".join(what.split())
 
 
 if __name__ == "__main__":

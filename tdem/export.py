@@ -1,11 +1,11 @@
 """``tdem export``: a packing (particles and contacts) to VTK for ParaView, through meshio."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
+from thermal_kernel.atomic import replacing
 from thermal_kernel.packing import Packing
 
 
@@ -58,7 +58,6 @@ def packing_to_vtk(packing: Packing, out_path: Path, temperatures=None) -> Path:
     mesh = meshio.Mesh(points=packing.position, cells=cells, point_data=point_data,
                        cell_data=cell_data)
     out_path = Path(out_path)
-    tmp = out_path.with_name(out_path.name + ".tmp" + out_path.suffix)
-    meshio.write(tmp, mesh)
-    os.replace(tmp, out_path)
+    with replacing(out_path, keep_suffix=True) as tmp:
+        meshio.write(tmp, mesh, file_format="vtu")
     return out_path

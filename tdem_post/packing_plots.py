@@ -1,11 +1,11 @@
 """Pictures of a packing: a vertical section through the centre and a 3-D view."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
+from thermal_kernel.atomic import replacing
 from thermal_kernel.packing import Packing
 
 
@@ -64,8 +64,9 @@ def plot_packing(packing: Packing, out_path, title: str | None = None) -> Path:
                            + (f", p = {p / 1e5:.3g} bar" if np.isfinite(p) else "")))
     fig.tight_layout()
     out_path = Path(out_path)
-    tmp = out_path.with_name(out_path.name + ".tmp.png")
-    fig.savefig(tmp, dpi=120)
-    plt.close(fig)
-    os.replace(tmp, out_path)
+    try:
+        with replacing(out_path, keep_suffix=True) as tmp:
+            fig.savefig(tmp, dpi=120, format="png")
+    finally:
+        plt.close(fig)
     return out_path

@@ -12,12 +12,12 @@ equal steps either way, the result equals the uninterrupted run bit for bit (tes
 from __future__ import annotations
 
 import hashlib
-import os
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from .atomic import write_h5_atomic
 from .scene import SceneError
 from .solvers import SolverState
 
@@ -60,8 +60,8 @@ def write_checkpoint(path: Path, state: SolverState, outputs: dict, totals: dict
                      scene_text: str, n_particles: int, packing_hash: str = "") -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    with h5py.File(tmp, "w") as f:
+
+    def fill(f):
         f.attrs["format"] = "tdem-checkpoint"
         f.attrs["scene"] = scene_text
         f.attrs["n_particles"] = n_particles
@@ -76,8 +76,7 @@ def write_checkpoint(path: Path, state: SolverState, outputs: dict, totals: dict
         for key in _OUTPUTS:
             o.create_dataset(key, data=np.asarray(outputs[key], dtype=np.float64))
         f.create_group("totals").attrs.update(totals)
-    os.replace(tmp, path)
-    return path
+    return write_h5_atomic(path, fill)
 
 
 def read_checkpoint(path: Path, scene_text: str, n_particles: int, packing_hash: str = "",

@@ -1,6 +1,7 @@
 """The run output ``thermal.h5``: temperatures, boundary heat flows, energy ledger, provenance.
 
-Written to ``<path>.tmp`` and renamed, so a killed run never leaves a half-written file.
+Built in memory, written to ``<path>.tmp`` and renamed (:mod:`thermal_kernel.atomic`): a killed
+run or a full disk never leaves a half-written file.
 Layout (SI units, documented in docs/solvers.md):
   time (K,) s; temperature (K, N) K; boundary_heat_flow (K, B) W (heat entering through each
   boundary at that time); boundary_energy (K, B) J and source_energy (K,) J (cumulative since
@@ -14,7 +15,6 @@ Layout (SI units, documented in docs/solvers.md):
 """
 from __future__ import annotations
 
-import os
 import subprocess
 from pathlib import Path
 
@@ -22,6 +22,7 @@ import h5py
 import numpy as np
 
 from . import __version__
+from .atomic import write_h5_atomic
 
 
 def git_hash() -> str:
@@ -49,8 +50,8 @@ def write_thermal(path, *, times, temperatures, boundary_heat_flow_w, boundary_e
     if not np.all(np.isfinite(temperatures)):
         raise FloatingPointError(f"{path}: temperature: non-finite values; not written")
     stored = (temperatures - np.asarray(initial_temperature_k)[None, :]) @ capacity_j_k
-    tmp = path.with_name(path.name + ".tmp")
-    with h5py.File(tmp, "w") as f:
+
+    def fill(f):
         f.create_dataset("time", data=np.asarray(times, dtype=np.float64))
         f.create_dataset("temperature", data=temperatures, chunks=True if temperatures.size
                          else None)
@@ -70,5 +71,4 @@ def write_thermal(path, *, times, temperatures, boundary_heat_flow_w, boundary_e
         f.attrs["git_hash"] = git_hash()
         for key, value in attrs.items():
             f.attrs[key] = value
-    os.replace(tmp, path)
-    return path
+    return write_h5_atomic(path, fill)

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import OutputBusyError, output_lock
 from .checkpoint import checkpoint_path, packing_sha256, read_checkpoint, write_checkpoint
 from .network import assemble
 from .output import write_thermal
@@ -62,6 +63,19 @@ def _transient(net, start, times, scene, threads, progress):
                         progress=progress)
 
 
+def _check_finite(scene, result):
+    """A run that blew up (allow_unstable above the bound) ends in one line, nothing written."""
+    bad = ~np.all(np.isfinite(result.temperature_k), axis=1)
+    if not bad.any():
+        return
+    t = float(result.times[int(np.argmax(bad))])
+    key = "solver.allow_unstable" if scene.solver.allow_unstable else "solver.dt"
+    raise SceneError(f"{scene.path}: {key}: the run diverged (non-finite temperatures by t = "
+                     f"{t:.6g} s with dt = {result.dt:.4g} s, {result.dt / result.dt_max:.3g} x "
+                     f"the stability bound {result.dt_max:.4g} s); nothing written: expected a "
+                     "dt at most the bound")
+
+
 def _run_with_checkpoints(net, T0, scene, threads, progress, every, resumed, n_particles,
                           packing_hash=""):
     """The transient in chunks of ``every`` output times, a checkpoint after each; or from a
@@ -84,6 +98,7 @@ def _run_with_checkpoints(net, T0, scene, threads, progress, every, resumed, n_p
     last = None
     for i in range(0, len(times), size):
         last = _transient(net, start, times[i:i + size], scene, threads, progress)
+        _check_finite(scene, last)
         start = last.state
         for key in outputs:
             outputs[key].append(getattr(last, key))
@@ -107,7 +122,29 @@ def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = F
     """Run ``scene`` (its packing, or ``packing_path``) and write its output file.
 
     Transient runs can write a checkpoint every ``checkpoint_every`` output times (beside the
-    output, ``<name>.checkpoint.h5``, removed when the run ends) and ``resume`` from it."""
+    output, ``<name>.checkpoint.h5``, removed when the run ends) and ``resume`` from it.
+    The output is locked for the run (``<name>.lock``, :func:`~thermal_kernel.atomic.output_lock`):
+    a second run onto the same output is refused at once."""
+    try:
+        with output_lock(scene.output):
+            return _run_scene(scene, packing_path, quiet=quiet, threads=threads,
+                              checkpoint_every=checkpoint_every, resume=resume)
+    except OutputBusyError as e:
+        raise SceneError(str(e)) from None
+
+
+def _check_step_count(scene, dt, what):
+    """Refuse, before anything runs, a run of more than solver.max_steps steps of ``dt``."""
+    solver = scene.solver
+    n = solver.end_time / dt if dt > 0 else math.inf
+    if not n <= solver.max_steps:
+        raise SceneError(f"{scene.path}: {what}: end_time = {solver.end_time:g} s in steps of "
+                         f"dt = {dt:g} s is {n:.3g} steps; expected at most solver.max_steps = "
+                         f"{solver.max_steps:.6g} (a longer dt, a shorter end_time, or a larger "
+                         "max_steps)")
+
+
+def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume):
     packing = read_packing(packing_path or scene.packing)
     packing_hash = packing_sha256(packing)
     problem, info = build_problem(scene, packing)
@@ -115,6 +152,11 @@ def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = F
     net = assemble(problem)
     assemble_seconds = time.perf_counter() - t_assemble
     solver = scene.solver
+    if solver.method == "explicit":
+        if math.isnan(solver.dt):
+            _check_step_count(scene, solver.safety * net.dt_max_s, "solver.end_time")
+        else:
+            _check_step_count(scene, solver.dt, "solver.dt")
     T0 = np.full(packing.n_particles, scene.initial_temperature)
     if not quiet:
         print(f"tdem run: {scene.path}: law {scene.law}, method {solver.method}, "

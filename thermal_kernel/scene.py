@@ -62,6 +62,7 @@ class SolverConfig:
     theta: float = 1.0                     # implicit: 1 backward Euler, 0.5 second order
     scheme: str = "theta"                  # implicit: resolved scheme (theta|rannacher|tr-bdf2)
     startup_steps: int | None = None       # rannacher / tr-bdf2: backward-Euler start-up steps
+    max_steps: float = 1e9                 # refuse a transient run of more steps, up front
 
 
 @dataclass(frozen=True)
@@ -180,9 +181,14 @@ def load_scene(path, known_laws=None, out_dir=None) -> Scene:
     ``<scene folder>/out/<scene name>/``)."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise SceneError(f"{path}: file not found") from None
+    except IsADirectoryError:
+        raise SceneError(f"{path}: is a folder; expected a scene TOML file") from None
+    except UnicodeDecodeError as e:
+        raise SceneError(f"{path}: not UTF-8 text (byte 0x{e.object[e.start]:02x} at offset "
+                         f"{e.start}); expected a scene TOML file") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
@@ -294,6 +300,13 @@ def load_scene(path, known_laws=None, out_dir=None) -> Scene:
     solver = dataclasses.replace(solver, scheme=scheme, startup_steps=startup)
     if solver.safety > 1.0 and not solver.allow_unstable:
         sol.fail("safety", f"expected a number <= 1 (the bound is exact), got {solver.safety}")
+    max_steps = sol.number("max_steps", default=1e9, minimum=1) if method != "steady" else 1e9
+    solver = dataclasses.replace(solver, max_steps=max_steps)
+    if method != "steady" and not math.isnan(dt) and not end_time / dt <= max_steps:
+        sol.fail("dt", f"end_time = {end_time:g} s in steps of dt = {dt:g} s is "
+                       f"{end_time / dt:.3g} steps; expected at most solver.max_steps = "
+                       f"{max_steps:.6g} (a longer dt, a shorter end_time, or a larger "
+                       "max_steps)")
     sol.done()
 
     output = out_dir / "thermal.h5"

@@ -146,6 +146,19 @@ class _Arrays:
         self.use_rhs = use_rhs
 
     def advance(self, n_steps, dt, ta, tb, energy):
+        try:
+            return self._advance(n_steps, dt, ta, tb, energy)
+        except SystemError as e:
+            # a SIGINT during the (nogil) kernel surfaces as "CPUDispatcher ... returned a result
+            # with an exception set", the KeyboardInterrupt down its chain: give that back
+            cause, seen = e, 0
+            while cause is not None and seen < 8:
+                if isinstance(cause, KeyboardInterrupt):
+                    raise KeyboardInterrupt from None
+                cause, seen = cause.__cause__ or cause.__context__, seen + 1
+            raise
+
+    def _advance(self, n_steps, dt, ta, tb, energy):
         return _advance(n_steps, dt, self.use_rhs, self.indptr, self.indices, self.hval,
                         self.inv_c, self.held, self.g, self.rhs, self.fixed_p, self.fixed_b,
                         self.ex_p, self.ex_g, self.ex_t, self.ex_b, self.held_b, self.const_b,
@@ -218,8 +231,9 @@ def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
     times = check_times(times, t)
     if dt is None:
         dt = state_dt if state_dt is not None else safety * net.dt_max_s
-        if not 0 < safety <= 1:
-            raise ValueError(f"safety = {safety}: must be in (0, 1]")
+        if not (0 < safety <= 1 or (safety > 1 and allow_unstable)):
+            raise ValueError(f"safety = {safety}: must be in (0, 1] (above 1 only with "
+                             "allow_unstable)")
     dt = float(dt)
     flags = list(net.flags) + list(check_dt(net, dt, allow_unstable))
     use_rhs = prob.source is not None or net.has_exchange or net.has_constant_rhs
@@ -232,7 +246,8 @@ def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
         plan.append(interval_steps(t_prev, float(tk), dt))
         t_prev = float(tk)
     n_total = sum(n for n, _ in plan)
-    chunk = max(1, int(2e7 // (net.adjacency.nnz + net.n + 1))) if progress else None
+    # ~0.1 s of work per kernel call, also without a progress bar: Ctrl-C is seen between calls
+    chunk = max(1, int(2e7 // (net.adjacency.nnz + net.n + 1)))
 
     old_threads = numba.get_num_threads()
     if threads is not None:
