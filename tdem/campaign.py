@@ -86,6 +86,24 @@ def _scene_text(campaign_text: str, packing: Path, law: str) -> str:
     return f'packing = "{packing}"\nlaw = "{law}"\n' + "\n".join(out) + "\n"
 
 
+def check_case_scenes(campaign_path: Path, conf: dict, text: str, out_dir: Path) -> None:
+    """Load the case scene of every law as the campaign will write it (the packing not built
+    yet), so that a typo in [solver], [material], [[boundary]] or [law_params] is one line
+    naming the campaign file and key before any packing is built (issue 16 sec. 3). What needs
+    the packing itself (walls named by a boundary, the explicit bound) is checked when a case
+    runs."""
+    from thermal_kernel.laws import LAWS
+    from thermal_kernel.scene import SceneError, load_scene
+    placeholder = out_dir / "packings" / "packing.h5"
+    for law in conf["laws"]:
+        try:
+            load_scene(campaign_path, known_laws=LAWS, out_dir=out_dir / "cases" / law,
+                       text=_scene_text(text, placeholder.resolve(), law))
+        except SceneError as e:
+            raise UserError(f"{e} (in the case scene for law {law!r}; checked before any "
+                            "packing is built)") from None
+
+
 def build_packings(campaign_path: Path, out_dir: Path, *, threads: int, quiet: bool) -> list:
     from .pack import build, built_packings, read_pack_table
     generator, params = read_pack_table(campaign_path)
@@ -119,6 +137,7 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
     campaign_path = Path(campaign_path)
     conf, text = read_campaign(campaign_path)
     out_dir = Path(out_dir) if out_dir else default_out_dir(campaign_path)
+    check_case_scenes(campaign_path, conf, text, out_dir)     # before YADE builds anything
     out_dir.mkdir(parents=True, exist_ok=True)
     start = time.time()
     packings = build_packings(campaign_path, out_dir, threads=yade_threads, quiet=quiet)

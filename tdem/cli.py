@@ -423,8 +423,8 @@ def main(argv=None) -> int:
     except (UserError, PackingError, YadeError, SceneError, NetworkError) as e:
         print(f"tdem: error: {e}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("tdem: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as e:
+        print("tdem: interrupted" + (f": {e}" if str(e) else ""), file=sys.stderr)
         return 130
     except BrokenPipeError:         # `tdem info ... | head`: the reader has gone, exit quietly
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -131,6 +131,11 @@ def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = F
                               checkpoint_every=checkpoint_every, resume=resume)
     except OutputBusyError as e:
         raise SceneError(str(e)) from None
+    except KeyboardInterrupt:
+        ckpt = checkpoint_path(scene.output)
+        raise KeyboardInterrupt(f"{scene.output} not written" + (
+            f"; checkpoint {ckpt} kept (--resume continues from it)" if ckpt.exists()
+            else "")) from None
 
 
 def _check_step_count(scene, dt, what):

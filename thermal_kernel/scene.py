@@ -175,13 +175,15 @@ class _Table:
 
 # ----------------------------------------------------------------------------- parsing
 
-def load_scene(path, known_laws=None, out_dir=None) -> Scene:
+def load_scene(path, known_laws=None, out_dir=None, text=None) -> Scene:
     """Parse and check a scene file. ``known_laws``: names accepted for ``law`` (default: the
     registry). ``out_dir``: folder for a relative ``[output] path`` (default
-    ``<scene folder>/out/<scene name>/``)."""
+    ``<scene folder>/out/<scene name>/``). ``text``: the scene's text, when it is not (yet) in
+    ``path`` (a campaign checks its cases before they exist; errors name ``path``)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        if text is None:
+            text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise SceneError(f"{path}: file not found") from None
     except IsADirectoryError:
