@@ -323,3 +323,308 @@ def test_calibrate_across_the_bed_cylinder(tmp_path):
     proc = tdem("calibrate", scene, "--axis", "y")
     assert_one_line(proc, f"{scene}: --axis: ", "'cylinder' is a cylinder along z",
                     "expected a box face or a cylinder along y")
+
+
+# ---------------------------------------------------------------------------- CLI and files
+# (issue 16 sec. 2): each case makes its inputs in tmp, runs one command, and names the words
+# of the one line and the folder that must be left as it was (None: not created, or empty)
+
+def _scene(tmp, solver='method = "steady"\n'):
+    path = tmp / "scene.toml"
+    path.write_text(bed_scene(solver))
+    return path
+
+
+def _scene_dir(tmp):
+    (tmp / "scene.toml").mkdir()
+    return ["run", tmp / "scene.toml", "--out", tmp / "out"], \
+        [f"{tmp / 'scene.toml'}: is a folder; expected a scene TOML file"]
+
+
+def _scene_binary(tmp):
+    (tmp / "scene.toml").write_bytes(b"\xff\xfe\x00law")
+    return ["run", tmp / "scene.toml", "--out", tmp / "out"], \
+        [f"{tmp / 'scene.toml'}: not UTF-8 text (byte 0xff at offset 0)"]
+
+
+def _threads(value):
+    def make(tmp):
+        return ["run", _scene(tmp), "--out", tmp / "out", "--threads", value], \
+            ["--threads: expected an integer from 1 to", f"got {value}"]
+    return make
+
+
+def _out_is_file(command):
+    def make(tmp):
+        target = tmp / "out"
+        target.write_text("not a folder\n")
+        path = _scene(tmp)
+        if command == "campaign":       # no [pack]: a regression fails before YADE either way
+            path.write_text('[campaign]\nlaws = ["pipe"]\n' + path.read_text().split("\n", 2)[2])
+        return [command, path, "--out", target], [f"{target}: --out: expected a folder"]
+    return make
+
+
+def _output_is_a_folder(tmp):
+    (tmp / "out" / "thermal.h5").mkdir(parents=True)
+    return ["run", _scene(tmp), "--out", tmp / "out"], \
+        [f"{tmp / 'out' / 'thermal.h5'}: is a folder"]
+
+
+def _checkpoint_every_negative(tmp):
+    return ["run", _scene(tmp, TRANSIENT), "--out", tmp / "out", "--checkpoint-every", "-1"], \
+        ["--checkpoint-every: expected a number of output times >= 0"]
+
+
+def _pack_option(option):
+    def make(tmp):      # a scene without [pack]: a regression fails before YADE either way
+        return ["pack", _scene(tmp), "--out", tmp / "out", option, "0"], \
+            [f"{option}: expected an integer >= 1, got 0"]
+    return make
+
+
+def _campaign_threads(tmp):
+    path = tmp / "camp.toml"
+    path.write_text('[campaign]\nlaws = ["pipe"]\n' + bed_scene().split("\n", 2)[2])
+    return ["campaign", path, "--out", tmp / "out", "--threads", "0"], \
+        ["--threads: expected an integer from 1 to"]
+
+
+def _post_on_packing(tmp):
+    (tmp / "out").mkdir()
+    shutil.copy(BED, tmp / "out" / "thermal.h5")
+    return ["post", tmp / "out"], [f"{tmp / 'out' / 'thermal.h5'}: format: expected a run's "
+                                   "output", "got 'tdem-packing'"]
+
+
+def _post_on_text(tmp):
+    (tmp / "out").mkdir()
+    (tmp / "out" / "thermal.h5").write_text("hello\n")
+    return ["post", tmp / "out" / "thermal.h5"], \
+        [f"{tmp / 'out' / 'thermal.h5'}: not an HDF5 file; expected a run's thermal.h5"]
+
+
+def _export_to(name, words):
+    def make(tmp):
+        (tmp / "out").mkdir(exist_ok=True)
+        target = tmp / "out" / name
+        return ["export", BED, "-o", target], [str(target), *words]
+    return make
+
+
+def _plot_to(name, words):
+    def make(tmp):
+        (tmp / "out").mkdir()
+        target = tmp / "out" / name
+        return ["plot", BED, "-o", target], [str(target), *words]
+    return make
+
+
+COMMANDS = {
+    "scene_is_a_folder": _scene_dir,
+    "scene_not_utf8": _scene_binary,
+    "threads_zero": _threads("0"),
+    "threads_negative": _threads("-3"),
+    "threads_64": _threads("64"),
+    "run_out_is_a_file": _out_is_file("run"),
+    "campaign_out_is_a_file": _out_is_file("campaign"),
+    "campaign_threads_zero": _campaign_threads,
+    "output_thermal_h5_is_a_folder": _output_is_a_folder,
+    "checkpoint_every_negative": _checkpoint_every_negative,
+    "pack_threads_zero": _pack_option("--threads"),
+    "pack_jobs_zero": _pack_option("--jobs"),
+    "post_on_a_packing": _post_on_packing,
+    "post_on_a_text_file": _post_on_text,
+    "export_into_missing_folder": _export_to("no/such/a.vtu", ["-o: the folder", "does not exist"]),
+    "export_bad_suffix": _export_to("a.txt", ["-o: expected a file name ending in .vtu"]),
+    "export_onto_a_folder": _export_to("d.vtu/", ["-o: is a folder"]),
+    "plot_into_missing_folder": _plot_to("x/y/a.png", ["-o: the folder", "does not exist"]),
+    "plot_bad_suffix": _plot_to("a.vtu", ["-o: expected a file name ending in .png"]),
+}
+
+
+def _listing(folder):
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*")) if folder.exists() \
+        else None
+
+
+@pytest.mark.parametrize("case", sorted(COMMANDS))
+def test_bad_command(tmp_path, case):
+    out = tmp_path / "out"
+    if case == "export_onto_a_folder":
+        (out / "d.vtu").mkdir(parents=True)
+    args, words = COMMANDS[case](tmp_path)
+    before = _listing(out)
+    proc = tdem(*args)
+    assert_one_line(proc, *words)
+    assert _listing(out) == before      # nothing written, no .tmp, no .lock, no folder made
+
+
+# ---------------------------------------------------------------------------- faults
+
+def _unshare_ok():
+    return shutil.which("unshare") is not None and subprocess.run(
+        ["unshare", "-m", "sh", "-c", "mount -t tmpfs -o size=64k tmpfs /mnt && umount /mnt"],
+        capture_output=True).returncode == 0
+
+
+needs_mount = pytest.mark.skipif(not _unshare_ok(), reason="no private mount namespace "
+                                 "(unshare -m and mount tmpfs need root)")
+
+
+def _in_small_tmpfs(mount_point, options, args):
+    """Run tdem with ``mount_point`` a fresh tmpfs (mount ``options``) in a private mount
+    namespace; return (process, listing of the tmpfs afterwards)."""
+    mount_point.mkdir(parents=True, exist_ok=True)
+    found = mount_point.parent / (mount_point.name + ".listing")
+    cmd = " ".join(map(_quote, [*TDEM, *args]))
+    script = (f"mount -t tmpfs -o {options} tmpfs {_quote(mount_point)} || exit 99; "
+              f"{cmd}; rc=$?; find {_quote(mount_point)} -mindepth 1 > {_quote(found)}; "
+              "exit $rc")
+    proc = subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode != 99, proc.stderr
+    listing = found.read_text().split()
+    return proc, listing
+
+
+def _quote(x):
+    import shlex
+    return shlex.quote(str(x))
+
+
+MANY_OUTPUTS = ('method = "implicit"\ndt = 0.5\nend_time = 40.0\noutput_times = ['
+                + ", ".join(f"{t}.0" for t in range(1, 41)) + "]\n")
+
+
+@needs_mount
+def test_disk_full_one_line_nothing_left(tmp_path):
+    """A 40 KB tmpfs: the 40 outputs (~100 KB) do not fit. Was: 17 tracebacks, a segfault (exit
+    139) and a thermal.h5.tmp left."""
+    scene = _scene(tmp_path, MANY_OUTPUTS)
+    mnt = tmp_path / "full"
+    proc, listing = _in_small_tmpfs(mnt, "size=40k", ["run", scene, "--out", mnt / "run",
+                                                      "--quiet", "--threads", "1"])
+    assert_one_line(proc, f"{mnt / 'run' / 'thermal.h5'}: No space left on device")
+    assert listing == []
+
+
+@needs_mount
+@pytest.mark.parametrize("command", ["run", "export", "plot"])
+def test_read_only_folder_one_line(tmp_path, command):
+    mnt = tmp_path / "ro"
+    args = {"run": ["run", _scene(tmp_path), "--out", mnt / "run", "--quiet"],
+            "export": ["export", BED, "-o", mnt / "a.vtu"],
+            "plot": ["plot", BED, "-o", mnt / "a.png"]}[command]
+    proc, listing = _in_small_tmpfs(mnt, "ro,size=64k", args)
+    assert_one_line(proc, str(mnt), "Read-only file system")
+    assert listing == []
+
+
+def test_disk_full_injected_at_the_writer(tmp_path, monkeypatch, capsys):
+    """The same fault without a tmpfs: write() of the output raises ENOSPC (in-process)."""
+    import errno
+    from tdem.cli import main
+    from thermal_kernel import atomic
+
+    class Full:
+        def __init__(self, path, mode):
+            self.f = open(path, mode)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+        def write(self, data):
+            self.f.write(bytes(data)[:100])
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(atomic, "open", Full, raising=False)
+    out = tmp_path / "out"
+    rc = main(["run", str(_scene(tmp_path, MANY_OUTPUTS)), "--out", str(out), "--quiet",
+               "--threads", "1"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1, err
+    assert err == f"tdem: error: {out / 'thermal.h5'}: {os.strerror(errno.ENOSPC)}\n"
+    assert _listing(out) is None
+
+
+def test_info_into_a_closed_pipe_exits_quietly():
+    """`tdem info ... | head`: the reader has gone before tdem writes: no BrokenPipe traceback."""
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        proc = subprocess.run([*TDEM, "info", str(BED)], stdout=w, stderr=subprocess.PIPE,
+                              text=True, timeout=300)
+    finally:
+        os.close(w)
+    assert proc.stderr == ""
+    assert proc.returncode == 141
+
+
+SLOW_EXPLICIT = 'method = "explicit"\nsafety = 1e-6\nend_time = 2.0\n'     # ~1e7 steps
+
+
+def _start(args):
+    return subprocess.Popen([*TDEM, *map(str, args)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for(path, proc):
+    while not path.exists():
+        assert proc.poll() is None, proc.communicate()[1]
+        time.sleep(0.05)
+
+
+@pytest.mark.parametrize("quiet", [True, False], ids=["quiet", "progress"])
+def test_ctrl_c_during_an_explicit_run(tmp_path, quiet):
+    """SIGINT inside the numba kernel was `SystemError: CPUDispatcher ...`; now one line, 130."""
+    out = tmp_path / "out"
+    proc = _start(["run", _scene(tmp_path, SLOW_EXPLICIT), "--out", out, "--threads", "1",
+                   *(["--quiet"] if quiet else [])])
+    _wait_for(out / "thermal.h5.lock", proc)
+    time.sleep(2.0)              # well into the time loop (the packing is read, the kernel runs)
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=300)[1]
+    assert proc.returncode == 130, err
+    lines = [x for x in err.replace("\r", "\n").splitlines() if x.startswith("tdem")]
+    assert lines == [f"tdem: interrupted: {out / 'thermal.h5'} not written"], err
+    assert "Traceback" not in err
+    assert _listing(out) is None
+
+
+def test_ctrl_c_keeps_the_checkpoint(tmp_path):
+    scene = _scene(tmp_path, SLOW_EXPLICIT.replace("end_time = 2.0", "end_time = 2.0\n"
+                                                   "output_times = [0.0002, 2.0]"))
+    out = tmp_path / "out"
+    proc = _start(["run", scene, "--out", out, "--threads", "1", "--quiet",
+                   "--checkpoint-every", "1"])
+    _wait_for(out / "thermal.checkpoint.h5", proc)
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=300)[1]
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines() == [
+        f"tdem: interrupted: {out / 'thermal.h5'} not written; checkpoint "
+        f"{out / 'thermal.checkpoint.h5'} kept (--resume continues from it)"]
+    assert _listing(out) == ["thermal.checkpoint.h5"]
+
+
+def test_two_runs_onto_one_output(tmp_path):
+    """Was: BlockingIOError from HDF5's file lock in one of them. Now the second is refused
+    at once, naming the output and the first one's pid; the first is unharmed."""
+    scene = _scene(tmp_path, SLOW_EXPLICIT)
+    out = tmp_path / "out"
+    first = _start(["run", scene, "--out", out, "--threads", "1", "--quiet"])
+    try:
+        _wait_for(out / "thermal.h5.lock", first)
+        proc = tdem("run", scene, "--out", out, "--threads", "1", "--quiet")
+        assert_one_line(proc, f"{out / 'thermal.h5'}: another tdem process (pid {first.pid}) "
+                              "is writing this output")
+        assert first.poll() is None
+    finally:
+        first.send_signal(signal.SIGINT)
+        first.communicate(timeout=300)
+    assert first.returncode == 130
+    assert _listing(out) is None
