@@ -189,3 +189,32 @@ def test_report_of_a_clean_campaign(tmp_path, monkeypatch):
     assert all("max_principle" not in f and "energy_ledger" not in f for f in table["flags"])
     assert dict(zip(table.pressure_pa, table["flags"])) == _case_flags(out)
     assert "No run flagged" in report and "runs flagged" not in report
+
+
+@pytest.mark.parametrize("old, new, key", [
+    ("end_time = 200.0", "end_time = 200.0\nsafty = 0.5", "solver.safty: unknown key"),
+    ("conductivity = 205.0", "conductivity = -205.0", "material.conductivity: expected a number"),
+    ('laws = ["pipe"]', 'laws = ["argento"]', None),
+])
+def test_case_scenes_checked_before_any_packing(tmp_path, monkeypatch, capsys, old, new, key):
+    """Issue 16 sec. 3: a typo in the thermal part was found after YADE built every packing, in
+    a generated cases/.../scene.toml. Now one line naming the campaign file and key, and
+    build_packings (YADE) is never called."""
+    from tdem import campaign as camp
+    from tdem.cli import main
+
+    def no_yade(*a, **k):
+        raise AssertionError("build_packings called before the case scenes were checked")
+    monkeypatch.setattr(camp, "build_packings", no_yade)
+    path = tmp_path / "camp.toml"
+    text = NO_PACK.replace(old, new)
+    if key is None:                 # one law's [law_params] bad (argento: beta > 0)
+        text = text.replace("[material]", "[law_params]\nbeta = 0\n\n[material]", 1)
+        key = "law_params.beta: expected a number > 0"
+    path.write_text(text)
+    out = tmp_path / "out"
+    assert main(["campaign", str(path), "--out", str(out), "--quiet", "--threads", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"tdem: error: {path}: {key}"), err
+    assert "checked before any packing is built" in err
+    assert not out.exists()
