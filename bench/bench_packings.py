@@ -251,7 +251,7 @@ def summary_markdown(table, stats) -> str:
         m = g[cols].mean(numeric_only=True)
         s = g[cols].std(numeric_only=True).fillna(0.0)
         ref = table[(table.n_target == n_target) & (table.path == "reference")
-                    & (table.shape == shape)]
+                    & (table["shape"] == shape)]
         rdf = ""
         if len(ref) and path != "reference":
             pairs = [rdf_distance(stats[a], stats[b]) for a in g.label for b in ref.label]
@@ -279,7 +279,7 @@ def summary_markdown(table, stats) -> str:
             "|---|---|---|---|---|---|---|---|---|---|"]
     for (shape, n_target, path, cell), g in groups:
         ref = table[(table.n_target == n_target) & (table.path == "reference")
-                    & (table.shape == shape)]
+                    & (table["shape"] == shape)]
         if path == "reference" or not len(ref):
             continue
         a, b = g.mean(numeric_only=True), ref.mean(numeric_only=True)
