@@ -34,7 +34,7 @@ What it does, and why (measured figures in the report / docs):
    gravity, if needed, so that the mean overlap there stays <= 2 % of r: E* >= 6000 p), and
    re-stiffened to the real modulus under that constant load (modulus x ``stiffen_factor`` per
    step, default 10: three steps from 5e7 to 5e10 Pa; every existing contact updated, the bed
-   relaxed between steps under a dead-load plate of 0.1 x the bed's mass; shared/FINDINGS.md:
+   relaxed between steps; shared/FINDINGS.md:
    a softened network must be re-relaxed at the real stiffness). A network softened and
    re-stiffened under load keeps some lateral (cylinder) stress; loading on to the first
    pressure at the real modulus dilutes it (on the 2,000 bed at 0.28 bar, preloading at 10 %
@@ -102,11 +102,6 @@ SETTLE_KEYS = ("n_particles", "particle_radius_m", "radius_spread", "cylinder_ra
 CHUNK = 10            # steps between two plate updates / convergence checks
 APPROACH = 0.9        # the plate is driven (kinematic) up to this fraction of the target...
 PLATE_MASS = 1.0      # ...then carries the target force as a dead load, mass = this x bed mass
-# In the preparatory stages no dump sees (softened load, re-stiffening, preload) the plate is
-# lighter: a plate as heavy as the bed, thrown off by each x10 re-stiffening, swings between
-# 0.02 and 8 x the preload for ~3,000 steps per step (7,500 bed) and the shaking compacts the
-# bed (phi +0.004 at every pressure); the light plate follows the bed (phi +0.001).
-PREP_PLATE_MASS = 0.1
 # Softening is limited so that the mean overlap under the first target stays <= SOFT_OVERLAP x r:
 # Hertz beds here have mean overlap / r ~ 3.3 (p / E*)^(2/3) (measured on the 7,500 bed), so the
 # plate approaches the first target with E* >= p (3.3 / SOFT_OVERLAP)^1.5.
@@ -394,11 +389,11 @@ class Bed:
         plate.state.blockedDOFs = "xyzXYZ"
         plate.state.vel = Vector3(0, 0, -v)
 
-    def load_plate(self, target, mass_factor=PLATE_MASS):
+    def load_plate(self, target):
         """Free plate (vertical motion only) carrying the force target x area, its own weight
         compensated: at rest the plate pressure is the target exactly."""
         plate = self.plate
-        mass = mass_factor * self.bed_mass * self.scale
+        mass = PLATE_MASS * self.bed_mass * self.scale
         vel = Vector3(plate.state.vel)
         plate.dynamic = True
         plate.state.blockedDOFs = "xyXYZ"
@@ -556,10 +551,10 @@ class Bed:
                                       f"E {self.young_now:.3g} Pa")
             self.check_steps(start, "approach", target, p_now, math.nan)
 
-    def relax(self, target, stage, p_tol, unb_tol, imax, mass_factor=PLATE_MASS):
+    def relax(self, target, stage, p_tol, unb_tol, imax):
         """The plate carries the target force as a dead load; run until |p - target| < p_tol
         target and the unbalanced force < unb_tol. Returns (max inertial number, unb)."""
-        self.load_plate(target, mass_factor)
+        self.load_plate(target)
         start = O.iter
         p_now = self.plate_pressure()
         while True:
@@ -631,22 +626,20 @@ class Bed:
         if self.young_now < p["young_pa"]:
             # softened: relax under the load, then raise the modulus step by step under it
             loose = 10 * p["unbalanced_force_target"]
-            imax, _ = self.relax(target, "load", 0.05, loose, imax, PREP_PLATE_MASS)
+            imax, _ = self.relax(target, "load", 0.05, loose, imax)
             while self.young_now < p["young_pa"]:
                 factor = min(p["stiffen_factor"], p["young_pa"] / self.young_now)
                 self.stiffen(factor)
                 self.log(f"modulus raised to {self.young_now:.4g} Pa (x{factor:.3g}) under "
                          f"{target:.4g} Pa")
                 if self.young_now < p["young_pa"]:
-                    imax, _ = self.relax(target, "stiffen", 0.05, loose, imax,
-                                         PREP_PLATE_MASS)
+                    imax, _ = self.relax(target, "stiffen", 0.05, loose, imax)
         # the softened stages' plate motion is recorded apart (inertial_number_softened): the
         # dump's inertial_number covers the stages at the real modulus only
         self.soft_imax = max(self.soft_imax, imax)
         imax = 0.0
         if not dump:
-            return self.relax(target, "preload", 0.05, 10 * p["unbalanced_force_target"], imax,
-                              PREP_PLATE_MASS)
+            return self.relax(target, "preload", 0.05, 10 * p["unbalanced_force_target"], imax)
         return self.relax(target, "hold", p["pressure_tolerance"],
                           p["unbalanced_force_target"], imax)
 
