@@ -567,9 +567,15 @@ def test_info_into_a_closed_pipe_exits_quietly():
 SLOW_EXPLICIT = 'method = "explicit"\nsafety = 1e-6\nend_time = 2.0\n'     # ~1e7 steps
 
 
+def _default_sigint():
+    # a test run started in the background (`make test &`, nohup) inherits SIGINT ignored, and
+    # Python then installs no KeyboardInterrupt handler: give the child the default disposition
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start(args):
     return subprocess.Popen([*TDEM, *map(str, args)], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint)
 
 
 def _wait_for(path, proc):
