@@ -211,7 +211,8 @@ def main(argv=None) -> int:
                    cpu_seconds=record.get("cpu_seconds", float("nan"))
                    + record.get("cell_reused_cpu_seconds", 0.0),
                    peak_rss_mb=record["peak_rss_mb"],
-                   compression_steps=int(packing.attrs.get("compression_steps", -1))
+                   compression_steps=int(packing.attrs.get("compression_steps",
+                                                           record.get("compression_steps", -1)))
                    + int(record.get("cell_reused_steps", 0)),
                    **as_row(st))
         row["gamma_pipe"] = pipe_gamma(folder / "packing.h5", case["shape"]) if st.n_particles <= 2_000_000 \

@@ -46,8 +46,8 @@ def read_pack_table(scene_path: Path) -> tuple[str, dict]:
 
 def _check_tiling(scene_path: Path, params: dict) -> None:
     """The tiled path's cross-field checks, before YADE starts (the YADE script repeats them)."""
-    if params["method"] != "tiled":
-        if params["cell_packing"]:
+    if params.get("method", "direct") != "tiled":      # (a schema without the tiled path)
+        if params.get("cell_packing"):
             raise UserError(f"{scene_path}: pack.cell_packing: only used with method = "
                             "\"tiled\"")
         return
