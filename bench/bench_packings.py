@@ -160,7 +160,7 @@ def build(case: dict, reuse: bool, cell_dirs: list[Path]) -> dict:
     return record
 
 
-def pipe_gamma(packing_path: Path, shape: str) -> float:
+def pipe_gamma(packing_path: Path, shape: str) -> tuple[float, float]:
     """Steady gamma = k_eff/k_p of the pipe law (003 eq. 40; force-based) on the packing, flux
     test along x between the two x faces (thermal_kernel/calibrate.flux_test)."""
     from thermal_kernel.calibrate import flux_test
@@ -172,9 +172,19 @@ def pipe_gamma(packing_path: Path, shape: str) -> float:
         'temperature = 0.5\n[solver]\nmethod = "steady"\n')
     scene = load_scene(scene_path)
     if shape == "sphere":
-        return float("nan")                  # no two opposite faces
-    test = flux_test(scene, read_packing(packing_path), "z" if shape == "cylinder" else "x")
-    return test.effective_w_mk / 33.0
+        return float("nan"), float("nan")     # no two opposite faces
+    from thermal_kernel.problem import boundary_particles
+    packing = read_packing(packing_path)
+    axis = "z" if shape == "cylinder" else "x"
+    test = flux_test(scene, packing, axis)
+    # the slab between the mean centre planes of the two held sets (where the Dirichlet
+    # condition acts; tdem post's convention) instead of the domain length
+    k = "xyz".index(axis)
+    hot = boundary_particles(scene, packing, f"{axis}min", "hot")
+    cold = boundary_particles(scene, packing, f"{axis}max", "cold")
+    held_length = float(packing.position[cold, k].mean() - packing.position[hot, k].mean())
+    gamma = test.effective_w_mk / 33.0
+    return gamma, gamma * held_length / test.length_m
 
 
 def main(argv=None) -> int:
@@ -215,8 +225,9 @@ def main(argv=None) -> int:
                                                            record.get("compression_steps", -1)))
                    + int(record.get("cell_reused_steps", 0)),
                    **as_row(st))
-        row["gamma_pipe"] = pipe_gamma(folder / "packing.h5", case["shape"]) if st.n_particles <= 2_000_000 \
-            else float("nan")
+        row["gamma_pipe"], row["gamma_pipe_held"] = \
+            pipe_gamma(folder / "packing.h5", case["shape"]) if st.n_particles <= 2_000_000 \
+            else (float("nan"), float("nan"))
         rows.append(row)
         print(f"  {row['n_particles']} spheres, {row['wall_seconds']:.0f} s, "
               f"{row['peak_rss_mb']:.0f} MB, phi_bulk {row['solid_fraction_bulk']:.4f}, "
@@ -239,15 +250,16 @@ def summary_markdown(table, stats) -> str:
     """Per (path, N): mean and spread over seeds, and the differences to the reference at the
     same N with the issue's tolerances."""
     cols = ["solid_fraction_bulk", "z_nonrattler", "z_with_gaps", "rattler_fraction",
-            "fabric_deviator", "gamma_pipe", "wall_seconds", "cpu_seconds", "peak_rss_mb",
+            "fabric_deviator", "gamma_pipe", "gamma_pipe_held", "wall_seconds", "cpu_seconds", "peak_rss_mb",
             "compression_steps",
             "n_particles"]
     groups = list(table.groupby(["shape", "n_target", "path", "cell_particles"], sort=True))
     out = ["| shape | N (target) | path | cell | seeds | N | wall (s) | CPU (s) | peak RSS (MB) | "
            "DEM steps | "
            "φ bulk | Z non-rattlers | Z with gaps | rattlers (%) | fabric dev. | γ pipe | "
+           "γ pipe, held planes | "
            "RDF diff. to ref. |",
-           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for (shape, n_target, path, cell), g in groups:
         m = g[cols].mean(numeric_only=True)
         s = g[cols].std(numeric_only=True).fillna(0.0)
@@ -271,13 +283,14 @@ def summary_markdown(table, stats) -> str:
             f"{m.z_nonrattler:.3f} ± {s.z_nonrattler:.3f} | {m.z_with_gaps:.3f} ± "
             f"{s.z_with_gaps:.3f} | {100 * m.rattler_fraction:.1f} ± "
             f"{100 * s.rattler_fraction:.1f} | {m.fabric_deviator:.4f} | "
-            f"{m.gamma_pipe:.4g} ± {s.gamma_pipe:.2g} | {rdf} |")
+            f"{m.gamma_pipe:.4g} ± {s.gamma_pipe:.2g} | {m.gamma_pipe_held:.4g} | {rdf} |")
     out += ["", "Differences to the reference at the same N (mean over seeds; the issue's "
             "tolerances: φ 0.005, Z non-rattlers 3 %, Z with gaps 2 %, rattlers 2 points, "
             "γ pipe 3 %):", "",
             "| shape | N | path | Δφ bulk | ΔZ non-rattlers | ΔZ with gaps | "
-            "Δrattlers (points) | Δγ pipe | speed-up (CPU) | fewer DEM steps |",
-            "|---|---|---|---|---|---|---|---|---|---|"]
+            "Δrattlers (points) | Δγ pipe | Δγ pipe, held planes | speed-up (CPU) | "
+            "fewer DEM steps |",
+            "|---|---|---|---|---|---|---|---|---|---|---|"]
     for (shape, n_target, path, cell), g in groups:
         ref = table[(table.n_target == n_target) & (table.path == "reference")
                     & (table["shape"] == shape)]
@@ -291,6 +304,7 @@ def summary_markdown(table, stats) -> str:
             f"{100 * (a.z_with_gaps / b.z_with_gaps - 1):+.1f} % | "
             f"{100 * (a.rattler_fraction - b.rattler_fraction):+.1f} | "
             f"{100 * (a.gamma_pipe / b.gamma_pipe - 1):+.1f} % | "
+            f"{100 * (a.gamma_pipe_held / b.gamma_pipe_held - 1):+.1f} % | "
             f"{b.cpu_seconds / a.cpu_seconds:.1f}× | "
             f"{b.compression_steps / max(a.compression_steps, 1):.1f}× |")
     return "\n".join(out) + "\n"
