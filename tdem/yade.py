@@ -102,8 +102,11 @@ def run_generator(generator: str, params: dict, out_dir: Path, *, threads: int =
 
 
 def _is_banner(line: str) -> bool:
+    # (YADE's start-up lines, and its warning that NewtonIntegrator.densityScaling adjusted the
+    # time stepper - which is what the density-scaled path asks for; both stay in yade.log)
     return line.startswith(("TCP python prompt", "XMLRPC info provider", "Running script",
-                            "Welcome to Yade", "Yade version"))
+                            "Welcome to Yade", "Yade version", "Using python version")) \
+        or "set_densityScaling" in line
 
 
 def yade_batch_executable() -> str:
