@@ -46,7 +46,7 @@ bench-packings: deps
 
 # Long validation: the 7,500-sphere pressure campaign of the pipe-model paper (YADE ~15 min,
 # thermal ~3 min), quoted in docs/campaign.md; the ETC of composites on the 10,000-sphere dense
-# box (YADE ~40 min), quoted in docs/post.md.
+# box (YADE ~8 min), quoted in docs/post.md.
 validate: deps
 	$(BIN)/tdem campaign runs/campaign_7500.toml
 	test -f runs/out/dense_box_10k/packing.h5 || $(BIN)/tdem pack runs/dense_box_10k.toml
