@@ -44,7 +44,7 @@ bench: deps
 bench-packings: deps
 	$(BIN)/python bench/bench_packings.py --reuse
 
-# Long validation: the 7,500-sphere pressure campaign of the pipe-model paper (YADE ~15 min,
+# Long validation: the 7,500-sphere pressure campaign of the pipe-model paper (YADE ~8 min,
 # thermal ~3 min), quoted in docs/campaign.md; the ETC of composites on the 10,000-sphere dense
 # box (YADE ~8 min), quoted in docs/post.md.
 validate: deps
