@@ -79,26 +79,35 @@ def run_generator(generator: str, params: dict, out_dir: Path, *, threads: int =
     script = YADE_SCRIPTS / SCRIPTS[generator]
     cmd = [yade_executable(), "-n", f"-j{threads}", "-x", str(script), str(params_path)]
     log_path = out_dir / "yade.log"
-    tail = deque(maxlen=20)
     start = time.perf_counter()
-    with open(log_path, "w") as log:
-        log.write("$ " + " ".join(cmd) + "\n")
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                stdin=subprocess.DEVNULL, env=yade_environment(),
-                                cwd=out_dir, text=True, bufsize=1)
-        for line in proc.stdout:
-            log.write(line)
-            log.flush()
-            tail.append(line.rstrip())
-            if not quiet and not _is_banner(line):
-                print("  yade | " + line.rstrip(), flush=True)
-        rc = proc.wait()
+    rc, tail = _run_logged(cmd, out_dir, log_path,
+                           lambda line: None if quiet or _is_banner(line) else "  yade | " + line)
     wall = time.perf_counter() - start
     if rc != 0:
         errors = [l for l in tail if l.startswith("error:")]
         last = errors[-1] if errors else next((l for l in reversed(tail) if l.strip()), "")
         raise YadeError(f"{script.name} failed (exit {rc}): {last.strip()} (full log: {log_path})")
     return wall
+
+
+def _run_logged(cmd: list[str], cwd: Path, log_path: Path, show) -> tuple[int, deque]:
+    """Run a YADE command in its environment: every line into ``log_path``, the lines for which
+    ``show(line)`` returns text printed; return (exit status, the last 20 lines)."""
+    tail = deque(maxlen=20)
+    with open(log_path, "w") as log:
+        log.write("$ " + " ".join(cmd) + "\n")
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, env=yade_environment(),
+                                cwd=cwd, text=True, bufsize=1)
+        for line in proc.stdout:
+            log.write(line)
+            log.flush()
+            line = line.rstrip()
+            tail.append(line)
+            text = show(line)
+            if text is not None:
+                print(text, flush=True)
+        return proc.wait(), tail
 
 
 def _is_banner(line: str) -> bool:
@@ -152,16 +161,8 @@ def run_batch(generator: str, params_list: list[dict], out_dirs: list[Path], *, 
            "--log", str(batch_dir.resolve() / "@" / "yade.log"), str(table), str(script)]
     start = time.perf_counter()
     log_path = batch_dir / "yade-batch.log"
-    with open(log_path, "w") as log:
-        log.write("$ " + " ".join(cmd) + "\n")
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                stdin=subprocess.DEVNULL, env=yade_environment(),
-                                cwd=batch_dir, text=True, bufsize=1)
-        for line in proc.stdout:
-            log.write(line)
-            if not quiet and line.lstrip().startswith("#"):
-                print("  yade-batch | " + line.rstrip(), flush=True)
-        proc.wait()
+    _run_logged(cmd, batch_dir, log_path, lambda line: "  yade-batch | " + line
+                if not quiet and line.lstrip().startswith("#") else None)
     wall = time.perf_counter() - start
     failed = []
     for out_dir in out_dirs:
