@@ -165,10 +165,13 @@ class Recorder:
     def record(self, k, T, energy, source_energy, source_w=None):
         if self.keep:
             self.T[k] = T
-        self.flow[k] = self.net.boundary_heat_flow(T, source_w)
+        # a diverging run (allow_unstable) is reported in one line by run_scene; no
+        # RuntimeWarning of numpy on the way there
+        with np.errstate(invalid="ignore", over="ignore"):
+            self.flow[k] = self.net.boundary_heat_flow(T, source_w)
+            self.stored[k] = float(np.dot(self.net.capacity_j_k, T - self.ref))
         self.energy[k] = energy
         self.source[k] = source_energy
-        self.stored[k] = float(np.dot(self.net.capacity_j_k, T - self.ref))
         if self.on_output is not None:
             self.on_output(k, float(self.times[k]), T)
 
