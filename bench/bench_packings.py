@@ -43,6 +43,10 @@ from thermal_kernel.packing import read_packing  # noqa: E402
 
 OUT = ROOT / "bench" / "out" / "packings"
 RESULTS = ROOT / "bench" / "results"
+# one small JSON per measured case (its table row and RDF), committed: the tables are rebuilt
+# from them, so a case measured once (the reference takes ~1 h per seed) need not be rebuilt on a
+# new machine, where bench/out/ (the packings, gitignored) is empty
+CASES_DIR = RESULTS / "packings_cases"
 BASE_SCENES = {shape: ROOT / "runs" / f"dense_{shape}.toml"
                for shape in ("box", "cylinder", "sphere")}
 
@@ -202,11 +206,15 @@ def main(argv=None) -> int:
                              "size copy instead of relaxing a new cell (default: the one of "
                              "runs/dense_box_1e5.toml)")
     args = parser.parse_args(argv)
-    rows, stats = [], {}
     for text in args.cases:
         case = parse_case(text)
         folder = OUT / case["label"]
         if args.skip_build and not (folder / "bench.json").exists():
+            continue
+        if args.reuse and not (folder / "packing.h5").exists() and \
+                (CASES_DIR / f"{case['label']}.json").exists():
+            print(f"bench_packings: {case['label']} measured before "
+                  f"({CASES_DIR.name}/{case['label']}.json)", flush=True)
             continue
         print(f"bench_packings: {case['label']} ...", flush=True)
         record = build(case, reuse=args.reuse or args.skip_build,
@@ -229,12 +237,13 @@ def main(argv=None) -> int:
         row["gamma_pipe"], row["gamma_pipe_held"] = \
             pipe_gamma(folder / "packing.h5", case["shape"]) if st.n_particles <= 2_000_000 \
             else (float("nan"), float("nan"))
-        rows.append(row)
+        save_case(row, st)
         print(f"  {row['n_particles']} spheres, {row['wall_seconds']:.0f} s, "
               f"{row['peak_rss_mb']:.0f} MB, phi_bulk {row['solid_fraction_bulk']:.4f}, "
               f"Z_nr {row['z_nonrattler']:.3f}, Z_gaps {row['z_with_gaps']:.3f}, rattlers "
               f"{100 * row['rattler_fraction']:.1f} %, gamma_pipe {row['gamma_pipe']:.4g}",
               flush=True)
+    rows, stats = load_cases()
     if not rows:
         return 0
     import pandas as pd
@@ -245,6 +254,31 @@ def main(argv=None) -> int:
     plot_rdf(stats, RESULTS / "packings_rdf.png")
     print(f"bench_packings: {RESULTS / 'packings.md'}")
     return 0
+
+
+def save_case(row: dict, st) -> None:
+    """bench/results/packings_cases/<label>.json: the case's row and its bulk RDF."""
+    record = dict(row, rdf_r_over_d=st.rdf_r_over_d.tolist(), rdf=st.rdf.tolist())
+    record = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in record.items()}
+    CASES_DIR.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(CASES_DIR / f"{row['label']}.json", json.dumps(record, indent=0))
+
+
+def load_cases() -> tuple[list[dict], dict]:
+    """Every measured case (rows in label order) and, where stored, its statistics for the RDF
+    comparison (cases measured before the RDF was stored have none)."""
+    from tdem_post.packing_compare import PackingStats
+    rows, stats = [], {}
+    fields = [f.name for f in dataclasses.fields(PackingStats)]
+    for path in sorted(CASES_DIR.glob("*.json")):
+        record = json.loads(path.read_text())
+        rdf = record.pop("rdf", None), record.pop("rdf_r_over_d", None)
+        rows.append(record)
+        if rdf[0] is not None:
+            stats[record["label"]] = PackingStats(**{
+                k: (np.asarray(rdf[0]) if k == "rdf" else np.asarray(rdf[1])
+                    if k == "rdf_r_over_d" else record[k]) for k in fields})
+    return rows, stats
 
 
 def summary_markdown(table, stats) -> str:
@@ -268,13 +302,14 @@ def summary_markdown(table, stats) -> str:
                     & (table["shape"] == shape)]
         rdf = ""
         if len(ref) and path != "reference":
-            pairs = [rdf_distance(stats[a], stats[b]) for a in g.label for b in ref.label]
-            rdf = f"{np.mean(pairs):.3f}"
+            pairs = [rdf_distance(stats[a], stats[b]) for a in g.label for b in ref.label
+                     if a in stats and b in stats]
+            rdf = f"{np.mean(pairs):.3f}" if pairs else ""
         elif path == "reference" and len(g) > 1:
             labels = list(g.label)
             pairs = [rdf_distance(stats[a], stats[b]) for i, a in enumerate(labels)
-                     for b in labels[i + 1:]]
-            rdf = f"({np.mean(pairs):.3f} seed to seed)"
+                     for b in labels[i + 1:] if a in stats and b in stats]
+            rdf = f"({np.mean(pairs):.3f} seed to seed)" if pairs else ""
         out.append(
             f"| {shape} | {n_target:,} | {path} | {cell or ''} | {len(g)} | {m.n_particles:,.0f} | "
             f"{m.wall_seconds:.0f} ± {s.wall_seconds:.0f} | {m.cpu_seconds:.0f} | "
