@@ -1,0 +1,178 @@
+"""The validation framework of docs/validation.md (issue 14): one registry of cases, one home for
+the packings they share, resumable runs, and the document assembled from what ran.
+
+A case is a module ``validation/caseN_<name>.py`` exposing
+
+    CASE = CaseInfo(number=N, title="...", paper="002 sec. 2.2, eq. 17", paper_n="1e5",
+                    paper_error="max rel. error 0.7 %")
+    def run(ctx: Context) -> CaseResult
+
+``run`` does the work (packings through ``ctx.packing(name)``, outputs under ``ctx.out``, figures
+as ``ctx.figure(stem)`` -> docs/img/validation_caseN_<stem>.png with a CSV of the plotted numbers
+beside it) and returns the summary row and the markdown of its section. ``ctx.quick`` asks for the
+smallest instance (a few thousand spheres), used by tests/test_validation_small.py; the full run
+is ``tdem validate N`` / ``make validate``. Results are saved as validation/results/caseN.json
+(committed: the document is rebuilt from them) and docs/validation.md is assembled from them by
+``validation.run.assemble``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+OUT = ROOT / "validation" / "out"            # large outputs (gitignored)
+RESULTS = ROOT / "validation" / "results"    # small JSON per case (committed)
+IMG = ROOT / "docs" / "img"
+
+
+@dataclass(frozen=True)
+class CaseInfo:
+    number: int
+    title: str
+    paper: str          # where in which paper, e.g. "002 sec. 2.2, eq. 17"
+    paper_n: str        # the paper's number of spheres, as text ("1e5", "19,465")
+    paper_error: str    # the paper's result / error, as text
+
+
+@dataclass
+class CaseResult:
+    our_n: str                  # the N we ran (largest, and the range), as text
+    our_error: str              # our error in the paper's measure (and stricter ones), as text
+    wall_time: str              # "packing + thermal" as text with units
+    verdict: str                # in words: met / not met / why
+    section_md: str             # the case's section of docs/validation.md (markdown, no heading)
+    numbers: dict = field(default_factory=dict)   # machine-readable values (tests read them)
+    command: str = ""           # the command that reproduces it
+
+
+@dataclass
+class Context:
+    number: int
+    quick: bool = False
+    threads: int = 1
+
+    @property
+    def out(self) -> Path:
+        d = OUT / (f"case{self.number}" + ("_quick" if self.quick else ""))
+        d.mkdir(parents=True, exist_ok=True)
+        return d
+
+    def figure(self, stem: str) -> Path:
+        """docs/img/validation_case<N>_<stem>.png (quick runs write under ctx.out instead, so a
+        test never overwrites the documented figures); put the CSV beside it (same stem)."""
+        if self.quick:
+            return self.out / f"validation_case{self.number}_{stem}.png"
+        IMG.mkdir(parents=True, exist_ok=True)
+        return IMG / f"validation_case{self.number}_{stem}.png"
+
+    def packing(self, name: str) -> Path:
+        return packing(name)
+
+    def progress(self, text: str) -> None:
+        print(f"  case {self.number}: {text}", flush=True)
+
+
+# ---------------------------------------------------------------- shared packings
+# name -> (scene TOML whose [pack] table is used, overrides of that table). Built once by
+# `tdem pack` into validation/out/packings/<name>/packing.h5 and shared by every case. Tiled
+# packings of seed 1 copy the relaxed 10,000-sphere cell of runs/dense_box_1e5.toml when it exists
+# (cell_packing), so the 1e5 / 1e6 boxes, the cylinder and the sphere cost seconds after it.
+CELL_1E5 = ROOT / "runs" / "out" / "dense_box_1e5" / "cell.h5"
+PACKINGS: dict[str, tuple[str, dict]] = {
+    "box_2000": ("runs/dense_box.toml", dict(n_particles=2000, seed=1)),
+    "box_1e5": ("runs/dense_box_1e5.toml", {}),
+    "box_1e6": ("runs/dense_box_1e5.toml", dict(n_particles=1_000_000)),
+    "cylinder_1e5": ("runs/dense_cylinder.toml", dict(n_particles=100_000, method="tiled",
+                                                      cell_particles=10_000)),
+    "sphere_1e5": ("runs/dense_sphere.toml", dict(n_particles=100_000, method="tiled",
+                                                  cell_particles=10_000)),
+}
+
+
+def register_packing(name: str, scene: str, overrides: dict) -> None:
+    """A case adds the packings only it needs (e.g. a beam, a sheet) under its own names."""
+    PACKINGS.setdefault(name, (scene, overrides))
+
+
+def _scene_with(scene: Path, overrides: dict) -> str:
+    lines, in_pack = [], False
+    for line in scene.read_text().splitlines():
+        if line.startswith("["):
+            in_pack = line.strip() == "[pack]"
+            lines.append(line)
+            if in_pack:
+                lines += [f"{k} = {json.dumps(v)}" for k, v in overrides.items()]
+            continue
+        if in_pack and line.split("=")[0].strip() in overrides:
+            continue
+        lines.append(line)
+    return "\n".join(lines) + "\n"
+
+
+def packing(name: str) -> Path:
+    """validation/out/packings/<name>/packing.h5, built by `tdem pack` when missing."""
+    if name not in PACKINGS:
+        raise SystemExit(f"validation: unknown packing {name!r} (known: {', '.join(PACKINGS)})")
+    folder = OUT / "packings" / name
+    path = folder / "packing.h5"
+    if path.exists():
+        return path
+    folder.mkdir(parents=True, exist_ok=True)
+    import fcntl
+    with open(folder / ".lock", "w") as lock:    # two cases asking at once: one builds
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if path.exists():
+            return path
+        return _build_packing(name, folder, path)
+
+
+def _build_packing(name: str, folder: Path, path: Path) -> Path:
+    scene_rel, overrides = PACKINGS[name]
+    overrides = dict(overrides)
+    if overrides.get("method", _pack_value(ROOT / scene_rel, "method")) == "tiled" \
+            and overrides.get("seed", 1) == 1 and CELL_1E5.exists() \
+            and overrides.get("cell_particles", 10_000) == 10_000:
+        overrides.setdefault("cell_packing", str(CELL_1E5))
+    scene = folder / "scene.toml"
+    scene.write_text(_scene_with(ROOT / scene_rel, overrides))
+    print(f"  packing {name}: tdem pack {scene.relative_to(ROOT)} ...", flush=True)
+    t0 = time.perf_counter()
+    tdem = Path(sys.executable).with_name("tdem")
+    proc = subprocess.run([str(tdem), "pack", str(scene), "--out", str(folder), "--quiet"],
+                          capture_output=True, text=True)
+    (folder / "tdem_pack.log").write_text(proc.stdout + proc.stderr)
+    if proc.returncode != 0:
+        last = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["?"]
+        raise SystemExit(f"validation: packing {name} failed: {last[0]}")
+    (folder / "pack_seconds.json").write_text(json.dumps(
+        {"wall_seconds": time.perf_counter() - t0}))
+    return path
+
+
+def _pack_value(scene: Path, key: str):
+    import tomllib
+    return tomllib.loads(scene.read_text()).get("pack", {}).get(key)
+
+
+def pack_seconds(name: str) -> float | None:
+    """Wall seconds `tdem pack` took for a shared packing (None if it was not built here)."""
+    p = OUT / "packings" / name / "pack_seconds.json"
+    return json.loads(p.read_text())["wall_seconds"] if p.exists() else None
+
+
+def save_result(info: CaseInfo, result: CaseResult, seconds: float) -> Path:
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    path = RESULTS / f"case{info.number}.json"
+    record = dict(info=dataclasses.asdict(info), result=dataclasses.asdict(result),
+                  run_seconds=seconds, finished=time.strftime("%Y-%m-%d %H:%M:%S"))
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(record, indent=1, default=float))
+    os.replace(tmp, path)
+    return path
