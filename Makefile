@@ -46,11 +46,14 @@ bench-packings: deps
 
 # Long validation: the 7,500-sphere pressure campaign of the pipe-model paper (YADE ~8 min,
 # thermal ~3 min), quoted in docs/campaign.md; the ETC of composites on the 10,000-sphere dense
-# box (YADE ~8 min), quoted in docs/post.md.
+# box (YADE ~8 min), quoted in docs/post.md; then every case of docs/validation.md (the papers'
+# own cases; resumable: a case with validation/results/caseN.json is skipped), which rewrites
+# docs/validation.md and the summary in README.md.
 validate: deps
 	$(BIN)/tdem campaign runs/campaign_7500.toml
 	test -f runs/out/dense_box_10k/packing.h5 || $(BIN)/tdem pack runs/dense_box_10k.toml
 	$(BIN)/tdem etc runs/dense_box_10k.toml
+	$(BIN)/tdem validate
 
 clean:
 	rm -rf $(VENV) runs/out .pytest_cache

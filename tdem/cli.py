@@ -302,6 +302,11 @@ def _cmd_plot(args):
     print(f"wrote {out}")
 
 
+def _cmd_validate(args):
+    from validation.run import validate
+    return validate(args.cases, force=args.force, quick=args.quick, list_only=args.list_only)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
     parser = argparse.ArgumentParser(
@@ -408,6 +413,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("packing")
     p.add_argument("-o", "--output", help="output .png (default: beside the input)")
     p.set_defaults(func=_cmd_plot)
+
+    p = sub.add_parser("validate", help="run the cases of docs/validation.md (the papers' own "
+                                        "cases) and rebuild it from the results (resumes)")
+    p.add_argument("cases", nargs="*", metavar="CASE",
+                   help="case numbers (default: every case with a module, in order)")
+    p.add_argument("--force", action="store_true",
+                   help="run cases that have a result already (default: skip them)")
+    p.add_argument("--quick", action="store_true",
+                   help="each case's smallest instance; nothing saved, documents untouched")
+    p.add_argument("--list", action="store_true", dest="list_only",
+                   help="list the cases and whether each has a result")
+    p.set_defaults(func=_cmd_validate)
     return parser
 
 
@@ -418,7 +435,7 @@ def main(argv=None) -> int:
     from .yade import YadeError
     args = build_parser().parse_args(argv)
     try:
-        args.func(args)
+        code = args.func(args)      # None, or an exit code (validate: 1 if a case failed)
         sys.stdout.flush()          # a closed pipe shows here, not at exit
     except (UserError, PackingError, YadeError, SceneError, NetworkError) as e:
         print(f"tdem: error: {e}", file=sys.stderr)
@@ -433,7 +450,7 @@ def main(argv=None) -> int:
     except OSError as e:            # the filesystem: a full disk, a read-only or missing folder
         print(f"tdem: error: {_os_error(e)}", file=sys.stderr)
         return 2
-    return 0
+    return code if isinstance(code, int) else 0
 
 
 def _os_error(e: OSError) -> str:

@@ -176,3 +176,43 @@ def save_result(info: CaseInfo, result: CaseResult, seconds: float) -> Path:
     tmp.write_text(json.dumps(record, indent=1, default=float))
     os.replace(tmp, path)
     return path
+
+
+# ---------------------------------------------------------------- helpers for the cases
+def packing_built(name: str) -> bool:
+    """True when the shared packing ``name`` is already on this machine (no YADE needed)."""
+    return (OUT / "packings" / name / "packing.h5").exists()
+
+
+def load_result(number: int) -> dict | None:
+    """The saved record of case ``number`` (validation/results/caseN.json), or None."""
+    path = RESULTS / f"case{number}.json"
+    if not path.exists():
+        return None
+    return json.loads(path.read_text())
+
+
+def previous_numbers(number: int) -> dict:
+    """``numbers`` of the last saved run of case ``number`` ({} if none): a case re-measures what
+    it can and carries over, with their dates, the rows whose packings are not on this machine."""
+    record = load_result(number)
+    return dict(record["result"].get("numbers", {})) if record else {}
+
+
+def write_csv(path: Path, header: list[str], rows) -> Path:
+    """A small CSV (the numbers of a figure or a table), written atomically."""
+    import csv
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    with open(tmp, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for r in rows:
+            w.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in r])
+    os.replace(tmp, path)
+    return path
+
+
+def today() -> str:
+    return time.strftime("%Y-%m-%d")
