@@ -216,3 +216,14 @@ def write_csv(path: Path, header: list[str], rows) -> Path:
 
 def today() -> str:
     return time.strftime("%Y-%m-%d")
+
+
+def test_module(name: str):
+    """tests/<name>.py loaded as a module, for the exact cases that reuse the functions of a test
+    (the same inputs and formulas the test asserts, here measured and reported)."""
+    import importlib.util
+    path = ROOT / "tests" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"tdem_tests_{name}", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

@@ -1,0 +1,86 @@
+"""Case 11 of docs/validation.md: the two-sphere conductances of the pipe model (003 eq. 34-40)
+and of Batchelor-O'Brien, Argento and Chaudhuri (004) against their closed forms.
+
+Exact case: the inputs and formulas are those of tests/test_laws.py (``test_pipe_by_hand_*``,
+``test_bob_argento_ott_by_hand``, ``test_pipe_is_1033_times_bob_for_equal_spheres``,
+``test_chaudhuri_by_hand``), computed with the test's own helpers (``_one``, ``_h``, ``_zeta``,
+``E``, ``NU``) and reported as relative errors instead of asserted.
+"""
+from __future__ import annotations
+
+import math
+
+from .framework import CaseInfo, CaseResult, Context, test_module
+
+CASE = CaseInfo(number=11, title="pipe / BOB / Argento / Chaudhuri two-sphere values",
+                paper="003 eq. 34–40, 004", paper_n="two spheres",
+                paper_error="2.066 / 2 / π/(2β)")
+TESTS = ("tests/test_laws.py::test_pipe_by_hand_equal_spheres", "test_pipe_by_hand_unequal_spheres",
+         "test_bob_argento_ott_by_hand", "test_pipe_is_1033_times_bob_for_equal_spheres",
+         "test_chaudhuri_by_hand")
+
+
+def measure() -> list[tuple[str, float, float, str]]:
+    """(quantity, tdem, closed form, reference) for each two-sphere value."""
+    t = test_module("test_laws")
+    E, NU = t.E, t.NU
+    rows = []
+    r, kappa, force = 2e-3, 205.0, 10.0                     # 003 Table 1 particle, F_n = 10 N
+    c = t._one(r, r, 2 * r - 1e-6, kappa, kappa, force=force)
+    zeta = t._zeta(force, r)
+    k_n = 4 * E / (6 * (1 - NU ** 2)) * math.sqrt(r / 2)     # eq. 39
+    chain = kappa / 0.6846 * math.sqrt(r) * (force / k_n) ** (1 / 3)   # eq. 36-38
+    pipe = float(t._h("pipe", c)[0])
+    bob = float(t._h("bob", c)[0])
+    rows.append(("pipe, equal spheres: H (eq. 36-39 chain)", pipe, chain, "003 eq. 36-39"))
+    rows.append(("pipe, equal spheres: H / (κ ζ) (eq. 40: 2.066)", pipe / (kappa * zeta),
+                 math.sqrt(2) / 0.6846, "003 eq. 40 (2.066 printed)"))
+    rows.append(("BOB: H / (κ ζ)", bob / (kappa * zeta), 2.0, "003 eq. 34"))
+    rows.append(("Argento: H / (κ ζ), β = 0.899", float(t._h("argento", c)[0]) / (kappa * zeta),
+                 math.pi / (2 * 0.899), "003 eq. 35"))
+    rows.append(("Ott (Argento, β = 0.952): H / (κ ζ)", float(t._h("ott", c)[0]) / (kappa * zeta),
+                 math.pi / (2 * 0.952), "003 eq. 35"))
+    rows.append(("pipe / BOB, equal spheres (1.033)", pipe / bob, math.sqrt(2) / (2 * 0.6846),
+                 "003 eq. 40 / eq. 34"))
+    # unequal spheres: eq. 18-20, one contact disc of the lens radius
+    r_i, r_j, k_i, k_j, f = 1e-3, 2e-3, 10.0, 40.0, 3.0
+    e_star = E / (2 * (1 - NU ** 2))
+    r_star = r_i * r_j / (r_i + r_j)
+    a_l = math.sqrt(2) * (3 * f * r_star / (4 * e_star)) ** (1 / 3)
+    rows.append(("pipe, unequal spheres and κ: H (eq. 18-20)",
+                 float(t._h("pipe", t._one(r_i, r_j, 3e-3 - 1e-6, k_i, k_j, force=f))[0]),
+                 1 / (0.6846 / (2 * k_i * a_l) + 0.6846 / (2 * k_j * a_l)), "003 eq. 18-20"))
+    # Chaudhuri (004): 4 k1 k2 / (k1 + k2) (3 F r* / (4 E*))^(1/3)
+    e_star2 = 1 / (2 * (1 - NU ** 2) / E)
+    rows.append(("Chaudhuri: H", float(t._h("chaudhuri", t._one(1e-3, 2e-3, 3e-3 - 1e-6, 1.0, 3.0,
+                                                                force=5.0))[0]),
+                 3.0 * (3 * 5.0 * (2e-3 / 3) / (4 * e_star2)) ** (1 / 3), "004"))
+    return rows
+
+
+def run(ctx: Context) -> CaseResult:
+    rows = measure()
+    errs = [abs(v / ref - 1) for _, v, ref, _ in rows]
+    worst = max(errs)
+    table = "\n".join(f"| {q} | {v:.10g} | {ref:.10g} | {e:.1e} | {src} |"
+                      for (q, v, ref, src), e in zip(rows, errs))
+    printed = rows[1][1]
+    section = f"""\
+Exact case: each law's conductance of two spheres in contact (003 Table 1 particle, R = 2 mm,
+κ = 205 W/m/K, F_n = 10 N; E = 50 GPa, ν = 0.2; ζ the Hertz contact radius of eq. 34-35)
+against its closed form.
+
+| quantity | tdem | closed form | relative error | reference |
+|---|---|---|---|---|
+{table}
+
+The pipe law's 2.066 of eq. 40 is √2 / 0.6846 = {printed:.6f} rounded to four digits (the paper's
+λ = −0.6846). The tests {', '.join(f'`{t}`' for t in TESTS)} assert the same values (rtol 1e-12);
+this case computes them with the tests' own helpers."""
+    return CaseResult(
+        our_n="two spheres", our_error=f"max {worst:.1e} (round-off); 2.066 to its 4 printed "
+                                       f"digits ({printed:.5f})",
+        wall_time="— (seconds)",
+        verdict="exact: " + ", ".join(f"`{t}`" for t in TESTS), section_md=section,
+        numbers=dict(rows=[dict(quantity=q, tdem=v, closed_form=ref, source=s)
+                           for q, v, ref, s in rows], max_rel_error=worst))

@@ -1,0 +1,61 @@
+"""Case 1 of docs/validation.md: on a simple-cubic lattice the Terreros law (000 sec. 3) is the
+7-point finite-difference stencil of the heat equation.
+
+Exact case: the numbers are those of tests/test_laws.py::
+test_terreros_on_a_simple_cubic_lattice_is_the_7_point_stencil, computed with the test's own
+helpers (``_lattice``, ``_h``, ``_c``) and reported as errors instead of asserted.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .framework import CaseInfo, CaseResult, Context, test_module
+
+CASE = CaseInfo(number=1, title="simple-cubic lattice = 7-point stencil", paper="000 sec. 3",
+                paper_n="lattice", paper_error="exact")
+TEST = "tests/test_laws.py::test_terreros_on_a_simple_cubic_lattice_is_the_7_point_stencil"
+
+
+def measure(shape=(5, 5, 5), a=2e-3, lam=134.0, rho=2790.0, cp=880.0) -> dict:
+    t = test_module("test_laws")
+    pk, nb, contacts, particles = t._lattice(shape=shape, a=a, lam=lam, rho=rho, cp=cp)
+    h = t._h("terreros", contacts)
+    cap = t._c("terreros", particles)
+    interior = (contacts.neighbours_i == 6) & (contacts.neighbours_j == 6)
+    # the balance of the centre particle against the Laplacian of T = x^2 + 2 y^2 - z^2 (= 4)
+    x, y, z = pk.position.T
+    temp = x ** 2 + 2 * y ** 2 - z ** 2
+    centre = int(np.argmin(np.linalg.norm(pk.position - pk.position.mean(axis=0), axis=1)))
+    rows = (pk.pair[:, 0] == centre) | (pk.pair[:, 1] == centre)
+    other = np.where(pk.pair[rows, 0] == centre, pk.pair[rows, 1], pk.pair[rows, 0])
+    rate = float(np.sum(h[rows] * (temp[other] - temp[centre])) / cap[centre])
+    return dict(
+        n_particles=int(pk.n_particles), interior_contacts=int(interior.sum()),
+        conductance_rel_error=float(np.max(np.abs(h[interior] / (lam * a) - 1))),
+        capacity_rel_error=float(np.max(np.abs(cap[nb == 6] / (rho * cp * a ** 3) - 1))),
+        laplacian_rel_error=float(abs(rate / (lam / (rho * cp) * 4.0) - 1)),
+        centre_links=int(rows.sum()))
+
+
+def run(ctx: Context) -> CaseResult:
+    m = measure(shape=(3, 3, 3) if ctx.quick else (5, 5, 5))
+    section = f"""\
+Exact case. On a simple-cubic lattice of pitch a (000's Table 2 material: λ = 134 W/m/K,
+ρ = 2790 kg/m³, c = 880 J/kg/K) every interior contact of the `terreros` law has H = λ a²/a = λ a
+and every interior particle the capacity ρ c a³, so the particle balance is the 7-point stencil.
+On a {m['n_particles']}-sphere lattice ({m['interior_contacts']} interior contacts):
+
+| quantity | tdem against the stencil (max relative error) |
+|---|---|
+| H of an interior contact vs λ a | {m['conductance_rel_error']:.1e} |
+| capacity of an interior particle vs ρ c a³ | {m['capacity_rel_error']:.1e} (000's Table 1 prints f_vl(6) = 0.52359 for π/6: 1.7e-5) |
+| dT/dt of the centre particle for T = x² + 2y² − z² vs α ∇²T | {m['laplacian_rel_error']:.1e} |
+
+The test `{TEST}` asserts the same numbers (rtol 1e-14 for H, 2e-5 for the capacity and the
+Laplacian); this case computes them with the test's own helpers."""
+    return CaseResult(
+        our_n="lattice", our_error=f"H: {m['conductance_rel_error']:.1e} (round-off); capacity and ∇²T: "
+                                   f"{m['capacity_rel_error']:.1e} (000's Table 1 prints π/6 "
+                                   "as 0.52359)",
+        wall_time="— (seconds)",
+        verdict=f"exact: `{TEST}`", section_md=section, numbers=m)
