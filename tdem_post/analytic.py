@@ -97,10 +97,25 @@ def rod_temperature(x, t, length, alpha, t_hot, t_initial, tol=1e-12):
 
 
 def sphere_temperature(r, t, radius, alpha, t_surface, t_initial, tol=1e-12):
-    """Sphere of radius R, uniform initial temperature, surface held at t_surface from t = 0
-    (Carslaw & Jaeger 9.3; Haddad 2021, 002 eq. 18, whose printed form swaps the roles of the
-    two temperatures). Uses v = r (T - T_s), which solves the slab problem on [0, R] with
-    v = 0 at both ends; the centre value is its limit r -> 0 (see sphere_centre_temperature)."""
+    """Sphere of radius R, uniform initial temperature T_0, surface held at T_s from t = 0
+    (Carslaw & Jaeger 9.3, eq. 9.3(4)):
+
+        T(r, t) = T_s + (2 R (T_s - T_0) / (pi r)) sum_n (-1)^n / n sin(n pi r / R)
+                  exp(-n^2 pi^2 alpha t / R^2)
+
+    Derivation: v = r (T - T_s) solves v_t = alpha v_rr on [0, R] with v = 0 at both ends and
+    v(r, 0) = r (T_0 - T_s); its sine series has b_n = 2 (T_0 - T_s) R (-1)^(n+1) / (n pi).
+
+    Haddad 2021 (002) prints this as eq. 18,
+        T = T_0 + (2 (T_0 - T_i) / (pi r)) sum_n (-1)^n / n sin(n pi r / R) e^(...),
+    with T_0 the initial and T_i the surface temperature: two misprints. (i) The roles of the
+    two temperatures are swapped (read literally it tends to the *initial* temperature as
+    t -> infinity); (ii) the factor R is missing from 2R/(pi r) (the printed sum is not
+    dimensionless; at t = 0 it would give T_0 + (T_i - T_0) / R instead of T_0). With T_0 <-> T_i
+    exchanged and R restored it is the form above, which is what this function evaluates
+    (tested against an independent finite-volume solve of the radial equation,
+    tests/test_validation_case5_7.py, and the limits in tests/test_analytic.py). For
+    alpha t / R^2 < 0.05 the equivalent image (erfc) series is summed instead."""
     r = np.asarray(r, dtype=float)
     if t <= 0:
         return np.where(r < radius, t_initial, t_surface) + 0.0 * r
@@ -164,9 +179,31 @@ def _sphere_centre_theta(fo, tol):
 
 
 def sphere_centre_temperature(t, radius, alpha, t_surface, t_initial, tol=1e-12):
-    """Centre of the sphere (002 eq. 19, with the roles of the temperatures as in
-    sphere_temperature): T_c = T_s + 2 (T_i - T_s) sum_n (-1)^{n+1} exp(-n^2 pi^2 alpha t/R^2)."""
+    """Centre of the sphere, the limit r -> 0 of sphere_temperature (sin(n pi r/R)/r -> n pi/R):
+    T_c = T_s + 2 (T_0 - T_s) sum_n (-1)^(n+1) exp(-n^2 pi^2 alpha t / R^2).
+
+    002 eq. 19 prints T_c = T_0 + 2 (T_0 - T_i) sum_n (-1)^n exp(...): the same swap of the
+    initial (T_0) and surface (T_i) temperatures as its eq. 18 (read literally it starts at T_i
+    and ends at T_0); with the two exchanged it is the form here. The series converges slowly
+    for small alpha t / R^2; there the image form 1 - (2/sqrt(pi Fo)) sum_k exp(-(2k+1)^2/(4 Fo))
+    of the dimensionless excess is used."""
     if t <= 0:
         return float(t_initial)
     return t_surface + (t_initial - t_surface) * _sphere_centre_theta(alpha * t / radius ** 2,
                                                                       tol)
+
+
+def sphere_shell_mean_temperature(r0, r1, t, radius, alpha, t_surface, t_initial, tol=1e-12):
+    """Volume mean of sphere_temperature over the shells r0 <= r <= r1 (r0 = 0: a ball about
+    the centre), i.e. int T r^2 dr / int r^2 dr, by 32-point Gauss-Legendre quadrature in r
+    (exact to round-off for the smooth field at t > 0). What a shell-binned DEM profile
+    measures."""
+    nodes, weights = np.polynomial.legendre.leggauss(32)
+    r0 = np.atleast_1d(np.asarray(r0, float))
+    r1 = np.atleast_1d(np.asarray(r1, float))
+    half = 0.5 * (r1 - r0)[:, None]
+    rs = half * nodes[None, :] + 0.5 * (r1 + r0)[:, None]
+    vals = sphere_temperature(rs.ravel(), t, radius, alpha, t_surface,
+                              t_initial, tol).reshape(rs.shape)
+    w = weights[None, :] * rs ** 2 * half
+    return (vals * w).sum(axis=1) / w.sum(axis=1)

@@ -1,0 +1,110 @@
+"""Cases 5 and 7 of docs/validation.md kept honest at small N, and the corrected sphere series of
+002 eq. 18-19 against an independent solve.
+
+Quick instances (ctx.quick): a 2,011-sphere ball (case 5) and a 2,000-sphere cube (case 7),
+both carved from copies of the committed 400-sphere periodic cell tests/data/dense_periodic.h5
+by `tdem pack` (method "tiled", YADE only copies and carves: ~2 s each). Measured there (see
+each test for the numbers and the margins) by `.venv/bin/python validation/case5_sphere.py
+--quick` and `validation/case7_halo.py --quick`.
+"""
+import numpy as np
+import pytest
+
+from tdem_post import analytic
+
+
+def radial_finite_volume(n, radius, alpha, fourier, t_s=1.0, t_0=0.0):
+    """Sphere with a held surface, by an independent route: n equal finite-volume shells of the
+    radial heat equation (conductances r_f^2 / h between shells, R^2 / (h/2) to the held
+    surface, volumes (r_f+^3 - r_f-^3)/3), integrated exactly in time by eigendecomposition of
+    the symmetrised system. Returns the shell faces and the shell temperatures at each Fo."""
+    h = radius / n
+    faces = np.arange(n + 1) * h
+    vol = (faces[1:] ** 3 - faces[:-1] ** 3) / 3.0
+    g = faces[1:-1] ** 2 / h
+    k = np.zeros((n, n))
+    i = np.arange(n - 1)
+    k[i, i] += g
+    k[i + 1, i + 1] += g
+    k[i, i + 1] -= g
+    k[i + 1, i] -= g
+    k[-1, -1] += radius ** 2 / (0.5 * h)
+    s = 1.0 / np.sqrt(vol)
+    lam, q = np.linalg.eigh(alpha * s[:, None] * k * s[None, :])
+    y0 = q.T @ (np.sqrt(vol) * (t_0 - t_s))
+    out = [t_s + s * (q @ (np.exp(-lam * fo * radius ** 2 / alpha) * y0)) for fo in fourier]
+    return faces, np.array(out)
+
+
+def test_sphere_series_equals_a_radial_finite_volume_solve():
+    # 002 sec. 2.3: aluminium ball, D = 10 cm; Fo 0.3045 is the paper's t = 10 s
+    radius, alpha = 0.05, 185.0 / (2700.0 * 900.0)
+    fourier = [0.01, 0.1, 0.30453]
+    errors = {}
+    for n in (200, 400):
+        faces, temp = radial_finite_volume(n, radius, alpha, fourier)
+        errors[n] = []
+        for k, fo in enumerate(fourier):
+            exact = analytic.sphere_shell_mean_temperature(faces[:-1], faces[1:],
+                                                           fo * radius ** 2 / alpha, radius,
+                                                           alpha, 1.0, 0.0)
+            errors[n].append(np.abs(temp[k] - exact).max())
+    # measured 2.6e-5 / 3.5e-6 / 1.4e-6 of the temperature step at 400 shells ...
+    assert max(errors[400]) < 5e-5
+    # ... and second order in the shell width (ratio 4.0 from 200 to 400): the difference is
+    # the finite-volume solve's, not the series'
+    for e200, e400 in zip(errors[200], errors[400]):
+        assert 3.5 < e200 / e400 < 4.5
+    # centre at the paper's t = 10 s: T_s = 200 C, T_0 = 20 C -> 182.18 C
+    t10 = 10.0
+    tc = analytic.sphere_centre_temperature(t10, radius, alpha, 200.0, 20.0)
+    assert tc == pytest.approx(182.178, abs=1e-3)
+    assert temp[2][0] * 180.0 + 20.0 == pytest.approx(tc, abs=2e-3)   # innermost shell, n=400
+
+
+def test_the_printed_eq_18_19_fail_the_limits_the_corrected_ones_meet():
+    radius, alpha, t_0, t_i = 0.05, 185.0 / (2700.0 * 900.0), 20.0, 200.0
+    n = np.arange(1, 20001)
+
+    def printed_19(t):    # 002 eq. 19 as printed (T_0 initial, T_i surface)
+        return t_0 + 2 * (t_0 - t_i) * np.sum((-1.0) ** n * np.exp(-alpha * (np.pi * n) ** 2
+                                                                     * t / radius ** 2))
+    late = 20 * radius ** 2 / alpha
+    assert printed_19(late) == pytest.approx(t_0)        # ends at the initial temperature
+    assert printed_19(1e-6) == pytest.approx(t_i, abs=0.5)  # starts at the surface one
+    assert analytic.sphere_centre_temperature(late, radius, alpha, t_i, t_0) == \
+        pytest.approx(t_i)
+    assert analytic.sphere_centre_temperature(1e-6, radius, alpha, t_i, t_0) == \
+        pytest.approx(t_0)
+    # eq. 18 as printed lacks R: at (almost) t = 0 it is T_0 + (T_i - T_0) / R, not T_0
+    r = 0.3 * radius
+    t = 1e-4 * radius ** 2 / alpha
+    printed_18 = t_0 + 2 * (t_0 - t_i) / (np.pi * r) * np.sum(
+        (-1.0) ** n / n * np.sin(n * np.pi * r / radius)
+        * np.exp(-alpha * (np.pi * n) ** 2 * t / radius ** 2))
+    assert printed_18 == pytest.approx(t_0 + (t_i - t_0) / radius, rel=1e-3)
+    assert analytic.sphere_temperature(np.array([r]), t, radius, alpha, t_i, t_0)[0] == \
+        pytest.approx(t_0, abs=1e-6)
+
+
+def test_case5_quick_sphere_within_its_documented_error():
+    from validation import case5_sphere
+    from validation.framework import Context
+    res = case5_sphere.run(Context(5, quick=True))
+    rows = {r["label"]: r for r in res.numbers["rows"]}
+    ours = rows["ours, held planes"]
+    assert ours["n_particles"] == 2011
+    assert ours["n_held"] > 300 and ours["unconnected"] == 0
+    # the held shell lies inside the carving radius, by less than a mean radius
+    assert 0 < ours["r_carve_m"] - ours["r_held_m"] < 1e-3
+    # measured: centre +2.75 C, max 3.45 C, RMS 1.07 C (C_t 0.6966, held planes); domain
+    # length (C_t 0.6605): centre +0.11 C, max 4.19 C. Bounds: those + ~25 %.
+    assert abs(ours["centre_error_c"]) < 3.5
+    assert ours["max_abs_error_c"] < 4.5
+    assert ours["rms_error_c"] < 1.4
+    assert rows["ours, domain length"]["max_abs_error_c"] < 5.3
+    # the centre warms monotonically towards the surface temperature
+    c = np.array(ours["centre_dem_c"])
+    assert np.all(np.diff(c) > 0) and 20.0 < c[0] and c[-1] < 200.0
+    # the implicit runs of the speed figure reach the explicit one's error
+    assert abs(res.numbers["speed"][-1]["centre_error_c"] - ours["centre_error_c"]) < 0.3

@@ -1,0 +1,593 @@
+"""Case 5 of docs/validation.md: Haddad's sphere with a held surface (002 sec. 2.3, eq. 18-19,
+Fig. 7-8) on tdem packings.
+
+A ball of aluminium (002 sec. 2.3: rho 2700, lambda 185, c 900), uniformly at T_0 = 20 C, whose
+surface is held at T_s = 200 C from t = 0; law haddad. The paper: D = 10 cm, 1e5 and 1e6 spheres,
+C_t 0.806 / 0.834 (its cube calibration at the same N), the centre temperature against time
+(Fig. 7) and, at t = 10 s, max |T_DEM - T_exact| = 1.93 C "located at the centre" (Fig. 8c).
+
+Ours: balls carved from copies of one relaxed 10,000-sphere periodic cell (`tiled`, the
+framework's sphere_1e5 and a 1e6 / smaller ones registered here); the carved surface is a cut
+surface whose "wall contacts" (the spheres within 1.1 r of it) are held at T_s by a
+`temperature` boundary on "surface" (thermal_kernel/problem.py). The analytical sphere is the
+*held shell*: radius R_h = mean distance of the held spheres' centres from the carving centre
+(the analogue of case 4's held planes). Not rescaled to D = 10 cm: the output time is the
+paper's Fourier number Fo = alpha 10 s / (5 cm)^2 = 0.3045 with our R_h (and Fig. 7's times
+1 ... 10 s likewise).
+
+C_t, two sources compared: the paper's (0.806 at 1e5, 0.834 at 1e6) and ours, calibrated on the
+cube carved from the same cell with the same N (002 eq. 8-9, mean of the three axes), in both
+length conventions (held planes: the primary one, as R_h is a held radius; domain length: the
+paper's convention).
+
+Measures at t = 10 s (paper time), over the conducting, free particles: the centre error (the
+volume-weighted mean of T_p - T_exact(r_p) over the particles within 0.1 R_h of the centre), the
+max and RMS of |T_p - T_exact(r_p)| (the paper's Fig. 8c measure is the max), and a shell profile.
+
+  .venv/bin/python -m validation.run 5          (the framework)
+  .venv/bin/python validation/case5_sphere.py [--quick]
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tdem_post.analytic import sphere_centre_temperature, sphere_temperature
+from thermal_kernel.calibrate import cross_section, flux_test
+from thermal_kernel.network import assemble
+from thermal_kernel.packing import read_packing
+from thermal_kernel.problem import boundary_particles, build_problem
+from thermal_kernel.scene import load_scene
+from thermal_kernel.solvers.explicit import run_explicit
+from thermal_kernel.solvers.implicit import run_implicit
+from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
+    register_packing
+
+CASE = CaseInfo(number=5, title="sphere with held surface, eq. 18-19",
+                paper="002 sec. 2.3, eq. 18-19, Fig. 7-8", paper_n="1e5, 1e6",
+                paper_error="centre (max) |T - T_exact| <= 1.93 C at 1e5, t = 10 s")
+
+RHO, LAMBDA, CAP = 2700.0, 185.0, 900.0            # aluminium, 002 sec. 2.3
+ALPHA = LAMBDA / (RHO * CAP)
+KELVIN = 273.15
+T0_C, TS_C = 20.0, 200.0
+PAPER_R, PAPER_T_END = 0.05, 10.0
+PAPER_TIMES = tuple(float(t) for t in range(1, 11))          # Fig. 7's time axis, s
+FO_END = ALPHA * PAPER_T_END / PAPER_R ** 2                  # 0.3045
+PAPER_CT = {100_000: 0.806, 1_000_000: 0.834}
+CENTRE_BALL = 0.1                                            # fraction of R_h
+VERSION = 3                                                  # of the cached run records
+
+CELL400 = ROOT / "tests" / "data" / "dense_periodic.h5"       # the committed 400-sphere cell
+# name -> (sphere packing, cube packing of the same N for the calibration)
+SIZES = {
+    3_000: ("sphere_tiled_3000", "box_tiled_3000"),
+    10_000: ("sphere_tiled_10000", "box_tiled_10000"),
+    30_000: ("sphere_tiled_30000", "box_tiled_30000"),
+    100_000: ("sphere_1e5", "box_1e5"),
+    1_000_000: ("sphere_1e6", "box_1e6"),
+}
+QUICK = {2_000: ("sphere_2000_cell400", "box_2000_cell400")}
+for _n, (_s, _b) in SIZES.items():
+    register_packing(_s, "runs/dense_sphere.toml", dict(n_particles=_n, method="tiled",
+                                                         cell_particles=10_000))
+    register_packing(_b, "runs/dense_box_1e5.toml", dict(n_particles=_n))
+for _n, (_s, _b) in QUICK.items():
+    _cell = dict(n_particles=_n, method="tiled", cell_particles=400, cell_packing=str(CELL400))
+    register_packing(_s, "runs/dense_sphere.toml", _cell)
+    register_packing(_b, "runs/dense_box_1e5.toml", _cell)
+
+
+def scene_text(packing: str, ct: float, surface: str | None = "surface") -> str:
+    held = f"""
+[[boundary]]
+kind = "temperature"
+name = "surface"
+on = "{surface}"
+value = {TS_C + KELVIN}
+""" if surface else ""
+    return f"""
+packing = "{packing}"
+law = "haddad"
+[law_params]
+ct = {ct!r}
+[material]
+conductivity = {LAMBDA}
+density = {RHO}
+heat_capacity = {CAP}
+[initial]
+temperature = {T0_C + KELVIN}
+{held}
+[solver]
+method = "steady"
+"""
+
+
+SCENE_PATH = ROOT / "validation" / "case5_scene.toml"        # named in messages only
+
+
+def calibrate_box(box_path, axes="xyz", ct_arb=0.806):
+    """C_t of the cube (002 eq. 8-9), per axis and mean, in both length conventions:
+    domain length (the paper's) and held planes (mean centre planes of the two held sets)."""
+    box_path = str(Path(box_path).resolve())
+    packing = read_packing(box_path)
+    scene = load_scene(SCENE_PATH, text=scene_text(box_path, ct_arb, surface=None))
+    t0 = time.perf_counter()
+    out = {"axes": axes, "ct_domain": [], "ct_held": [], "balance": []}
+    for axis in axes:
+        k = "xyz".index(axis)
+        test = flux_test(scene, packing, axis)
+        lo, hi = (float(np.mean(packing.position[boundary_particles(
+            scene, packing, f"{axis}{side}", "b")][:, k])) for side in ("min", "max"))
+        ct_domain = ct_arb * LAMBDA / test.effective_w_mk
+        out["ct_domain"].append(ct_domain)
+        out["ct_held"].append(ct_domain * test.length_m / (hi - lo))
+        out["balance"].append(test.balance)
+    out["ct_domain_mean"] = float(np.mean(out["ct_domain"]))
+    out["ct_held_mean"] = float(np.mean(out["ct_held"]))
+    out["n_particles"] = int(packing.n_particles)
+    out["seconds"] = time.perf_counter() - t0
+    return out
+
+
+def sphere_geometry(packing, scene):
+    w = packing.wall_name.index("surface")
+    centre = np.asarray(packing.wall_point[w], float)
+    held = boundary_particles(scene, packing, "surface", "boundary[0]")
+    r = np.linalg.norm(packing.position - centre, axis=1)
+    return centre, float(packing.wall_radius[w]), float(r[held].mean()), r, held
+
+
+def sphere_run(packing_path, ct, *, method="explicit", steps=None, threads=1,
+               keep_field=False):
+    """One thermal run of the sphere; returns the measures (and the final field if asked)."""
+    packing_path = str(Path(packing_path).resolve())
+    packing = read_packing(packing_path)
+    scene = load_scene(SCENE_PATH, text=scene_text(packing_path, ct))
+    centre, r_carve, r_held, r, held = sphere_geometry(packing, scene)
+    a0 = time.perf_counter()
+    problem, _ = build_problem(scene, packing)
+    net = assemble(problem)
+    assemble_s = time.perf_counter() - a0
+    scale = r_held ** 2 / PAPER_R ** 2                      # our time per paper time
+    times = [t * scale for t in PAPER_TIMES]
+    t_init = np.full(packing.n_particles, T0_C + KELVIN)
+    if method == "explicit":        # warm the kernel's JIT (one step) so run_seconds is the run
+        run_explicit(net, t_init, [0.5 * net.dt_max_s], threads=threads)
+    r0 = time.perf_counter()
+    if method == "explicit":
+        res = run_explicit(net, t_init, times, threads=threads)
+    else:                                                   # Rannacher Crank-Nicolson
+        res = run_implicit(net, t_init, [times[-1]], dt=times[-1] / steps, scheme="rannacher")
+    run_s = time.perf_counter() - r0
+    free = (np.asarray(net.degree_w_k) > 0) & ~np.asarray(net.held)
+    vol = packing.radius ** 3
+    ball = free & (r < CENTRE_BALL * r_held)
+    rec = {"packing": packing_path, "n_particles": int(packing.n_particles), "ct": ct,
+           "method": method, "steps": int(res.steps), "dt_s": float(res.dt),
+           "run_seconds": run_s, "assemble_seconds": assemble_s, "threads": threads,
+           "r_carve_m": r_carve, "r_held_m": r_held, "n_held": int(len(held)),
+           "n_free": int(free.sum()), "n_centre_ball": int(ball.sum()),
+           "fourier_end": FO_END, "time_scale": scale,
+           "unconnected": int((~free & ~np.asarray(net.held)).sum())}
+    exact_c = [sphere_centre_temperature(t, r_held, ALPHA, TS_C, T0_C) for t in times]
+    final = res.temperature_k[-1] - KELVIN
+    if method == "explicit":
+        rec["centre_dem_c"] = [float(np.average(res.temperature_k[k][ball] - KELVIN,
+                                                weights=vol[ball])) for k in range(len(times))]
+        rec["centre_exact_c"] = exact_c
+    exact = sphere_temperature(r, times[-1], r_held, ALPHA, TS_C, T0_C)
+    err = (final - exact)[free]
+    rec["centre_error_c"] = float(np.average((final - exact)[ball], weights=vol[ball]))
+    rec["max_abs_error_c"] = float(np.abs(err).max())
+    rec["argmax_r_over_R"] = float(r[free][np.argmax(np.abs(err))] / r_held)
+    rec["rms_error_c"] = float(np.sqrt(np.mean(err ** 2)))
+    rec["mean_error_c"] = float(np.average(err, weights=vol[free]))
+    # the same DEM field against the sphere of the carving radius (sensitivity to R)
+    exact_carve = sphere_temperature(r, times[-1], r_carve, ALPHA, TS_C, T0_C)
+    rec["centre_error_carve_radius_c"] = float(np.average((final - exact_carve)[ball],
+                                                          weights=vol[ball]))
+    # shell profile: volume-weighted means over the free particles by centre radius
+    edges = np.linspace(0.0, r_held, 11)
+    shells = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        s = free & (r >= lo) & (r < hi)
+        if s.any():
+            shells.append((0.5 * (lo + hi) / r_held, float(np.average(final[s], weights=vol[s])),
+                           float(np.average(exact[s], weights=vol[s])), int(s.sum())))
+    rec["shells"] = shells
+    if keep_field:
+        rec["_field"] = (r[free] / r_held, final[free], exact[free])
+    return rec
+
+
+# ----------------------------------------------------------------- the case
+def _cached(path: Path, make):
+    """A run's record from ``path`` (JSON; its particle field in the .npz beside it) when it was
+    made by this VERSION of the case, else made now and saved: the case resumes run by run."""
+    npz = path.with_suffix(".npz")
+    if path.exists():
+        rec = json.loads(path.read_text())
+        if rec.get("version") == VERSION:
+            if npz.exists():
+                with np.load(npz) as z:
+                    rec["_field"] = (z["r"], z["dem"], z["exact"])
+            return rec
+    rec = make()
+    rec["version"] = VERSION
+    if "_field" in rec:
+        r, dem, exact = rec["_field"]
+        np.savez_compressed(npz, r=r, dem=dem, exact=exact)
+    path.write_text(json.dumps({k: v for k, v in rec.items() if not k.startswith("_")},
+                               indent=1, default=float))
+    return rec
+
+
+def _fit_order(ns, errs):
+    ns, errs = np.asarray(ns, float), np.abs(np.asarray(errs, float))
+    ok = errs > 0
+    if ok.sum() < 2:
+        return float("nan")
+    return float(np.polyfit(np.log(ns[ok]), np.log(errs[ok]), 1)[0])
+
+
+def run(ctx: Context) -> CaseResult:
+    sizes = QUICK if ctx.quick else SIZES
+    out = ctx.out
+    rows, calib, speed = [], {}, []
+    for n, (sphere_name, box_name) in sizes.items():
+        ctx.progress(f"N {n}: packings")
+        sphere_path, box_path = ctx.packing(sphere_name), ctx.packing(box_name)
+        ctx.progress(f"N {n}: C_t on the cube {box_name}")
+        cal = _cached(out / f"calib_{box_name}.json",
+                      lambda: calibrate_box(box_path, axes="x" if ctx.quick else "xyz"))
+        calib[n] = cal
+        variants = [("ours, held planes", cal["ct_held_mean"]),
+                    ("ours, domain length", cal["ct_domain_mean"])]
+        if n in PAPER_CT:
+            variants.append(("paper", PAPER_CT[n]))
+        for label, ct in variants:
+            if n >= 1_000_000 and label == "ours, domain length":
+                continue        # costs ~1 h on the shared machine; the held-plane one is primary
+            ctx.progress(f"N {n}: C_t {ct:.4f} ({label}), explicit")
+            tag = label.split(",")[-1].strip().replace(" ", "_")
+            rec = _cached(out / f"run_{sphere_name}_{tag}.json",
+                          lambda: sphere_run(sphere_path, ct, threads=ctx.threads,
+                                             keep_field=(tag == "held_planes")))
+            rec.update(label=label, n_nominal=n, sphere=sphere_name)
+            rows.append(rec)
+    # speed against error: Rannacher CN at the paper's 1e5 (quick: the small sphere)
+    n_speed = 100_000 if not ctx.quick else next(iter(sizes))
+    sphere_name = sizes[n_speed][0]
+    ct_ours = calib[n_speed]["ct_held_mean"]
+    for steps in (5, 10, 20, 40, 80) if not ctx.quick else (5, 20):
+        ctx.progress(f"N {n_speed}: Rannacher CN, {steps} steps")
+        rec = _cached(out / f"cn_{sphere_name}_{steps}.json",
+                      lambda: sphere_run(ctx.packing(sphere_name), ct_ours, method="rannacher",
+                                         steps=steps))
+        speed.append(rec)
+    return _report(ctx, rows, calib, speed, n_speed)
+
+
+def _pack_s(name):
+    s = pack_seconds(name)
+    return float("nan") if s is None else s
+
+
+def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ours = [r for r in rows if r["label"] == "ours, held planes"]
+    by = {(r["n_nominal"], r["label"]): r for r in rows}
+    main_n = 100_000 if (100_000, "ours, held planes") in by else ours[-1]["n_nominal"]
+    main = by[(main_n, "ours, held planes")]
+    field = main.get("_field")
+
+    # --- figure 1: centre temperature against time (Fig. 7)
+    png = ctx.figure("centre")
+    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    tt = np.linspace(0.05, PAPER_T_END, 200)
+    ax[0].plot(tt, [sphere_centre_temperature(t, PAPER_R, ALPHA, TS_C, T0_C) for t in tt],
+               "k-", lw=1, label="eq. 19 (corrected)")
+    with open(png.with_suffix(".csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["n_particles", "ct_label", "ct", "paper_time_s", "T_centre_dem_C",
+                    "T_centre_exact_C", "error_C"])
+        for k, r in enumerate(rows):
+            if r["n_nominal"] < 100_000 and not ctx.quick:
+                continue
+            d = np.array(r["centre_dem_c"]) - np.array(r["centre_exact_c"])
+            style = "o" if r["label"] == "paper" else ("s" if "held" in r["label"] else "^")
+            lab = f"{r['n_particles']:,}, C_t {r['ct']:.3f} ({r['label']})"
+            ax[0].plot(PAPER_TIMES, r["centre_dem_c"], style, ms=4, mfc="none", label=lab)
+            ax[1].plot(PAPER_TIMES, d, style + "-", ms=4, mfc="none", label=lab)
+            for t, td, te in zip(PAPER_TIMES, r["centre_dem_c"], r["centre_exact_c"]):
+                w.writerow([r["n_particles"], r["label"], f"{r['ct']:.6g}", t, f"{td:.6f}",
+                            f"{te:.6f}", f"{td - te:.6f}"])
+    ax[0].set_xlabel("t (s, paper's time; ours at the same Fourier number)")
+    ax[0].set_ylabel("centre temperature (C)")
+    ax[0].legend(fontsize=6)
+    ax[1].axhline(1.93, color="r", ls=":", lw=1, label="paper's 1.93 C (1e5)")
+    ax[1].axhline(-1.93, color="r", ls=":", lw=1)
+    ax[1].axhline(0, color="k", lw=0.5)
+    ax[1].set_xlabel("t (s)")
+    ax[1].set_ylabel("centre T_DEM - T_exact (C)")
+    ax[1].legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+
+    # --- figure 2: the profile at t = 10 s (Fig. 8), shells of the main run
+    png = ctx.figure("profile")
+    fig, ax = plt.subplots(figsize=(6, 4))
+    if field is not None:
+        rr, td, te = field
+        pick = np.random.default_rng(1).permutation(len(rr))[:3000]
+        ax.plot(rr[pick], td[pick], ".", ms=1, color="0.6", label="particles")
+    rs = np.linspace(0, 1, 200)
+    ax.plot(rs, sphere_temperature(rs * PAPER_R, PAPER_T_END, PAPER_R, ALPHA, TS_C, T0_C), "k-",
+            lw=1, label="eq. 18 (corrected)")
+    with open(png.with_suffix(".csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["n_particles", "ct_label", "r_over_R_shell_mid", "T_dem_C", "T_exact_C",
+                    "particles"])
+        for r in rows:
+            if r["n_nominal"] != main_n:
+                continue
+            sh = np.array(r["shells"])
+            ax.plot(sh[:, 0], sh[:, 1], "o" if r["label"] == "paper" else "s", ms=4, mfc="none",
+                    label=f"shell means, C_t {r['ct']:.3f} ({r['label']})")
+            for s in r["shells"]:
+                w.writerow([r["n_particles"], r["label"], f"{s[0]:.4f}", f"{s[1]:.6f}",
+                            f"{s[2]:.6f}", s[3]])
+    ax.set_xlabel("r / R_held")
+    ax.set_ylabel("T at t = 10 s (C)")
+    ax.set_title(f"{main['n_particles']:,} spheres", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+
+    # --- figure 3: convergence with N (our C_t, held planes)
+    png = ctx.figure("convergence")
+    ns = [r["n_particles"] for r in ours]
+    big = [i for i, n in enumerate(ns) if n >= 10_000] or list(range(len(ns)))
+    orders = {}
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    for key, lab, mk in (("centre_error_c", "|centre error|", "o"),
+                         ("max_abs_error_c", "max |error| (paper's measure)", "s"),
+                         ("rms_error_c", "RMS error", "^")):
+        e = np.abs([r[key] for r in ours])
+        orders[key] = _fit_order([ns[i] for i in big], [e[i] for i in big])
+        ax.loglog(ns, e, mk + "-", label=f"{lab}, slope {orders[key]:.2f}")
+    for lab in ("paper", "ours, domain length"):
+        pr = [r for r in rows if r["label"] == lab]
+        if pr:
+            ax.loglog([r["n_particles"] for r in pr], np.abs([r["centre_error_c"] for r in pr]),
+                      "x", ms=7, label=f"|centre error|, C_t {lab}")
+    ax.axhline(1.93, color="r", ls=":", lw=1, label="paper, 1e5: 1.93 C")
+    ax.axhline(1.0, color="g", ls=":", lw=1, label="goal, 1e5: 1 C")
+    ax.set_xlabel("N (spheres)")
+    ax.set_ylabel("error at t = 10 s (C)")
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    with open(png.with_suffix(".csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["n_particles", "ct_label", "ct", "r_held_m", "r_carve_m", "centre_error_C",
+                    "centre_error_carve_radius_C", "max_abs_error_C", "rms_error_C",
+                    "mean_error_C", "steps", "run_seconds", "pack_seconds"])
+        for r in rows:
+            w.writerow([r["n_particles"], r["label"], f"{r['ct']:.6g}", f"{r['r_held_m']:.6g}",
+                        f"{r['r_carve_m']:.6g}", f"{r['centre_error_c']:.5f}",
+                        f"{r['centre_error_carve_radius_c']:.5f}", f"{r['max_abs_error_c']:.5f}",
+                        f"{r['rms_error_c']:.5f}", f"{r['mean_error_c']:.5f}", r["steps"],
+                        f"{r['run_seconds']:.2f}", f"{_pack_s(r['sphere']):.1f}"])
+
+    # --- figure 4: speed against error
+    png = ctx.figure("speed_error")
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    ax.loglog([abs(r["centre_error_c"]) for r in ours], [r["run_seconds"] for r in ours], "o-",
+              label="explicit (the paper's scheme), N = " + ", ".join(f"{n:.0e}" for n in ns))
+    for r in ours:
+        ax.annotate(f"{r['n_particles']:,}", (abs(r["centre_error_c"]), r["run_seconds"]),
+                    fontsize=6, xytext=(3, 3), textcoords="offset points")
+    ax.loglog([abs(r["centre_error_c"]) for r in speed], [r["run_seconds"] for r in speed], "s-",
+              label=f"Rannacher CN at N = {speed[0]['n_particles']:,} (labels: steps)")
+    for r in speed:
+        ax.annotate(str(r["steps"]), (abs(r["centre_error_c"]), r["run_seconds"]), fontsize=6,
+                    xytext=(3, -8), textcoords="offset points")
+    ax.set_xlabel("|centre error| at t = 10 s (C)")
+    ax.set_ylabel("thermal wall time, 1 thread (s)")
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    with open(png.with_suffix(".csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["solver", "n_particles", "steps", "run_seconds", "centre_error_C",
+                    "max_abs_error_C", "rms_error_C"])
+        for r in ours + speed:
+            w.writerow([r["method"], r["n_particles"], r["steps"], f"{r['run_seconds']:.3f}",
+                        f"{r['centre_error_c']:.5f}", f"{r['max_abs_error_c']:.5f}",
+                        f"{r['rms_error_c']:.5f}"])
+
+    return _summary(ctx, rows, calib, speed, main, orders)
+
+
+def _fmt_row(r):
+    return (f"| {r['n_particles']:,} | {r['label']} | {r['ct']:.4f} | {1e3 * r['r_held_m']:.2f} / "
+            f"{1e3 * r['r_carve_m']:.2f} | {r['centre_error_c']:+.3f} | "
+            f"{r['centre_error_carve_radius_c']:+.3f} | {r['max_abs_error_c']:.3f} "
+            f"({r['argmax_r_over_R']:.2f}) | {r['rms_error_c']:.3f} | {r['steps']:,} | "
+            f"{r['run_seconds']:.1f} |")
+
+
+def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
+    by = {(r["n_nominal"], r["label"]): r for r in rows}
+    paper_1e5 = by.get((100_000, "paper"))
+    big = by.get((1_000_000, "ours, held planes"))
+    big_paper = by.get((1_000_000, "paper"))
+    best_cn = min(speed, key=lambda r: r["run_seconds"] if abs(r["centre_error_c"])
+                  <= 1.1 * abs(main["centre_error_c"]) + 0.05 else math.inf)
+    met = abs(main["centre_error_c"]) <= 1.0
+    img = "img/validation_case5_"
+    n_fmt = ", ".join(f"{r['n_particles']:,}" for r in rows if r["label"] == "ours, held planes")
+    table = "\n".join(_fmt_row(r) for r in rows)
+    cal_rows = "\n".join(
+        f"| {c['n_particles']:,} | {c['ct_domain_mean']:.4f} | {c['ct_held_mean']:.4f} | "
+        f"{' / '.join(f'{v:.4f}' for v in c['ct_held'])} | {c['seconds']:.1f} |"
+        for c in calib.values())
+    speed_rows = "\n".join(
+        f"| {r['steps']} | {r['run_seconds']:.2f} | {r['centre_error_c']:+.3f} | "
+        f"{r['max_abs_error_c']:.3f} |" for r in speed)
+    paper_txt = (f"With the paper's C_t (0.806) on our 1e5 sphere the centre is off by "
+                 f"**{paper_1e5['centre_error_c']:+.2f} °C** (max {paper_1e5['max_abs_error_c']:.2f} °C): "
+                 "our cut-cell packing conducts ~25 % more per contact at a given C_t "
+                 "(case 6: our C_t is 0.63–0.65 where the paper's is 0.81–0.83), so the "
+                 "paper's C_t heats the ball too fast. The C_t has to be calibrated on the "
+                 "packing in use; it does not transfer between packing generators."
+                 if paper_1e5 else "")
+    big_txt = ""
+    if big:
+        big_txt = (f" At 1e6 ({big['n_particles']:,} spheres) the centre error is "
+                   f"{big['centre_error_c']:+.3f} °C with our C_t"
+                   + (f" and {big_paper['centre_error_c']:+.2f} °C with the paper's 0.834"
+                      if big_paper else "") + ".")
+    section = f"""
+Setup (002 sec. 2.3): a ball of aluminium (ρ 2700 kg/m³, λ 185 W/m/K, c 900 J/kg/K) at
+T_0 = 20 °C whose surface is held at T_s = 200 °C from t = 0; law haddad; forward Euler (the
+paper's scheme) at 0.9 × the exact positivity bound. Packings: balls carved from copies of the
+relaxed 10,000-sphere periodic cell (`tiled`, docs/packings.md), N = {n_fmt}. The carved surface
+is a cut surface: the spheres within 1.1 r of it (its "wall contacts", wall `surface`) are held
+by a `temperature` boundary (`thermal_kernel/problem.py`). The analytical sphere is the **held
+shell**, R_h = mean distance of the held spheres' centres from the carving centre (the analogue
+of case 4's held planes; ~0.4 mean radii inside the carving radius). **Not rescaled** to
+D = 10 cm: the outputs are at the paper's Fourier numbers (Fo = α t / R² = {FO_END:.4f} at
+t = 10 s, and Fig. 7's 1 … 10 s) with our R_h. Reproduce: `.venv/bin/python -m validation.run 5`.
+
+**The analytical solution.** 002 eq. 18 is printed as T = T_0 + 2(T_0 − T_i)/(π r) Σ (−1)ⁿ/n
+sin(nπr/R) e^(−α n²π² t/R²) and eq. 19 as T_c = T_0 + 2(T_0 − T_i) Σ (−1)ⁿ e^(…), with T_0 the
+initial and T_i the surface temperature. Two misprints: the two temperatures are swapped (read
+literally, both start at the surface temperature and relax to the initial one) and eq. 18 lacks
+the factor R in 2R/(πr) (its sum is not dimensionless). We use the corrected form (Carslaw &
+Jaeger 9.3), derived from v = r(T − T_s), which solves the 1-D slab problem on [0, R] with v = 0
+at both ends:
+
+T(r, t) = T_s + 2R(T_s − T_0)/(π r) Σ (−1)ⁿ/n sin(nπr/R) e^(−n²π² α t/R²),
+T_c(t) = T_s + 2(T_0 − T_s) Σ (−1)ⁿ⁺¹ e^(−n²π² α t/R²)
+
+(`tdem_post.analytic.sphere_temperature`, `sphere_centre_temperature`, and the shell mean
+`sphere_shell_mean_temperature`; below Fo = 0.05 the equivalent image series). It is tested
+against an independent solve: a 1-D finite-volume discretisation of the radial heat equation,
+integrated exactly in time by eigendecomposition, agrees to 2.6e-5 / 3.5e-6 / 1.4e-6 of ΔT at
+Fo = 0.01 / 0.1 / 0.30 with 400 cells and converges at second order in the cell size
+(`tests/test_validation_case5_7.py`). At t = 10 s the paper's sphere has T_c = 182.18 °C.
+
+**C_t, two sources.** The paper's (0.806 at 1e5, 0.834 at 1e6: its cube calibration at the same
+N) and ours: the steady flux test (002 eq. 8–9) on the cube carved from the same cell with the
+same N, mean of the three axes, in both length conventions (held planes: primary, as R_h is a held
+radius; domain length: the paper's; docs/validation.md, "The slab length").
+
+| cube N | C_t (domain) | C_t (held planes) | held planes x / y / z | calibration (s) |
+|---|---|---|---|---|
+{cal_rows}
+
+**Results at t = 10 s** (errors T_DEM − T_exact, °C; "centre": volume-weighted mean over the free
+particles within 0.1 R_h of the centre; "max": max |T_p − T_exact(r_p)| over the free particles,
+the paper's Fig. 8c measure, with where it lies as r/R_h; thermal: 1 thread, shared machine):
+
+| N | C_t | value | R_h / R_carve (mm) | centre error | centre error vs R_carve | max error (r/R_h) | RMS | steps | thermal (s) |
+|---|---|---|---|---|---|---|---|---|---|
+{table}
+
+At 1e5 with our C_t the centre error is **{main['centre_error_c']:+.3f} °C** against the paper's
+1.93 °C (max over the particles {main['max_abs_error_c']:.2f} °C, at r/R_h = {main['argmax_r_over_R']:.2f}):
+the goal ≤ 1 °C is {'met' if met else 'not met'}.{big_txt} {paper_txt}
+The analytical radius matters: against the carving radius instead of the held shell the same
+field has the centre error of the column "vs R_carve" — the sphere's one free length is worth
+about 6 ΔR/R of the centre's excess temperature at this Fourier number.
+
+![centre temperature against time](img/validation_case5_centre.png)
+
+![profile at t = 10 s](img/validation_case5_profile.png)
+
+**Convergence with N** (our C_t, held planes): slopes fitted over N ≥ 1e4, log-log —
+centre error {orders['centre_error_c']:.2f}, max error {orders['max_abs_error_c']:.2f}, RMS
+{orders['rms_error_c']:.2f}. The max error over the particles is a particle-scale statistic (single
+spheres whose few contacts make them lag or lead); it falls slowly, as the particle size over R
+(N^-1/3) would. The centre error is not monotone in N: it is a small difference between a
+calibrated bulk conductivity and the ball's, with a held layer that resists like the cut faces
+of case 4.
+
+![convergence with N](img/validation_case5_convergence.png)
+
+**Speed against error** (1 thread; the implicit Rannacher Crank–Nicolson at
+{speed[0]['n_particles']:,} spheres with n steps to t = 10 s, against the explicit run of the
+same packing, {main['steps']:,} steps in {main['run_seconds']:.1f} s):
+
+| CN steps | thermal (s) | centre error (°C) | max error (°C) |
+|---|---|---|---|
+{speed_rows}
+
+The cheapest implicit run within the explicit one's error takes {best_cn['steps']} steps,
+{best_cn['run_seconds']:.1f} s. The error at this Fourier number is the packing's, not the time
+scheme's, once CN has ~20 steps.
+
+![speed against error](img/validation_case5_speed_error.png)
+
+What limits us: the packings are one relaxed 10,000-sphere cell repeated (periodicity ~21 mean
+diameters), so N → ∞ does not average new structure in; a packing-to-packing scatter would need
+other cells (seeds), not done here. At 1e6 the explicit run needs
+{big['steps'] if big else 'n/a'} steps (the step is set by the smallest spheres, the time by R²).
+"""
+    return CaseResult(
+        our_n=f"{main['n_particles']:,} (also {n_fmt})",
+        our_error=(f"centre {main['centre_error_c']:+.2f} °C, max {main['max_abs_error_c']:.2f} °C "
+                   f"(our C_t {main['ct']:.4f})"
+                   + (f"; paper's C_t 0.806: centre {paper_1e5['centre_error_c']:+.1f} °C"
+                      if paper_1e5 else "")
+                   + (f"; 1e6: centre {big['centre_error_c']:+.2f} °C" if big else "")),
+        wall_time=(f"{_pack_s(main['sphere']):.0f} s + {main['run_seconds']:.0f} s "
+                   f"(explicit, {main['steps']:,} steps; the cell: 551 s CPU once)"),
+        verdict=("goal ≤ 1 °C at 1e5 " + ("met" if met else "not met")
+                 + " with our calibrated C_t; the paper's C_t does not transfer to our packing"),
+        section_md=section,
+        numbers={"centre_error_c": main["centre_error_c"],
+                 "max_abs_error_c": main["max_abs_error_c"],
+                 "rms_error_c": main["rms_error_c"], "ct_ours": main["ct"],
+                 "n_particles": main["n_particles"], "orders": orders,
+                 "rows": [{k: v for k, v in r.items() if k != "shells" and not k.startswith("_")}
+                          for r in rows],
+                 "calibration": {str(k): v for k, v in calib.items()},
+                 "speed": [{k: v for k, v in r.items() if k != "shells" and not k.startswith("_")}
+                           for r in speed]},
+        command=".venv/bin/python -m validation.run 5")
+
+
+def main(argv=None):
+    import argparse
+    from validation.framework import save_result
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--threads", type=int, default=1)
+    a = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    res = run(Context(CASE.number, quick=a.quick, threads=a.threads))
+    print(res.our_n, "|", res.our_error, "|", res.verdict)
+    if not a.quick:
+        print(save_result(CASE, res, time.perf_counter() - t0))
+
+
+if __name__ == "__main__":
+    main()
