@@ -207,3 +207,21 @@ def sphere_shell_mean_temperature(r0, r1, t, radius, alpha, t_surface, t_initial
                               t_initial, tol).reshape(rs.shape)
     w = weights[None, :] * rs ** 2 * half
     return (vals * w).sum(axis=1) / w.sum(axis=1)
+
+
+def slab_midplane_characteristic_time(length, alpha):
+    """tau at the mid-plane x = L/2 of the slab (003 eq. 41), in closed form: L^2 / (8 alpha),
+    whatever the two held and the initial temperatures.
+
+    From slab_characteristic_time with T_s - T_i = a + b x: at x = L/2,
+    W = -(L^2/8)(a + b L/2)/alpha and T_s - T_i = a + b L/2, so tau = L^2/(8 alpha). (The slowest
+    Fourier mode alone would give L^2/(pi^2 alpha), 19 % less.) With 003's App. A diffusivity
+    alpha = gamma_paper kappa_p/(rho_p c_p): tau_mid gamma_paper = L^2 rho_p c_p/(8 kappa_p)."""
+    return np.asarray(length, dtype=float) ** 2 / (8.0 * np.asarray(alpha, dtype=float))
+
+
+def rod_mean_temperature(x0, x1, t, length, alpha, t_hot, t_initial, tol=1e-12):
+    """Mean of the rod solution (rod_temperature, 000 eq. 8; x from the hot end) over
+    x0 <= x <= x1, what a binned profile along the rod measures: the slab of length 2L with
+    both faces hot, averaged by slab_mean_temperature."""
+    return slab_mean_temperature(x0, x1, t, 2 * length, alpha, t_hot, t_hot, t_initial, tol)

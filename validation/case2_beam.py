@@ -1,0 +1,380 @@
+"""Case 2 of docs/validation.md: Terreros's beam heated at one end (000 sec. 5.1, Table 2, eq. 8).
+
+A cylindrical beam (length / diameter 2.18445 / 0.2310606 = 9.454, as Table 2), 298 K initially,
+its end z = 0 held at 798 K from t = 0, adiabatic elsewhere; aluminium lambda 134 W/m/K, rho 2790,
+c 880. Packings: carved from copies of a relaxed 2,000-sphere periodic cell, one cell per seed
+(validation/packings_000.py), N = 19,465 (Table 2) and a ladder of N for the convergence. The
+packing is in the cell's units (mean radius 1 mm); conduction depends only on the Fourier number
+Fo = alpha t / L^2, so every comparison is at the Fo of the paper's geometry (L = 2.18445 mm,
+alpha = 5.458e-5 m^2/s: t = Fo x 87.4 ms) and the times quoted are the paper's.
+
+Law: haddad (002) with C_t calibrated on each beam by the steady flux test along its axis with
+the held-plane length (as case 4): it conserves mass (C = rho c V / phi) and the calibration makes
+the network's conductivity the material's, so the remaining error is the packing's (its
+heterogeneity and the held layer), which is what this case measures. The paper's own law
+(terreros, 000 eq. 7, no free parameter) is run on the same beams beside it.
+
+Profile: partial-volume weighted means over equal bins of the rod [z0, L_domain] (z0 the mean
+centre plane of the held spheres; the adiabatic end the domain face), rattlers excluded, against
+the bin mean of eq. 8 (tdem_post.analytic.rod_mean_temperature). Time scheme: Crank-Nicolson
+with Rannacher start-up (implicit; its dt error is measured below and is far under the packing's).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tdem_post.analytic import rod_mean_temperature, rod_temperature
+from tdem_post.profiles import binned_profile
+from thermal_kernel.calibrate import flux_test
+from thermal_kernel.network import assemble
+from thermal_kernel.packing import read_packing
+from thermal_kernel.problem import boundary_particles, build_problem
+from thermal_kernel.scene import load_scene
+from thermal_kernel.solvers.implicit import run_implicit
+
+from . import framework as fw
+from . import packings_000 as P
+from .framework import CaseInfo, CaseResult, Context
+
+CASE = CaseInfo(number=2, title="beam heated at one end", paper="000 sec. 5.1, Table 2, eq. 8",
+                paper_n="19,465", paper_error='"good agreement" (Fig. 9)')
+
+LAMBDA, RHO, CAP = 134.0, 2790.0, 880.0          # 000 Table 2
+ALPHA = LAMBDA / (RHO * CAP)
+T_HOT, T_INIT = 798.0, 298.0
+DT_K = T_HOT - T_INIT
+PAPER_L = P.BEAM_LENGTH_M
+PAPER_TIME_S = PAPER_L ** 2 / ALPHA               # 87.4 ms: t = Fo x this
+# Fig. 9's times are not in our text copy of the paper (the figure is an image): six Fourier
+# numbers from the steep start to the nearly uniform end that its text describes.
+FOURIER = (0.01, 0.05, 0.1, 0.2, 0.5, 1.0)
+BINS = 20
+N_LADDER = (2500, 5000, 10000, P.BEAM_N, 40000)
+QUICK_PACKING = fw.ROOT / "tests" / "data" / "dense_cylinder.h5"
+
+
+def scene_text(packing: str, law: str, ct: float) -> str:
+    params = f"[law_params]\nct = {ct!r}\n" if law == "haddad" else ""
+    return f"""
+packing = "{packing}"
+law = "{law}"
+{params}
+[material]
+conductivity = {LAMBDA}
+density = {RHO}
+heat_capacity = {CAP}
+[initial]
+temperature = {T_INIT}
+[[boundary]]
+kind = "temperature"
+name = "hot"
+on = "zmin"
+value = {T_HOT}
+[solver]
+method = "steady"
+"""
+
+
+def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: float = 0.0025,
+              fourier=FOURIER) -> dict:
+    """One beam: calibrate (haddad), run, compare. Returns a dict of numbers and the profiles."""
+    packing_path = str(Path(packing_path).resolve())
+    packing = read_packing(packing_path)
+    where = Path("validation/case2_scene.toml")
+    c0 = time.perf_counter()
+    scene = load_scene(where, text=scene_text(packing_path, law, 0.806))
+    z0, z1 = (float(np.mean(packing.position[boundary_particles(scene, packing, on, "b")][:, 2]))
+              for on in ("zmin", "zmax"))
+    z_end = float(packing.domain_hi[2])
+    length = z_end - z0                               # the rod: held plane -> adiabatic face
+    ct = None
+    if law == "haddad":
+        test = flux_test(scene, packing, "z")
+        ct_domain = 0.806 * LAMBDA / test.effective_w_mk
+        ct = ct_domain * test.length_m / (z1 - z0)    # held-plane length (case 4's convention)
+        scene = load_scene(where, text=scene_text(packing_path, law, ct))
+    calib_s = time.perf_counter() - c0
+
+    problem, _ = build_problem(scene, packing)
+    net = assemble(problem)
+    times = [fo * length ** 2 / ALPHA for fo in fourier]
+    dt = dt_fo * length ** 2 / ALPHA
+    r0 = time.perf_counter()
+    res = run_implicit(net, np.full(packing.n_particles, T_INIT), times, dt=dt,
+                       scheme="rannacher")
+    run_s = time.perf_counter() - r0
+
+    conducting = np.asarray(net.degree_w_k > 0) | np.asarray(net.held)
+    z = packing.position[:, 2] - z0
+    edges = np.linspace(0.0, length, n_bins + 1)
+    prof = binned_profile(z, packing.radius, res.temperature_k, edges, weights=conducting)
+    exact = np.array([rod_mean_temperature(edges[:-1], edges[1:], t, length, ALPHA, T_HOT,
+                                           T_INIT) for t in times])
+    err = (prof - exact) / DT_K
+    # particle by particle (no averaging): the scatter a single sphere shows
+    inside = conducting & (z >= 0) & ~np.asarray(net.held)
+    part = np.array([res.temperature_k[k][inside]
+                     - rod_temperature(z[inside], t, length, ALPHA, T_HOT, T_INIT)
+                     for k, t in enumerate(times)]) / DT_K
+    balance = np.max(np.abs(res.ledger_residual_j())) / max(1e-300, np.max(np.abs(
+        res.stored_energy_j)))
+    return {
+        "packing": packing_path, "n_particles": int(packing.n_particles), "law": law,
+        "ct_held_plane": ct, "length_rod_m": length, "length_domain_m": float(
+            packing.domain_hi[2] - packing.domain_lo[2]), "z_held_m": z0,
+        "fourier": list(fourier), "paper_times_s": [fo * PAPER_TIME_S for fo in fourier],
+        "dt_fourier": dt_fo, "steps": int(res.steps),
+        "max_error_over_dT": float(np.nanmax(np.abs(err))),
+        "max_error_over_dT_per_time": np.nanmax(np.abs(err), axis=1).tolist(),
+        "particle_rms_over_dT_per_time": np.sqrt(np.mean(part ** 2, axis=1)).tolist(),
+        "ledger_relative": float(balance),
+        "calibration_seconds": calib_s, "run_seconds": run_s,
+        "edges_over_L": (edges / length).tolist(), "profile_k": prof.tolist(),
+        "exact_k": exact.tolist(),
+    }
+
+
+# ---------------------------------------------------------------------------- the case
+def _fit_order(n, e):
+    n, e = np.asarray(n, float), np.asarray(e, float)
+    ok = (e > 0) & np.isfinite(e)
+    if ok.sum() < 2:
+        return float("nan"), float("nan")
+    slope, icept = np.polyfit(np.log(n[ok]), np.log(e[ok]), 1)
+    return float(slope), float(np.exp(icept))
+
+
+def _plot(ctx, stem, draw, csv_header, csv_rows):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    path = ctx.figure(stem)
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    draw(ax)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    with open(path.with_suffix(".csv"), "w") as f:
+        f.write(csv_header + "\n")
+        for r in csv_rows:
+            f.write(",".join(f"{v:.8g}" if isinstance(v, float) else str(v) for v in r) + "\n")
+    return path
+
+
+def _rel(path: Path) -> str:
+    try:
+        return str(path.relative_to(fw.ROOT / "docs"))
+    except ValueError:
+        return str(path)
+
+
+def run(ctx: Context) -> CaseResult:
+    t_start = time.perf_counter()
+    if ctx.quick:
+        ladder, seeds = {400: [str(QUICK_PACKING)]}, [1]
+        pack_s = 0.0
+    else:
+        P.register()
+        ladder, pack_s = {}, 0.0
+        for n in N_LADDER:
+            names = []
+            for s in P.SEEDS:
+                name = P.beam_name(s, n)
+                if name not in fw.PACKINGS:
+                    fw.register_packing(name, "runs/dense_box.toml", dict(
+                        fw.PACKINGS[P.beam_name(s)][1], n_particles=n))
+                ctx.progress(f"packing {name}")
+                names.append(P.build(name))
+                pack_s += fw.pack_seconds(name) or 0.0
+            ladder[n] = names
+        seeds = list(P.SEEDS)
+    runs = {}
+    for n, paths in ladder.items():
+        for s, path in zip(seeds, paths):
+            r = beam_case(path)
+            runs[(n, s, "haddad")] = r
+            ctx.progress(f"N {r['n_particles']} seed {s} haddad: C_t {r['ct_held_plane']:.4f}, "
+                         f"max |err| {100 * r['max_error_over_dT']:.3f} % of dT "
+                         f"({r['run_seconds']:.1f} s)")
+    main_n = max(ladder) if ctx.quick else P.BEAM_N
+    for s, path in zip(seeds, ladder[main_n]):
+        r = beam_case(path, law="terreros")
+        runs[(main_n, s, "terreros")] = r
+        ctx.progress(f"N {r['n_particles']} seed {s} terreros: max |err| "
+                     f"{100 * r['max_error_over_dT']:.3f} % of dT")
+    # time step: seed 1 at the main N, dt halved four times (speed against error)
+    dts = (0.02, 0.01, 0.005, 0.0025) if not ctx.quick else (0.01, 0.0025)
+    dt_runs = [beam_case(ladder[main_n][0], dt_fo=d) for d in dts] + \
+        [beam_case(ladder[main_n][0], dt_fo=dts[-1] / 4)]
+    return _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s,
+                   time.perf_counter() - t_start)
+
+
+def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s) -> CaseResult:
+    main = [runs[(main_n, s, "haddad")] for s in seeds]
+    terr = [runs[(main_n, s, "terreros")] for s in seeds]
+    per_time = np.array([r["max_error_over_dT_per_time"] for r in main])   # (seeds, times)
+    worst = float(per_time.max())
+    terr_worst = float(max(r["max_error_over_dT"] for r in terr))
+    n_actual = [r["n_particles"] for r in main]
+    cts = [r["ct_held_plane"] for r in main]
+
+    # figure 1: profiles (seed mean, min-max band) against eq. 8
+    prof = np.array([r["profile_k"] for r in main])         # (seeds, times, bins)
+    exact = np.array(main[0]["exact_k"])
+    edges = np.array(main[0]["edges_over_L"])   # per packing L differs slightly; the bins are
+    mid = 0.5 * (edges[:-1] + edges[1:])        # equal fractions of each rod
+    times_ms = [1e3 * t for t in main[0]["paper_times_s"]]
+    xs = np.linspace(0, 1, 201)
+    rows = []
+    for k, fo in enumerate(FOURIER):
+        for b in range(len(mid)):
+            rows.append((fo, times_ms[k], float(mid[b]), float(prof[:, k, b].mean()),
+                         float(prof[:, k, b].min()), float(prof[:, k, b].max()),
+                         float(exact[k, b])))
+
+    def draw_profiles(ax):
+        for k, fo in enumerate(FOURIER):
+            curve = rod_temperature(xs, fo, 1.0, 1.0, T_HOT, T_INIT)
+            ax.plot(xs * PAPER_L * 1e3, curve, "k-", lw=0.8,
+                    label="eq. 8" if k == 0 else None)
+            ax.errorbar(mid * PAPER_L * 1e3, prof[:, k].mean(axis=0),
+                        yerr=[prof[:, k].mean(axis=0) - prof[:, k].min(axis=0),
+                              prof[:, k].max(axis=0) - prof[:, k].mean(axis=0)],
+                        fmt="o", ms=3, label=f"t = {times_ms[k]:.3g} ms")
+        ax.set_xlabel("x (mm, the paper's beam)")
+        ax.set_ylabel("T (K)")
+        ax.set_title(f"beam, N = {int(np.mean(n_actual)):,}, {len(seeds)} seed(s), haddad")
+        ax.legend(fontsize=7)
+    f_prof = _plot(ctx, "profiles", draw_profiles,
+                   "fourier,paper_time_ms,x_over_L,T_mean_K,T_min_K,T_max_K,T_exact_bin_K", rows)
+
+    # figure 2: convergence with N
+    conv = []
+    for n in ladder:
+        rs = [runs[(n, s, "haddad")] for s in seeds]
+        e = [r["max_error_over_dT"] for r in rs]
+        conv.append((float(np.mean([r["n_particles"] for r in rs])), float(np.mean(e)),
+                     float(np.min(e)), float(np.max(e)),
+                     float(np.mean([r["run_seconds"] + r["calibration_seconds"] for r in rs]))))
+    conv = np.array(conv)
+    order, const = _fit_order(conv[:, 0], conv[:, 1])
+
+    def draw_conv(ax):
+        ax.errorbar(conv[:, 0], 100 * conv[:, 1], yerr=[100 * (conv[:, 1] - conv[:, 2]),
+                                                         100 * (conv[:, 3] - conv[:, 1])],
+                    fmt="o-", label="max |error| over bins and times (mean, min-max of seeds)")
+        if np.isfinite(order):
+            ax.plot(conv[:, 0], 100 * const * conv[:, 0] ** order, "k--", lw=0.8,
+                    label=f"fit: N^{order:.2f}")
+        ax.axhline(1.0, color="r", lw=0.8, label="goal 1 % of dT")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("N")
+        ax.set_ylabel("error (% of dT)")
+        ax.legend(fontsize=7)
+    f_conv = _plot(ctx, "convergence", draw_conv,
+                   "n_mean,max_err_over_dT_mean,min,max,thermal_seconds_mean",
+                   [tuple(float(v) for v in r) for r in conv])
+
+    # figure 3: speed against error (time step at the main N; N ladder)
+    ref = np.array(dt_runs[-1]["profile_k"])
+    dt_rows = []
+    for r in dt_runs[:-1]:
+        dt_rows.append((r["dt_fourier"], r["steps"], r["run_seconds"],
+                        float(np.nanmax(np.abs(np.array(r["profile_k"]) - ref)) / DT_K),
+                        r["max_error_over_dT"]))
+    dt_rows = np.array(dt_rows)
+
+    def draw_speed(ax):
+        ax.loglog(dt_rows[:, 2], 100 * dt_rows[:, 3], "s-",
+                  label="time-step error (vs dt/4), N main, seed 1")
+        ax.loglog(dt_rows[:, 2], 100 * dt_rows[:, 4], "o-", label="total error vs eq. 8")
+        ax.loglog(conv[:, 4], 100 * conv[:, 1], "^-", label="N ladder (calibration + run)")
+        ax.set_xlabel("thermal wall time (s, one thread)")
+        ax.set_ylabel("error (% of dT)")
+        ax.legend(fontsize=7)
+    f_speed = _plot(ctx, "speed", draw_speed,
+                    "dt_fourier,steps,run_seconds,dt_error_over_dT,error_vs_eq8_over_dT",
+                    [tuple(float(v) for v in r) for r in dt_rows])
+
+    per_time_txt = ", ".join(f"{times_ms[k]:.3g} ms {100 * per_time[:, k].max():.2f} %"
+                             for k in range(len(FOURIER)))
+    seed_txt = ", ".join(f"{100 * r['max_error_over_dT']:.2f} %" for r in main)
+    rms_txt = ", ".join(f"{100 * np.mean([r['particle_rms_over_dT_per_time'][k] for r in main]):.2f} %"
+                        for k in range(len(FOURIER)))
+    met = worst < 0.01
+    section = f"""Setup (000 sec. 5.1, Table 2): a cylindrical beam, length / diameter 9.454 (2.18445 mm /
+2 × 0.1155303 mm), 298 K initially, its end held at 798 K from t = 0, adiabatic elsewhere;
+λ 134 W/m/K, ρ 2790 kg/m³, c 880 J/kg/K. Compared with eq. 8 (`tdem_post.analytic.rod_temperature`,
+tested against the paper's printed series; bin means by `rod_mean_temperature`).
+
+**Packings.** `validation/packings_000.py`: one 2,000-sphere periodic cell per seed (YADE,
+`runs/dense_box.toml`'s material: Gaussian radii σ/μ 0.3, steel, 1 bar, `gap_tolerance` 0.1 —
+the packings of cases 4 and 6), copied and carved to the beam (`method = "tiled"`,
+`cell_packing`); seeds 1–5, N = {', '.join(f'{n:,}' for n in n_actual)} for the paper's 19,465
+(the beam's diameter is ~13.6 mean radii, the paper's 12.8: our φ is 0.65), and a ladder
+{', '.join(f'{int(n):,}' for n in conv[:, 0])} (seed means) for the convergence. The geometry
+is in the cell's units (mean radius 1 mm); the solution depends only on Fo = αt/L², so every
+comparison is at the paper's Fo and the times quoted are the paper's (t = Fo × {1e3 * PAPER_TIME_S:.1f} ms).
+Fig. 9's times are not in our text copy of the paper (an image): we use Fo = {', '.join(str(f) for f in FOURIER)}
+(t = {', '.join(f'{t:.3g}' for t in times_ms)} ms), from the steep start to the nearly uniform end.
+
+**Law.** `haddad` with C_t calibrated on each beam (steady flux test along the axis, held-plane
+length, as case 4; C_t = {min(cts):.4f}–{max(cts):.4f}): mass-conserving capacity and the
+material's conductivity by construction, so what remains is the packing's own error (its
+heterogeneity, the held layer). The paper's own law (`terreros`, 000 eq. 7, no free parameter)
+on the same beams: max error {100 * terr_worst:.2f} % of ΔT (its capacity ρcV/f_vl(n) and its
+conductance are not calibrated to the material; shown for reference). Time scheme:
+Crank–Nicolson with Rannacher start-up, dt = 0.0025 L²/α; its own error (against dt/4) is
+{100 * dt_rows[-1, 3]:.3f} % of ΔT, far under the packing's.
+
+**Result** (max over {BINS} bins of |T − T_eq.8| / ΔT, ΔT = 500 K, all {len(seeds)} seeds): **{100 * worst:.2f} %**
+(goal < 1 %: {'met' if met else 'not met'}). Per time: {per_time_txt}. Per seed: {seed_txt}.
+Sphere by sphere (no binning), the rms of T − T_eq.8 at each time is {rms_txt} of ΔT: the scatter
+a single sphere carries, which the bin means average out.
+
+![case 2 profiles]({_rel(f_prof)})
+
+(data: `{_rel(f_prof.with_suffix('.csv'))}`)
+
+**Convergence with N** (max error over bins and times, mean of the seeds, min–max as bars):
+fitted order N^{order:.2f}.
+
+![case 2 convergence]({_rel(f_conv)})
+
+(data: `{_rel(f_conv.with_suffix('.csv'))}`)
+
+**Speed against error.** The thermal run is cheap (implicit, one factorisation); the time step is
+not what limits the accuracy — halving dt moves the profile by far less than the packing error:
+
+![case 2 speed against error]({_rel(f_speed)})
+
+(data: `{_rel(f_speed.with_suffix('.csv'))}`)
+
+**What limits us.** The error is the packing's: the held layer at the hot end (the spheres within
+a radius of the cut face are held at 798 K, a layer of finite thickness the continuum does not
+have) and the sphere-scale heterogeneity of the conductance, which the calibration removes only on
+average. The beam is thin (~6.8 mean diameters across), so each bin holds few spheres.
+"""
+    numbers = {
+        "max_error_over_dT": worst, "max_error_over_dT_per_time": per_time.max(axis=0).tolist(),
+        "per_seed": [r["max_error_over_dT"] for r in main], "n_particles": n_actual,
+        "ct_held_plane": cts, "terreros_max_error_over_dT": terr_worst,
+        "convergence": conv.tolist(), "convergence_order": order,
+        "dt_error_over_dT": dt_rows[:, 3].tolist(), "fourier": list(FOURIER),
+        "paper_times_ms": times_ms,
+    }
+    thermal_s = sum(r["run_seconds"] + r["calibration_seconds"] for r in runs.values())
+    return CaseResult(
+        our_n=f"{int(np.mean(n_actual)):,} × {len(seeds)} seeds (ladder "
+              f"{int(conv[0, 0]):,}–{int(conv[-1, 0]):,})",
+        our_error=f"max {100 * worst:.2f} % of ΔT over {len(FOURIER)} times and {len(seeds)} seeds "
+                  f"(haddad, C_t calibrated); terreros {100 * terr_worst:.1f} %",
+        wall_time=f"{pack_s:.0f} s + {thermal_s:.0f} s",
+        verdict=("goal < 1 % of ΔT met" if met else "goal < 1 % of ΔT not met")
+        + f"; error falls as N^{order:.2f}",
+        section_md=section, numbers=numbers, command=".venv/bin/python -m validation.run 2")
