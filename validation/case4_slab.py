@@ -1,4 +1,4 @@
-"""Case 4 of docs/validation.md: Haddad's cube slab (002 sec. 2.2, eq. 17) on a tdem packing.
+"""Case 4 of docs/validation.md: Haddad's cube slab (002 sec. 2.2, eq. 17) on tdem packings.
 
 The cube between two held faces normal to x (T = 25 C at xmin, 35 C at xmax, 25 C initially,
 adiabatic sides), material of 002 Tab. 1 (rho 7800, lambda 33, c 0.9), law haddad with C_t
@@ -11,35 +11,57 @@ L = 10 cm at t = 0.05, 0.1, 0.2 s, i.e. Fo = 0.0235, 0.0470, 0.0940, with our L.
 
 Forward Euler (as the paper) at 0.9 x the exact positivity bound. Profile: partial-volume
 weighted means over n_bins equal bins of [0, L] (rattlers excluded), against the bin mean of
-the slab series (tdem_post.analytic.slab_mean_temperature).
+the slab series (tdem_post.analytic.slab_mean_temperature). Also the STEADY profile on the same
+network against the linear one (20 bins, % of dT): the calibration makes the heat flow exact,
+not the profile linear; a boundary resistance of the held layers bends it.
 
-  .venv/bin/python validation/case4_slab.py PACKING.h5 [--bins 10] [--out DIR] [--name NAME]
+`tdem validate 4` runs it over INSTANCES (the default ones built when missing, the others when
+their packing is on the machine; the rows of the rest are carried over). One packing by hand:
 
-Writes DIR/NAME.json (errors, C_t, timings) and DIR/NAME_profiles.csv.
+  .venv/bin/python -m validation.case4_slab PACKING.h5 [--bins 10] [--out DIR] [--name NAME]
+
+writes DIR/NAME.json (errors, C_t, timings, steady profile) and DIR/NAME_profiles.csv.
 """
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import time
 from pathlib import Path
 
 import numpy as np
 
-from tdem_post.analytic import slab_mean_temperature
-from tdem_post.profiles import binned_profile
-from thermal_kernel.calibrate import cross_section, flux_test
-from thermal_kernel.network import assemble
-from thermal_kernel.packing import read_packing
-from thermal_kernel.problem import boundary_particles, build_problem
-from thermal_kernel.scene import load_scene
-from thermal_kernel.solvers.explicit import run_explicit
+from .framework import (IMG, ROOT, CaseInfo, CaseResult, Context, optional_packing,
+                        previous_numbers, today, write_csv)
 
+CASE = CaseInfo(number=4, title="cube slab, eq. 17", paper="002 sec. 2.2", paper_n="1e5",
+                paper_error="max rel. error 0.7 %")
 RHO, LAMBDA, CAP = 7800.0, 33.0, 0.9          # 002 Tab. 1
 ALPHA = LAMBDA / (RHO * CAP)
 T1, T2 = 298.15, 308.15                         # 25 C at x = 0, 35 C at x = L
 PAPER_L, PAPER_TIMES = 0.1, (0.05, 0.1, 0.2)
 FOURIER = tuple(ALPHA * t / PAPER_L ** 2 for t in PAPER_TIMES)
+PAPER_ERROR = 0.007                             # 002 Fig. 5b, max relative error at 1e5
+STEADY_BINS = 20
+DENSE_400 = ROOT / "tests" / "data" / "dense_box.h5"
+WALLED, TILED = "walled (YADE box)", "tiled (cut cube)"
+# key (row name), label, family (None: not in the convergence figure), packing, default
+INSTANCES = [
+    ("dense_box_400", "tests/data/dense_box.h5 (walled, 400)", None, None, True),
+    ("ds_2000_s1", "walled ds, seed 1", WALLED, "box_2000", True),
+    ("ds_2000_s2", "walled ds, seed 2", WALLED, "box_2000_s2", False),
+    ("ds_2000_s3", "walled ds, seed 3", WALLED, "box_2000_s3", False),
+    ("ds_10000_s1", "walled ds", WALLED, "box_1e4", False),
+    ("tiled_10000_s1", "tiled (2,000 cell), seed 1", TILED, "box_1e4_tiled_s1", False),
+    ("tiled_10000_s2", "tiled (2,000 cell), seed 2", TILED, "box_1e4_tiled_s2", False),
+    ("tiled_10000_s3", "tiled (2,000 cell), seed 3", TILED, "box_1e4_tiled_s3", False),
+    ("tiled_1e5", "tiled (10,000 cell)", TILED, "box_1e5", True),
+    ("tiled_1e6", "tiled (10,000 cell)", TILED, "box_1e6", True),
+]
+SPEC = {k: (lab, fam) for k, lab, fam, _, _ in INSTANCES}
+HOW = "tdem validate 4"
+CELL_MM = 42.0              # the relaxed 10,000-sphere cell of the tiled boxes (docs/packings.md)
 
 
 def scene_text(packing: str, ct: float) -> str:
@@ -70,8 +92,18 @@ method = "steady"
 
 
 def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 0.806):
+    """One packing: (summary dict, profile rows (Fo, t, x/L, T_dem C, T_exact C, error K))."""
+    from tdem_post.analytic import slab_mean_temperature
+    from tdem_post.profiles import binned_profile
+    from thermal_kernel.calibrate import cross_section, flux_test
+    from thermal_kernel.network import assemble
+    from thermal_kernel.packing import read_packing
+    from thermal_kernel.problem import boundary_particles, build_problem
+    from thermal_kernel.scene import load_scene
+    from thermal_kernel.solvers.explicit import run_explicit
+    from thermal_kernel.solvers.steady import solve_steady
     packing_path = str(Path(packing_path).resolve())
-    scene_path = Path("validation/case4_scene.toml")
+    scene_path = ROOT / "validation" / "case4_scene.toml"     # a name for messages only
     packing = read_packing(packing_path)
     scene = load_scene(scene_path, text=scene_text(packing_path, ct_arb))
     c0 = time.perf_counter()
@@ -104,6 +136,15 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
     err = prof - exact
     err_dt = np.abs(err) / (T2 - T1)                    # relative to the imposed difference
     err_c = np.abs(err) / (exact - 273.15)              # relative to T in C (the paper's, Fig. 5b)
+
+    # the steady profile on the same network against the linear one (% of dT)
+    s0 = time.perf_counter()
+    steady = solve_steady(net, np.full(packing.n_particles, 0.5 * (T1 + T2))).temperature_k[-1]
+    sedges = np.linspace(0.0, length, STEADY_BINS + 1)
+    sprof = binned_profile(x, packing.radius, steady, sedges, weights=conducting)
+    linear = T1 + (T2 - T1) * 0.5 * (sedges[1:] + sedges[:-1]) / length
+    steady_pct = 100 * (sprof - linear) / (T2 - T1)
+    steady_s = time.perf_counter() - s0
     summary = {
         "packing": packing_path, "n_particles": int(packing.n_particles), "n_bins": n_bins,
         "length_held_m": length, "length_domain_m": domain_length,
@@ -114,7 +155,9 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
         "max_rel_error_celsius_per_time": err_c.max(axis=1).tolist(),
         "max_error_over_dT": float(err_dt.max()),
         "max_error_over_dT_per_time": err_dt.max(axis=1).tolist(),
-        "calibration_seconds": calib_s, "run_seconds": run_s, "threads": threads,
+        "steady_minus_linear_pct_dT": steady_pct.tolist(),
+        "calibration_seconds": calib_s, "run_seconds": run_s, "steady_seconds": steady_s,
+        "threads": threads,
     }
     rows = []
     for k, t in enumerate(times):
@@ -124,12 +167,374 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
     return summary, rows
 
 
+# ---------------------------------------------------------------- the case
+def _row(key: str, summary: dict, profile: list) -> dict:
+    label, family = SPEC.get(key, (key, None))
+    return dict(name=key, label=label, family=family, n_particles=summary["n_particles"],
+                ct_held=summary["ct_held_plane"], ct_domain=summary["ct_domain_length"],
+                length_held_m=summary["length_held_m"],
+                max_err_over_T_celsius=summary["max_rel_error_celsius"],
+                max_err_over_dT=summary["max_error_over_dT"],
+                max_err_over_dT_per_time=summary["max_error_over_dT_per_time"],
+                steps=summary["steps"], run_seconds=summary["run_seconds"],
+                steady_pct=summary["steady_minus_linear_pct_dT"], profile=[list(r) for r in profile],
+                measured=today(), how=HOW)
+
+
+def _legacy_rows() -> list[dict]:
+    """The rows measured before the framework: the CSVs beside the figures (committed) and the
+    steady-profile table of docs/validation.md (validation/case4_steady_profile.py, 20 bins)."""
+    path = IMG / "validation_case4_convergence.csv"
+    if not path.exists():
+        return []
+    steady = {"ds_10000_s1": (-0.34, "±0.1", 0.33, None),
+              "tiled_10000_s1": (0.95, "+0.1 … −0.3", -0.78, -1.17),
+              "tiled_1e5": (0.29, "+0.05", -0.14, None), "tiled_1e6": (0.16, "−0.01", -0.20, None)}
+    rows = []
+    with open(path) as f:
+        for r in csv.DictReader(f):
+            label, family = SPEC.get(r["name"], (r["name"], r["family"]))
+            row = dict(name=r["name"], label=label, family=family,
+                       n_particles=int(r["n_particles"]), ct_held=float(r["ct_held"]),
+                       ct_domain=float(r["ct_domain"]),
+                       max_err_over_T_celsius=float(r["max_err_over_T_celsius"]),
+                       max_err_over_dT=float(r["max_err_over_dT"]), steps=int(r["steps"]),
+                       run_seconds=float(r["run_seconds"]), measured=r.get("measured") or
+                       "2026-12-01", how="validation/case4_slab.py before tdem validate")
+            if r["name"] in steady:
+                c, mid, h, inner = steady[r["name"]]
+                row["steady_legacy"] = dict(cold=c, mid=mid, hot=h, hot_inner=inner)
+            rows.append(row)
+    prof = IMG / "validation_case4_profiles.csv"
+    for row in rows:
+        if row["name"] == "tiled_1e5" and prof.exists():
+            with open(prof) as f:
+                row["profile"] = [[float(v) for v in r.values()] for r in csv.DictReader(f)]
+    for row in rows:         # x-axis held-plane distances of case 6's CSV (the same packings)
+        held = {"tiled_1e5": 0.0910216, "tiled_1e6": 0.1974642}.get(row["name"])
+        if held:
+            row["length_held_m"] = held
+    return rows
+
+
+def fit_order(n, e):
+    """e = a N^p by least squares in log-log: (p, a)."""
+    p, loga = np.polyfit(np.log(n), np.log(e), 1)
+    return float(p), float(np.exp(loga))
+
+
+def _figures(ctx: Context, rows: list[dict]) -> dict:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    out = {}
+    best = next((r for r in rows if r["name"] == "tiled_1e5" and r.get("profile")),
+                next((r for r in reversed(rows) if r.get("profile")), None))
+    if best is not None:
+        prof = np.array(best["profile"])
+        png = ctx.figure("profiles")
+        fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+        for fo in sorted(set(prof[:, 0])):
+            sel = prof[prof[:, 0] == fo]
+            a.plot(sel[:, 2], sel[:, 4], "-", color="0.5")
+            a.plot(sel[:, 2], sel[:, 3], "o", label=f"Fo = {fo:.4f}")
+            b.plot(sel[:, 2], 100 * sel[:, 5] / sel[:, 4], "o-", label=f"Fo = {fo:.4f}")
+        a.set_xlabel("x / L (held planes)")
+        a.set_ylabel("T (°C)")
+        a.set_title(f"cube slab, {best['n_particles']:,} spheres: DEM (dots), eq. 17 (lines)")
+        a.legend()
+        b.axhline(100 * PAPER_ERROR, ls="--", color="r", label="Haddad's max 0.7 %")
+        b.axhline(-100 * PAPER_ERROR, ls="--", color="r")
+        b.set_xlabel("x / L")
+        b.set_ylabel("(T_DEM − T_exact) / T_exact(°C)  (%)")
+        b.legend()
+        fig.tight_layout()
+        fig.savefig(png, dpi=120)
+        plt.close(fig)
+        write_csv(png.with_suffix(".csv"),
+                  ["fourier", "time_s", "x_over_L", "T_dem_C", "T_exact_C", "error_K"],
+                  [tuple(float(v) for v in r) for r in best["profile"]])
+        out["profiles"] = (png.name, best)
+
+    png = ctx.figure("convergence")
+    fig, ax = plt.subplots(figsize=(5.5, 4))
+    orders = {}
+    for family in (WALLED, TILED):
+        fam = sorted((r for r in rows if r["family"] == family), key=lambda r: r["n_particles"])
+        if not fam:
+            continue
+        ns = [r["n_particles"] for r in fam]
+        ed = np.array([r["max_err_over_dT"] for r in fam])
+        ec = np.array([r["max_err_over_T_celsius"] for r in fam])
+        lab = f"{family}: |err|/ΔT"
+        if len(set(ns)) >= 2:
+            orders[family] = fit_order(ns, ed)[0]
+            lab += f", order {orders[family]:.2f}"
+        line, = ax.loglog(ns, 100 * ed, "o", label=lab)
+        ax.loglog(ns, 100 * ec, "x", color=line.get_color(), label=f"{family}: |err|/T(°C)")
+    ax.axhline(100 * PAPER_ERROR, ls="--", color="r", lw=0.8,
+               label="Haddad 1e5: 0.7 % (of T in °C)")
+    ax.set_xlabel("N (spheres)")
+    ax.set_ylabel("max relative error (%)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+    write_csv(png.with_suffix(".csv"),
+              ["family", "name", "n_particles", "ct_held", "ct_domain", "max_err_over_T_celsius",
+               "max_err_over_dT", "steps", "run_seconds", "measured"],
+              [(r["family"] or "", r["name"], r["n_particles"], r["ct_held"], r["ct_domain"],
+                r["max_err_over_T_celsius"], r["max_err_over_dT"], r["steps"], r["run_seconds"],
+                r["measured"]) for r in rows])
+    out["convergence"] = png.name
+    out["orders"] = orders
+    return out
+
+
+def run(ctx: Context) -> CaseResult:
+    if ctx.quick:        # the committed 400-sphere walled box: no YADE
+        summary, profile = slab_case(DENSE_400, threads=ctx.threads)
+        row = _row("dense_box_400", summary, profile)
+        return CaseResult(our_n="400", our_error=f"{100 * row['max_err_over_T_celsius']:.2f} % "
+                          f"of T in °C, {100 * row['max_err_over_dT']:.2f} % of ΔT",
+                          wall_time=f"{row['run_seconds']:.1f} s", verdict="quick instance",
+                          section_md="", numbers=dict(rows=[row]))
+    previous = {r["name"]: r for r in (previous_numbers(4).get("rows") or _legacy_rows())}
+    rows = []
+    for key, label, family, name, default in INSTANCES:
+        path = DENSE_400 if name is None else optional_packing(name, default)
+        if path is None:
+            if key in previous:
+                rows.append(previous[key])
+                ctx.progress(f"{key}: {name} not built here, row of {previous[key]['measured']} "
+                             "kept")
+            continue
+        ctx.progress(f"{key}: slab on {Path(path).relative_to(ROOT)} ...")
+        summary, profile = slab_case(path, threads=ctx.threads)
+        row = _row(key, summary, profile)
+        rows.append(row)
+        (ctx.out / f"{key}.json").write_text(json.dumps(summary, indent=1))
+        ctx.progress(f"{key}: N {row['n_particles']}, max err {100 * row['max_err_over_T_celsius']:.3f} "
+                     f"% of T(C), {100 * row['max_err_over_dT']:.3f} % of dT, {row['steps']} "
+                     f"steps, {row['run_seconds']:.1f} s")
+    figs = _figures(ctx, rows)
+    return _result(rows, figs)
+
+
+def _p(x, digits=2):
+    return f"{100 * x:.{digits}f} %"
+
+
+def _sg(x, digits=2):
+    """A signed number with a typographic minus."""
+    return f"{x:+.{digits}f}".replace("-", "−")
+
+
+def _steady_cells(r):
+    if "steady_pct" in r:
+        s = np.array(r["steady_pct"])
+        mid = s[len(s) // 2 - 2: len(s) // 2 + 2]
+        mid_t = (_sg(mid.mean()) if np.ptp(mid) < 0.1 else f"{_sg(mid.max())} … {_sg(mid.min())}")
+        hot = _sg(s[-1]) + (f" ({_sg(s[-2])} one bin in)" if abs(s[-2]) > abs(s[-1]) + 0.1
+                            else "")
+        return s[0], mid_t, s[-1], hot
+    lg = r["steady_legacy"]
+    hot = _sg(lg["hot"]) + (f" ({_sg(lg['hot_inner'])} one bin in)" if lg["hot_inner"] else "")
+    return lg["cold"], lg["mid"], lg["hot"], hot
+
+
+def _result(rows: list[dict], figs: dict) -> CaseResult:
+    by = {r["name"]: r for r in rows}
+    n = dict(rows=rows, fitted_orders=figs["orders"])
+    carried = sorted({r["measured"] for r in rows if r["how"] != HOW})
+    table = []
+    for r in rows:
+        bold = r["name"] == "tiled_1e5"
+        b = "**" if bold else ""
+        t = f"{r['run_seconds']:.1f}" if r["run_seconds"] < 100 else f"{r['run_seconds']:.0f}"
+        mark = " †" if r["how"] != HOW else ""
+        table.append(f"| {b}{r['label']}{b}{mark} | {b}{r['n_particles']:,}{b} | "
+                     f"{r['ct_held']:.4f} / {r['ct_domain']:.4f} | "
+                     f"{b}{_p(r['max_err_over_T_celsius'])}{b} | {b}{_p(r['max_err_over_dT'])}{b} | "
+                     f"{r['steps']:,} | {t} |")
+    ratios = [r["max_err_over_dT"] / r["max_err_over_T_celsius"] for r in rows]
+    steady_rows = []
+    for r in rows:
+        if "steady_pct" not in r and "steady_legacy" not in r:
+            continue
+        cold, mid, hot, hot_t = _steady_cells(r)
+        if cold < 0 < hot:
+            shape = ("steeper than linear inside, opposite jumps at the faces (the held layer "
+                     "conducts a little better than the bulk)")
+        elif cold > 0 > hot:
+            shape = ("flatter than linear inside, jumps at the faces: a boundary resistance of the "
+                     "held layers")
+        else:
+            shape = "ends of one sign"
+        steady_rows.append(f"| {r['label']}, {r['n_particles']:,} | {_sg(cold)} | {mid} | {hot_t} | "
+                           f"{shape} |")
+    b4, b5, b6 = by.get("ds_10000_s1"), by.get("tiled_1e5"), by.get("tiled_1e6")
+    tiled4 = [by[k] for k in ("tiled_10000_s1", "tiled_10000_s2", "tiled_10000_s3") if k in by]
+    parts = {}
+    if b5 and b5.get("profile"):
+        p = np.array(b5["profile"])
+        first = p[p[:, 0] == p[0, 0]]
+        cold = np.abs(p[p[:, 2] < 0.5, 5]).max()
+        last = p[p[:, 2] == p[:, 2].max(), 5]
+        parts["where"] = (f"at 1e5 the error is < {cold:.3f} K over the cold half and grows towards "
+                          f"the hot face, {_sg(last.max())} to {_sg(last.min())} K in the last bin"
+                          + (", the largest at the earliest time (the steepest gradient there)"
+                             if abs(first[-1, 5]) >= np.abs(last).max() - 1e-12 else ""))
+        n["error_1e5_last_bin_k"] = [float(last.min()), float(last.max())]
+    else:
+        parts["where"] = "the error is largest in the bins next to the hot face"
+    if b6 and b6.get("profile"):
+        p = np.array(b6["profile"])
+        first = p[p[:, 0] == p[0, 0]]
+        mid = p[np.abs(p[:, 2] - 0.5) < 0.11, 5]
+        parts["1e6"] = (f"({_sg(mid.max(), 3)} to {_sg(mid.min(), 3)} K at mid-slab, "
+                        f"{_sg(first[-1, 5])} K in the last bin at the first time)")
+    else:
+        parts["1e6"] = ("(−0.005 to −0.015 K at mid-slab, −0.07 K in the last bin at the first "
+                        "time)")
+    text = {}
+    if b5:
+        e5c, e5d = b5["max_err_over_T_celsius"], b5["max_err_over_dT"]
+        text["paper"] = (f"**Against the paper.** At 1e5 the maximum error is {_p(e5c)} (of T in "
+                         f"°C) against the paper's 0.7 %; the issue's goal (≤ 0.5 % at 1e5) is "
+                         + ("met in that measure" if e5c <= 0.005 else "not met in that measure")
+                         + (", and in the stricter one" if e5d <= 0.005 else
+                            f", {'nearly ' if e5d < 0.0065 else 'not '}in the stricter one")
+                         + f" ({_p(e5d)} of ΔT).")
+        if b6:
+            text["paper"] += (f" At 1e6 {_p(b6['max_err_over_T_celsius'])} "
+                              f"({_p(b6['max_err_over_dT'])} of ΔT); the paper gives no 1e6 slab.")
+        n.update(err_1e5_celsius=e5c, err_1e5_dT=e5d)
+    seeds = ""
+    if tiled4 and b4:
+        v = [r["max_err_over_dT"] for r in tiled4]
+        seeds = (f" ({100 * np.mean(v):.1f} ± {100 * np.std(v, ddof=1):.1f} % against "
+                 f"{_p(b4['max_err_over_dT'])} of ΔT)")
+    falls = b5 and b6 and b6["max_err_over_dT"] < b5["max_err_over_dT"]
+    l6 = b6.get("length_held_m") if b6 else None
+    orders = figs["orders"]
+    order_text = ", ".join(f"{'walled' if f == WALLED else 'tiled'} {_sg(o)}"
+                           for f, o in orders.items())
+    lbl = "held-plane distance, {:.1f} mm at 1e5".format(1e3 * b5["length_held_m"]) \
+        if b5 and b5.get("length_held_m") else "the held-plane distance"
+    prof_png = figs.get("profiles")
+    section = f"""\
+Setup (as the paper, 002 sec. 2.2 and Tab. 1): two faces normal to x held, T = 25 °C at xmin and
+35 °C at xmax from t = 0, 25 °C initially, adiabatic sides; ρ = 7800 kg/m³, λ = 33 W/m/K,
+c = 0.9 J/kg/K (the paper's value; α = 4.70e-3 m²/s); law haddad with C_t calibrated on the same
+packing (case 6, x axis, held-plane length{f": {b5['ct_held']:.4f} at 1e5" if b5 else ""}).
+**Not rescaled to L = 10 cm**: the solution depends on the Fourier number only, so the outputs are
+at the paper's Fo = α t / L² for L = 10 cm and t = 0.05 / 0.1 / 0.2 s, i.e.
+Fo = {FOURIER[0]:.4f} / {FOURIER[1]:.4f} / {FOURIER[2]:.4f}, with our L (the {lbl} — close to the
+paper's 10 cm anyway). Forward Euler (as the paper) at 0.9 × its exact positivity bound. Profile:
+10 equal bins of [0, L], each particle weighted by its partial volume in the bin (rattlers
+excluded), against the bin mean of eq. 17 (`tdem_post.analytic.slab_mean_temperature`, the slab
+series/images summed to 1e-12).
+
+Two error measures: **|T − T_exact| / T_exact with T in °C** (our reading of the paper's
+Fig. 5b: the paper does not define its relative error, and plots T in °C; 0.7 % of ~30 °C is
+~0.2 K) and |T − T_exact| / ΔT (ΔT = 10 K, independent of the temperature scale's origin,
+{min(ratios):.1f}–{max(ratios):.1f}× stricter).
+
+One packing by hand: `.venv/bin/python -m validation.case4_slab PACKING.h5 --name NAME` (writes
+`validation/out/case4/NAME.json` and `NAME_profiles.csv`).
+""" + (f"""
+![case 4 profiles at {prof_png[1]['n_particles']:,}](img/{prof_png[0]})
+
+(data: `img/{Path(prof_png[0]).with_suffix('.csv').name}`)
+""" if prof_png else "") + f"""
+| packing | N | C_t (held planes / domain) | max err / T(°C) | max err / ΔT | explicit steps | thermal (s) |
+|---|---|---|---|---|---|---|
+{chr(10).join(table)}
+""" + (f"""
+† Measured {', '.join(carried)} by validation/case4_slab.py before `tdem validate` (on the
+packings of bench/out/packings) and carried over: those packings are not on this machine;
+`TDEM_VALIDATE_ALL_PACKINGS=1 tdem validate 4 --force` builds and measures them again.
+""" if carried else "") + f"""
+**Where the error is.** Not in the bulk: {parts['where']}. The DEM lags the solution next to the
+held face: on the tiled boxes the held layer of a cut face is joined to the bulk by fewer links
+than a bulk layer, a boundary resistance (measured on the steady profile below; the walled boxes
+show the opposite, smaller jump). The steady calibration folds that resistance into C_t (one
+number for bulk and boundary), so the bulk is slightly over-conductive and the face
+under-conductive; in steady state the heat flow is exact, in the transient the two do not
+cancel. This is why the error falls with N from 400 to 1e5 and why the tiled 1e4 boxes — cut
+from 2,000-sphere cells, only ~12 diameters periodic — are worse than the walled 1e4 box of the
+same N{seeds}: their held layers are sparser.
+""" + (f"""
+**From 1e5 to 1e6 the error {'falls' if falls else 'does not fall'}** ({_p(b5['max_err_over_dT'])} →
+{_p(b6['max_err_over_dT'])} of ΔT; {_p(b5['max_err_over_T_celsius'])} →
+{_p(b6['max_err_over_T_celsius'])} of T in °C). At 1e6 the deficit is no longer confined to the
+hot face: it spreads smoothly over the hot half {parts['1e6']}, as if the slab near the hot face
+conducted or stored heat slightly differently from the slab as a whole. A boundary resistance
+alone would make the error fall like 1/L, so something else sets a floor for these packings. Our
+hypothesis, not tested: the tiled boxes are copies of ONE relaxed 10,000-sphere cell
+({CELL_MM:.0f} mm{f', {100 * CELL_MM / 1e3 / l6:.0f} % of L at 1e6' if l6 else ''}), so their
+local density and coordination fluctuations repeat instead of averaging out; the steady
+calibration matches the harmonic mean along x, the transient near the hot face sees the first
+cells only. Tiling from several independently relaxed cells, or seeds of the 1e5/1e6 boxes, would
+test it.
+""" if b5 and b6 else "") + f"""
+The steady profile says where the floor comes from (steady T minus the linear profile, % of ΔT,
+{STEADY_BINS} bins from the cold to the hot held plane, computed by `slab_case` on the same
+network). The calibration makes the heat flow exact, not the profile linear:
+
+| packing | cold end | mid-slab | hot end | shape |
+|---|---|---|---|---|
+{chr(10).join(steady_rows)}
+
+So the cut (tiled) faces carry a boundary resistance that the single calibrated C_t cannot
+absorb; at 1e5 and 1e6 it bends the steady profile by a few tenths of a per cent of ΔT, and the
+transient error at the hot face (largest at the earliest time, where the face flux is largest) is
+its transient counterpart. Held-plane positions that include the jump (an effective plane found
+from the steady profile), or faces pressed by walls, are the two remedies to try. Fitted orders
+(max err / ΔT against N, log-log least squares): {order_text or '—'}
+(walled: 2,000 → 10,000; tiled: 10,000 → 1e6, not a clean power law).
+
+{text.get('paper', '')}
+
+![case 4 convergence with N](img/{figs['convergence']})
+
+(data: `img/{Path(figs['convergence']).with_suffix('.csv').name}`; the fitted order is that of
+max err / ΔT against N over each family, least squares in log-log.)
+""" + (f"""
+**Speed against error.** The thermal part is cheap next to the packing: at 1e5,
+{b5['run_seconds']:.0f} s of explicit stepping (one thread) for {_p(b5['max_err_over_dT'])} of ΔT,
+after 551 s of YADE for the cell{f"; at 1e6 {b6['run_seconds']:.0f} s ({b6['steps']:,} steps) for {_p(b6['max_err_over_dT'])}" if b6 else ''}.
+""" if b5 else "") + """
+**Test.** `tests/test_validation_small.py` runs `slab_case` on the committed 400-sphere box
+(`tests/data/dense_box.h5`) and asserts the errors measured there with a ~20 % margin (1.5 % of T
+in °C, 5 % of ΔT) and the C_t conversion; `tdem validate 4 --quick` runs the same instance."""
+    big = max(rows, key=lambda r: r["n_particles"])
+    head = b5 or big
+    our_error = (f"max rel. error **{_p(head['max_err_over_T_celsius'])}** (of T in °C, our "
+                 f"reading of the paper's measure); {_p(head['max_err_over_dT'])} of ΔT"
+                 + (f"; at 1e6 {_p(b6['max_err_over_T_celsius'])} / {_p(b6['max_err_over_dT'])}"
+                    if b6 else ""))
+    verdict = ("goal ≤ 0.5 % " + ("met" if head["max_err_over_T_celsius"] <= 0.005 else "not met")
+               + " in the paper's measure, "
+               + ("met" if head["max_err_over_dT"] <= 0.005 else "not quite") + " in the stricter one"
+               + ("; does not keep falling from 1e5 to 1e6 (one periodic cell, see case 4)"
+                  if b5 and b6 and not falls else ""))
+    return CaseResult(
+        our_n=f"{head['n_particles']:,} (also {min(r['n_particles'] for r in rows):,} … "
+              f"{big['n_particles']:,})",
+        our_error=our_error,
+        wall_time=(f"551 s CPU + {head['run_seconds']:.0f} s (explicit, {head['steps']:,} steps, "
+                   f"1 thread)" + (f"; 1e6: + {b6['run_seconds']:.0f} s" if b6 else "")),
+        verdict=verdict, section_md=section, numbers=n)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("packing")
     ap.add_argument("--bins", type=int, default=10)
     ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--out", default="validation/out/case4")
+    ap.add_argument("--out", default=str(ROOT / "validation" / "out" / "case4"))
     ap.add_argument("--name", default=None)
     a = ap.parse_args(argv)
     out = Path(a.out)
@@ -145,7 +550,8 @@ def main(argv=None):
           f"/ {summary['ct_domain_length']:.4f} (domain), max |err|/T(C) "
           f"{100 * summary['max_rel_error_celsius']:.3f} %, max |err|/dT "
           f"{100 * summary['max_error_over_dT']:.3f} %, {summary['steps']} steps, "
-          f"{summary['run_seconds']:.1f} s")
+          f"{summary['run_seconds']:.1f} s; steady - linear (% of dT, cold -> hot): "
+          + " ".join(f"{v:+.3f}" for v in summary["steady_minus_linear_pct_dT"]))
 
 
 if __name__ == "__main__":
