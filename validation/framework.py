@@ -227,3 +227,28 @@ def test_module(name: str):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+# The dense-box family of cases 4 and 6 below 1e5 and at 8e6 (docs/packings.md's paths: "ds" =
+# walled, density-scaled; "reference" = walled, P-wave time step, ~1 h of YADE; "tiled" from a
+# 2,000-sphere cell). A full run measures them only when they are built here (or with
+# TDEM_VALIDATE_ALL_PACKINGS=1, which builds them: hours); otherwise a case carries over their
+# last measured rows.
+for _s in (2, 3):
+    register_packing(f"box_2000_s{_s}", "runs/dense_box.toml", dict(n_particles=2000, seed=_s))
+register_packing("box_1e4", "runs/dense_box.toml", dict(n_particles=10_000, seed=1))
+register_packing("box_1e4_reference", "runs/dense_box.toml",
+                 dict(n_particles=10_000, seed=1, time_step="p_wave"))
+for _s in (1, 2, 3):
+    register_packing(f"box_1e4_tiled_s{_s}", "runs/dense_box.toml",
+                     dict(n_particles=10_000, seed=_s, method="tiled", cell_particles=2000))
+register_packing("box_8e6", "runs/dense_box_1e5.toml", dict(n_particles=8_000_000))
+
+
+def optional_packing(name: str, default: bool) -> Path | None:
+    """The packing for one instance of a case: a default instance is built when missing; another
+    one is used only when it is already built (or TDEM_VALIDATE_ALL_PACKINGS=1 asks to build it),
+    else None (the case keeps its last measured row)."""
+    if default or packing_built(name) or os.environ.get("TDEM_VALIDATE_ALL_PACKINGS") == "1":
+        return packing(name)
+    return None
