@@ -212,52 +212,90 @@ def _fit(p_bar, y):
         return None
 
 
-def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, seconds: float):
+def results_table(rows: list):
+    """One row per case (pressure x law [x seed]) of the post-processing summaries."""
     import pandas as pd
-    from tdem_post.fits import PAPER_GAMMA, power_law
-
-    table = pd.DataFrame([{
+    nan = float("nan")
+    return pd.DataFrame([{
+        **({"seed": r["seed"]} if r.get("seed") is not None else {}),
         "pressure_pa": r["pressure_pa"], "law": r["law"], "n_particles": r["n_particles"],
         "mean_coordination": r["mean_coordination"], "solid_fraction": r["solid_fraction"],
         "mean_normal_force_n": r["mean_normal_force_n"], "gamma": r["gamma"],
         "gamma_ci95_low": r["gamma_ci95"][0], "gamma_ci95_high": r["gamma_ci95"][1],
-        "gamma_residual_rms_k": r["gamma_residual_rms_k"], "gamma_steady": r["gamma_steady"],
+        "gamma_residual_rms_k": r["gamma_residual_rms_k"],
+        # 003's convention: alpha = gamma_paper k_p / (rho_p c_p), so gamma_paper = gamma / phi
+        "gamma_paper": r["gamma"] / r["solid_fraction"],
+        "gamma_steady": r["gamma_steady"],
+        # fabric-tensor (affine) estimate k_zz / k_p: an upper bound of gamma_steady (Thomson)
+        "gamma_affine": r.get("gamma_affine", nan),
+        "gamma_affine_transverse": r.get("gamma_affine_transverse", nan),
+        "fabric_nz2": r.get("fabric_nz2", nan),
+        "fabric_nz2_conductance": r.get("fabric_nz2_conductance", nan),
         "tau_s": r["tau_s"], "tau_series_s": r["tau_series_s"],
+        "tau_slab_s": r.get("tau_slab_s", nan), "length_m": r.get("length_m", nan),
         **{f"gamma_mean_field_{k}": v for k, v in r["gamma_mean_field"].items()},
-        "thermal_wall_seconds": r.get("thermal_wall_seconds", float("nan")),
-        "case_wall_seconds": r.get("case_wall_seconds", float("nan")),
+        "thermal_wall_seconds": r.get("thermal_wall_seconds", nan),
+        "case_wall_seconds": r.get("case_wall_seconds", nan),
         # the run's thermal.h5 flags ("none": clean; see docs/solvers.md)
         "flags": r.get("flags", "unknown") or "none",
-    } for r in rows]).sort_values(["law", "pressure_pa"])
+    } for r in rows]).sort_values((["seed"] if rows and rows[0].get("seed") is not None
+                                   else []) + ["law", "pressure_pa"])
+
+
+def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, seconds: float):
+    from tdem_post.fits import PAPER_GAMMA, power_law
+
+    table = results_table(rows)
     with replacing(out_dir / "results.csv") as tmp:
         table.to_csv(tmp, index=False)
+    seeded = "seed" in table.columns
+    seeds = sorted(table["seed"].unique()) if seeded else [None]
 
+    # power-law fits over pressure, per law (and per seed)
     fits = {}
-    for law, g in table.groupby("law"):
+    for key, g in table.groupby(["law", "seed"] if seeded else ["law"]):
+        key = key if seeded else key[0] if isinstance(key, tuple) else key
         p_bar = g["pressure_pa"].to_numpy() / 1e5
-        fits[law] = dict(gamma=_fit(p_bar, g["gamma"].to_numpy()),
+        fits[key] = dict(gamma=_fit(p_bar, g["gamma"].to_numpy()),
                          tau=_fit(p_bar, g["tau_s"].to_numpy()))
-    _plots(out_dir, table, fits)
+    _plots(out_dir, table, fits, rows)
 
+    first = table[table.seed == seeds[0]] if seeded else table
     lines = [f"# Pressure campaign: {campaign_path.name}", "",
              f"{table['n_particles'].iloc[0]} particles, pressures "
              f"{', '.join(f'{p / 1e5:.3g}' for p in sorted(table['pressure_pa'].unique()))} bar, "
-             f"laws {', '.join(conf['laws'])}; {seconds:.0f} s in all. Files: `results.csv`, "
-             "`gamma_p.png`, `tau_p.png`, `cases/<p>Pa_<law>/post/profiles.png`.", "",
-             "γ = k_eff / k_p fitted to the binned profiles against the slab solution (95 % "
-             "interval), γ_steady from the steady heat flow, γ_mf the mean-field estimate "
+             f"laws {', '.join(conf['laws'])}"
+             + (f", packing seeds {', '.join(str(s) for s in seeds)} (one YADE series each, "
+                "`seed_<s>/`)" if seeded else "")
+             + f"; {seconds:.0f} s in all. Files: `results.csv`, "
+             "`gamma_p.png`, `tau_p.png`, `contact_angles.png`, "
+             + ("`seed_<s>/cases/<p>Pa_<law>/post/profiles.png`." if seeded
+                else "`cases/<p>Pa_<law>/post/profiles.png`."), "",
+             "γ = k_eff / k_p fitted to the binned profiles against the slab solution with the "
+             "bed's heat capacity φ ρ_p c_p (95 % interval); γ_paper = γ / φ, the same fitted "
+             "diffusivity in 003's convention α = γ_paper κ_p / (ρ_p c_p) (App. A; ρ is the "
+             "particle density, Table 1) - the number to compare with the paper's γ(p); "
+             "γ_steady = k_eff / k_p from the steady heat flow (no capacity enters: compare it "
+             "with γ); γ_aff the affine (fabric-tensor) estimate k_zz / k_p = Σ H l_z² / (V k_p), "
+             "an upper bound of γ_steady (Thomson); ⟨n_z²⟩ the mean squared axial cosine of the "
+             "touching contacts (1/3 isotropic); γ_mf the isotropic mean field "
              "φ Z H̄ / (2π R̄ k_p) of each contact law on the same contacts; τ the characteristic "
-             "time of the middle section (003 eq. 41).", "",
-             "| p (bar) | law | Z | φ | mean F_n (N) | γ | 95 % CI | γ_steady | γ_mf bob | "
-             "γ_mf argento | γ_mf pipe | τ (s) | flags |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "time of the middle section (003 eq. 41) from the network, τ_slab = L² / (8 α) the "
+             "slab's own with the fitted α.", "",
+             "| " + ("seed | " if seeded else "") + "p (bar) | law | Z | φ | mean F_n (N) | γ | "
+             "95 % CI | γ_paper | γ_steady | γ_aff | ⟨n_z²⟩ | γ_mf bob | γ_mf argento | "
+             "γ_mf pipe | τ (s) | τ_slab (s) | flags |",
+             "|" + "---|" * (17 + seeded)]
     for _, r in table.iterrows():
         lines.append(
-            f"| {r.pressure_pa / 1e5:.3g} | {r.law} | {r.mean_coordination:.2f} | "
+            "| " + (f"{r.seed} | " if seeded else "")
+            + f"{r.pressure_pa / 1e5:.3g} | {r.law} | {r.mean_coordination:.2f} | "
             f"{r.solid_fraction:.4f} | {r.mean_normal_force_n:.3g} | {r.gamma:.4g} | "
-            f"{r.gamma_ci95_low:.4g}–{r.gamma_ci95_high:.4g} | {r.gamma_steady:.4g} | "
+            f"{r.gamma_ci95_low:.4g}–{r.gamma_ci95_high:.4g} | {r.gamma_paper:.4g} | "
+            f"{r.gamma_steady:.4g} | {r.gamma_affine:.4g} | {r.fabric_nz2:.4f} | "
             f"{r.gamma_mean_field_bob:.4g} | {r.gamma_mean_field_argento:.4g} | "
-            f"{r.gamma_mean_field_pipe:.4g} | {r.tau_s:.4g} | {r['flags']} |")
+            f"{r.gamma_mean_field_pipe:.4g} | {r.tau_s:.4g} | {r.tau_slab_s:.4g} | "
+            f"{r['flags']} |")
     suspect = [(r, [f for f in r["flags"].split(",") if f in SUSPECT_FLAGS])
                for _, r in table.iterrows()]
     suspect = [(r, f) for r, f in suspect if f]
@@ -266,14 +304,18 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
                       "suspect** (`flags` of their `thermal.h5`; `max_principle`: a "
                       "temperature outside the range of the initial and boundary values, "
                       "`energy_ledger`: heat in ≠ heat stored; docs/solvers.md): "
-                  + "; ".join(f"{r['pressure_pa'] / 1e5:.3g} bar {r['law']}: {', '.join(f)}"
+                  + "; ".join((f"seed {r['seed']} " if seeded else "")
+                              + f"{r['pressure_pa'] / 1e5:.3g} bar {r['law']}: {', '.join(f)}"
                               for r, f in suspect) + "."]
     else:
         lines += ["", "No run flagged by the maximum-principle and energy-ledger checks or the "
                       "solver (other flags, e.g. `rattlers`, are information; docs/solvers.md)."]
-    lines += ["", "## Fits over pressure (p in bar)", ""]
-    for law, f in fits.items():
-        g = table[table.law == law]
+    if seeded:
+        lines += _seed_summary(table, fits, seeds)
+    lines += ["", "## Fits over pressure (p in bar)" + (f", seed {seeds[0]}" if seeded else ""),
+              ""]
+    for law, g in first.groupby("law"):
+        f = fits[(law, seeds[0]) if seeded else law]
         p_bar = g["pressure_pa"].to_numpy() / 1e5
         for what, fit in (("γ", f["gamma"]), ("τ", f["tau"])):
             if fit is None:
@@ -283,35 +325,100 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
                              f"p^{fit.b:.4g} (±{fit.stderr[1]:.2g}) {'−' if fit.c < 0 else '+'} {abs(fit.c):.4g} "
                              f"(±{fit.stderr[2]:.2g}), rms {fit.rms:.3g}")
         paper = power_law(p_bar, **PAPER_GAMMA)
-        ratio = g["gamma"].to_numpy() / paper
-        mf = g["gamma_mean_field_bob"].to_numpy() / g["gamma"].to_numpy()
-        mfa = g["gamma_mean_field_argento"].to_numpy() / g["gamma"].to_numpy()
-        steady = g["gamma_steady"].to_numpy() / g["gamma"].to_numpy()
-        lines.append(f"- {law}: γ / paper's γ(p) (003 Fig. 7) = "
-                     f"{', '.join(f'{x:.3g}' for x in ratio)} (from low to high pressure); "
-                     f"γ_mf(bob) / γ = {', '.join(f'{x:.3g}' for x in mf)}; "
-                     f"γ_mf(argento) / γ = {', '.join(f'{x:.3g}' for x in mfa)}; "
-                     f"γ_steady / γ = {', '.join(f'{x:.3g}' for x in steady)}")
-        trend = np.polyfit(np.log(p_bar), np.log(g["gamma"].to_numpy()), 1)[0] \
+        gamma = g["gamma"].to_numpy()
+
+        def ratios(x):
+            return ", ".join(f"{v:.3g}" for v in x)
+        lines.append(
+            f"- {law}: γ_paper / paper's γ(p) (003 Fig. 7, same convention) = "
+            f"{ratios(g['gamma_paper'].to_numpy() / paper)} (from low to high pressure); "
+            f"γ_mf(bob) / γ = {ratios(g['gamma_mean_field_bob'].to_numpy() / gamma)}; "
+            f"γ_mf(argento) / γ = {ratios(g['gamma_mean_field_argento'].to_numpy() / gamma)}; "
+            f"γ_steady / γ = {ratios(g['gamma_steady'].to_numpy() / gamma)}; "
+            f"γ_aff / γ_steady = {ratios(g['gamma_affine'].to_numpy() / g['gamma_steady'])}; "
+            f"3 ⟨n_z²⟩ = {ratios(3 * g['fabric_nz2'].to_numpy())}; "
+            f"τ / τ_slab = {ratios(g['tau_s'].to_numpy() / g['tau_slab_s'].to_numpy())}")
+        trend = np.polyfit(np.log(p_bar), np.log(gamma), 1)[0] \
             if len(p_bar) > 1 else float("nan")
         lines.append(f"- {law}: log-log slope of γ(p) {trend:.3g} (the paper's curve falls, "
                      f"slope −0.29 at low p; contact mechanics, ζ ∝ F_n^(1/3) ∝ p^(1/3), "
                      "predicts a rising γ)")
+        # 003 App. A: tau_mid = L^2 rho_p c_p / (8 gamma_paper kappa_p); the paper's own fits
+        # give tau gamma_paper = 0.0056-0.0067 s (docs/campaign.md)
+        lines.append(f"- {law}: τ γ_paper (s) = {ratios(g['tau_s'].to_numpy() * g['gamma_paper'])}"
+                     f"; the paper's fits give {ratios(paper_tau(p_bar) * paper)}")
     lines += ["", f"Paper (003): γ = {PAPER_GAMMA['a']} p^{PAPER_GAMMA['b']} + "
                   f"{PAPER_GAMMA['c']} (Fig. 7); τ = {PAPER_TAU['a']} p^{PAPER_TAU['b']} "
                   f"{PAPER_TAU['c']:+} s (Fig. 10).", ""]
     write_text_atomic(out_dir / "report.md", "\n".join(lines))
     print(f"tdem campaign: report {out_dir / 'report.md'}", flush=True)
-    print(table[["pressure_pa", "law", "gamma", "gamma_steady", "tau_s", "flags"]].to_string(
+    print(table[(["seed"] if seeded else []) + ["pressure_pa", "law", "gamma", "gamma_paper",
+                "gamma_steady", "gamma_affine", "tau_s", "flags"]].to_string(
         index=False, float_format=lambda x: f"{x:.4g}"), flush=True)
     return dict(table=table, fits=fits, report=out_dir / "report.md")
 
 
-def _plots(out_dir, table, fits):
+def paper_tau(p_bar):
+    from tdem_post.fits import power_law
+    return power_law(np.asarray(p_bar, float), **PAPER_TAU)
+
+
+def seed_statistics(table):
+    """Mean, sample standard deviation and number of seeds of gamma, gamma_paper,
+    gamma_steady, gamma_affine, <n_z^2>, Z, phi and tau per law and pressure."""
+    cols = ["gamma", "gamma_paper", "gamma_steady", "gamma_affine", "fabric_nz2",
+            "mean_coordination", "solid_fraction", "tau_s"]
+    g = table.groupby(["law", "pressure_pa"])[cols]
+    out = g.mean().add_suffix("_mean").join(g.std(ddof=1).add_suffix("_std"))
+    out["n_seeds"] = g.size()
+    return out.reset_index()
+
+
+def _seed_summary(table, fits, seeds):
+    """Report lines: gamma and tau per pressure as mean +- standard deviation over the seeds,
+    and the power-law exponents per seed with their mean and spread."""
+    stats = seed_statistics(table)
+    lines = ["", f"## Over the {len(seeds)} packing seeds (mean ± sample standard deviation)",
+             "", "| law | p (bar) | seeds | Z | φ | γ | γ_paper | γ_steady | γ_aff | ⟨n_z²⟩ | "
+             "τ (s) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for _, r in stats.iterrows():
+        def pm(name, fmt=".4g"):
+            sd = r[f"{name}_std"]
+            return f"{r[f'{name}_mean']:{fmt}} ± {sd:.2g}" if np.isfinite(sd) \
+                else f"{r[f'{name}_mean']:{fmt}}"
+        lines.append(f"| {r.law} | {r.pressure_pa / 1e5:.3g} | {r.n_seeds} | "
+                     f"{pm('mean_coordination', '.3f')} | {pm('solid_fraction', '.4f')} | "
+                     f"{pm('gamma')} | {pm('gamma_paper')} | {pm('gamma_steady')} | "
+                     f"{pm('gamma_affine')} | {pm('fabric_nz2', '.4f')} | {pm('tau_s')} |")
+    lines += ["", "Power-law fits y = a p^b + c per seed (p in bar):", ""]
+    for law in sorted(table.law.unique()):
+        for what, key in (("γ", "gamma"), ("τ", "tau")):
+            b = [fits[(law, s)][key].b for s in seeds if fits.get((law, s), {}).get(key)]
+            per = ", ".join(f"{s}: {fits[(law, s)][key].b:.4g}" for s in seeds
+                            if fits.get((law, s), {}).get(key))
+            if b:
+                lines.append(f"- {law}: exponent b of {what}(p) = {np.mean(b):.4g} ± "
+                             f"{np.std(b, ddof=1) if len(b) > 1 else float('nan'):.2g} over "
+                             f"{len(b)} seeds (range {min(b):.4g} … {max(b):.4g}; per seed "
+                             f"{per})")
+            g = table[table.law == law]
+            slopes = [np.polyfit(np.log(x.pressure_pa / 1e5), np.log(x[key if key == "gamma"
+                                                                        else "tau_s"]), 1)[0]
+                      for _, x in g.groupby("seed") if len(x) > 1]
+            if slopes:
+                lines.append(f"- {law}: log-log slope of {what}(p) = {np.mean(slopes):.4g} ± "
+                             f"{np.std(slopes, ddof=1) if len(slopes) > 1 else float('nan'):.2g}")
+    return lines
+
+
+def _plots(out_dir, table, fits, rows=()):
+    """gamma_p.png and tau_p.png (per seed and mean +- sd when the campaign has seeds),
+    contact_angles.png (the contact-angle PDF per pressure, 003 Fig. 5)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from tdem_post.fits import PAPER_GAMMA, power_law
+    seeded = "seed" in table.columns
     pmin = table.pressure_pa.min() / 1e5
     pmax = table.pressure_pa.max() / 1e5
     grid = np.geomspace(pmin, pmax, 100)
@@ -320,12 +427,30 @@ def _plots(out_dir, table, fits):
             ("tau_s", "τ (s), middle section", PAPER_TAU, "tau_p")):
         fig, ax = plt.subplots(figsize=(6, 4.2))
         for k, (law, g) in enumerate(table.groupby("law")):
+            if seeded:
+                stats = seed_statistics(g)
+                p = stats.pressure_pa / 1e5
+                ax.plot(g.pressure_pa / 1e5, g[key], ".", ms=3, alpha=0.5, color=f"C{k}")
+                ax.errorbar(p, stats[f"{key}_mean"], yerr=stats[f"{key}_std"], fmt="o",
+                            capsize=3, color=f"C{k}",
+                            label=f"tdem {law}: mean ± sd of {int(stats.n_seeds.max())} seeds "
+                                  "(dots: each seed)")
+                if key == "gamma":
+                    ax.errorbar(p, stats["gamma_paper_mean"], yerr=stats["gamma_paper_std"],
+                                fmt="D", mfc="none", capsize=3, color=f"C{k}",
+                                label=f"γ_paper = γ/φ (003's convention), {law}")
+                    ax.plot(p, stats.gamma_steady_mean, "x", color=f"C{k}",
+                            label=f"steady ETC {law} (mean)")
+                continue
             p = g.pressure_pa / 1e5
             if key == "gamma":
                 ax.errorbar(p, g.gamma, yerr=[g.gamma - g.gamma_ci95_low,
                                               g.gamma_ci95_high - g.gamma], fmt="o",
                             color=f"C{k}", label=f"tdem {law}")
                 ax.plot(p, g.gamma_steady, "x", color=f"C{k}", label=f"steady ETC {law}")
+                if k == 0:
+                    ax.plot(p, g.gamma_paper, "D", mfc="none", color=f"C{k}",
+                            label=f"γ_paper = γ/φ (003's convention), {law}")
             else:
                 ax.plot(p, g[key], "o", color=f"C{k}", label=f"tdem {law}")
             fit = fits[law]["gamma" if key == "gamma" else "tau"]
@@ -333,6 +458,8 @@ def _plots(out_dir, table, fits):
                 ax.plot(grid, fit(grid), "-", color=f"C{k}", lw=1)
         if key == "gamma":
             g0 = table[table.law == table.law.iloc[0]]
+            if seeded:
+                g0 = g0[g0.seed == g0.seed.min()]
             ax.plot(g0.pressure_pa / 1e5, g0.gamma_mean_field_bob, "s", mfc="none", color="k",
                     label="mean field, bob")
             ax.plot(g0.pressure_pa / 1e5, g0.gamma_mean_field_argento, "^", mfc="none",
@@ -342,7 +469,50 @@ def _plots(out_dir, table, fits):
         ax.set_yscale("log")
         ax.set_xlabel("plate pressure (bar)")
         ax.set_ylabel(label)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=6)
         fig.tight_layout()
         savefig_atomic(fig, out_dir / f"{fname}.png", dpi=110)
         plt.close(fig)
+    _plot_contact_angles(out_dir, rows)
+
+
+def _plot_contact_angles(out_dir, rows):
+    """PDF of the angle between a contact normal and the bed's axis, per pressure (003 Fig. 5);
+    with seeds, the mean over the seeds and its +- sd band. One law's rows are enough (the
+    fabric is the packing's)."""
+    rows = [r for r in rows if r.get("contact_angle_pdf")]
+    if not rows:
+        return
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    law = rows[0]["law"]
+    by_p = {}
+    for r in rows:
+        if r["law"] == law:
+            by_p.setdefault(r["pressure_pa"], []).append(np.asarray(r["contact_angle_pdf"]))
+    edges = np.asarray(rows[0]["contact_angle_edges"])
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    lines = ["pressure_pa,n_seeds," + ",".join(f"pdf_{c:.4f}" for c in centres)]
+    for k, (p, pdfs) in enumerate(sorted(by_p.items())):
+        pdfs = np.array(pdfs)
+        mean = pdfs.mean(axis=0)
+        ax.plot(centres, mean, "-o", ms=3, color=plt.cm.viridis(k / max(len(by_p) - 1, 1)),
+                label=f"{p / 1e5:.3g} bar" + (f" ({len(pdfs)} seeds)" if len(pdfs) > 1 else ""))
+        if len(pdfs) > 1:
+            sd = pdfs.std(axis=0, ddof=1)
+            ax.fill_between(centres, mean - sd, mean + sd, alpha=0.2,
+                            color=plt.cm.viridis(k / max(len(by_p) - 1, 1)))
+        lines.append(f"{p},{len(pdfs)}," + ",".join(f"{v:.6g}" for v in mean))
+    fine = np.linspace(0, np.pi / 2, 100)
+    ax.plot(fine, np.sin(fine), "k--", label="isotropic: sin φ_c")
+    for x in (np.pi / 6, np.pi / 3):
+        ax.axvline(x, color="0.7", lw=0.8)
+    ax.set_xlabel("φ_c, angle between contact normal and the bed axis (rad)")
+    ax.set_ylabel("PDF")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    savefig_atomic(fig, out_dir / "contact_angles.png", dpi=110)
+    plt.close(fig)
+    write_text_atomic(out_dir / "contact_angles.csv", "\n".join(lines) + "\n")

@@ -36,7 +36,9 @@ from thermal_kernel.problem import FACES, boundary_particles, build_problem
 from thermal_kernel.scene import SceneError, load_scene
 from thermal_kernel.solvers.steady import solve_steady
 
-from .analytic import slab_mean_temperature, slab_temperature
+from .analytic import (slab_mean_temperature, slab_midplane_characteristic_time,
+                       slab_temperature)
+from .fabric import affine_conductivity, contact_angle_pdf, mean_nz2
 from .flux import coefficient_of_variation, particle_flux
 from .fits import characteristic_time_network, characteristic_time_series, fit_gamma
 from .profiles import binned_profile, partial_volumes
@@ -105,9 +107,9 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
     # The Dirichlet condition acts on the held spheres, whose centres lie about one radius
     # inside the walls: the slab of the analytical solution spans the mean centre planes of the
     # two held sets (on a simple-cubic lattice this is exactly the finite-difference slab).
-    z0, z1 = (float(np.mean(packing.position[boundary_particles(scene, packing, b.on,
-                                                                   "boundary")][:, axis]))
-              for b in (bottom, top))
+    held_bottom, held_top = (boundary_particles(scene, packing, b.on, "boundary")
+                             for b in (bottom, top))
+    z0, z1 = (float(np.mean(packing.position[h][:, axis])) for h in (held_bottom, held_top))
     length = z1 - z0
     t_initial = scene.initial_temperature
     kp = scene.material(0).conductivity
@@ -129,6 +131,16 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
         fit = fit_gamma(times, edges, profiles, conductivity_w_mk=kp,
                         volumetric_capacity_j_m3k=rho_c_bed, t_bottom=bottom.value,
                         t_top=top.value, t_initial=t_initial)
+        # the window dependence (issue 15): gamma fitted to each output time's profile alone
+        per_time = []
+        for k, t in enumerate(times):
+            try:
+                one = fit_gamma([t], edges, profiles[k:k + 1], conductivity_w_mk=kp,
+                                volumetric_capacity_j_m3k=rho_c_bed, t_bottom=bottom.value,
+                                t_top=top.value, t_initial=t_initial, gamma0=fit.gamma)
+                per_time.append([float(t), one.gamma, *one.ci95])
+            except (ValueError, RuntimeError):
+                per_time.append([float(t), float("nan"), float("nan"), float("nan")])
 
     steady = solve_steady(net, np.asarray(initial))
     t_steady = steady.temperature_k[-1]
@@ -167,8 +179,14 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
             flux_mean_over_q_per_area=float(sign * q_halo[interior, axis].mean()
                                             / (abs(q_bottom) / area)))
 
-    mean_field = {}
+    # affine (fabric-tensor) bound of the steady conductivity and the contact fabric (issue 15)
+    affine = affine_conductivity(packing.pair, packing.branch, problem.conductance_w_k,
+                                 packing.position, axis, held_bottom, held_top, z0, z1, area)
+    transverse = [a for a in range(3) if a != axis]
     touching = packing.overlap > 0
+    angle_edges, angle_pdf = contact_angle_pdf(packing.branch, touching, axis)
+
+    mean_field = {}
     r_mean = float(packing.radius.mean())
     z_mean = 2.0 * touching.sum() / packing.n_particles
     for law in MEAN_FIELD_LAWS:
@@ -186,10 +204,25 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
         "mean_normal_force_n": float(stats["mean_normal_force_n"]),
         "rattlers": int(np.count_nonzero(~conducting)),
         "gamma": fit.gamma if fit else None, "gamma_ci95": list(fit.ci95) if fit else None,
+        # 003 App. A writes alpha = kappa_eff/(rho c_p) with rho the particle density (Table 1):
+        # the same fitted diffusivity read in that convention is gamma / phi
+        "gamma_paper": fit.gamma / phi if fit else None,
+        "gamma_paper_ci95": [c / phi for c in fit.ci95] if fit else None,
+        "gamma_per_time": per_time if fit else None,
         "gamma_residual_rms_k": fit.residual_rms_k if fit else None,
         "gamma_steady": k_steady / kp, "steady_balance": balance,
         "tau_s": tau_net, "tau_series_s": tau_series,
-        "gamma_mean_field": mean_field, "length_m": length, "wall_gap_m": wall_gap,
+        # the slab's own mid-plane time with the fitted diffusivity, L^2/(8 alpha) (analytic.py)
+        "tau_slab_s": float(slab_midplane_characteristic_time(length, fit.diffusivity_m2_s))
+        if fit else None,
+        "gamma_mean_field": mean_field,
+        "gamma_affine": float(affine.k[axis, axis] / kp),
+        "gamma_affine_transverse": float(np.mean([affine.k[a, a] for a in transverse]) / kp),
+        "fabric_nz2": mean_nz2(packing.branch, touching, axis),
+        "fabric_nz2_conductance": mean_nz2(packing.branch, touching, axis,
+                                           weights=problem.conductance_w_k),
+        "contact_angle_edges": angle_edges.tolist(), "contact_angle_pdf": angle_pdf.tolist(),
+        "length_m": length, "wall_gap_m": wall_gap,
         "n_bins": n_bins,
         "run_wall_seconds": float(attrs.get("wall_seconds", float("nan"))),
         **flux_stats,

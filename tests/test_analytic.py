@@ -136,3 +136,21 @@ def test_slab_mean_over_a_bin_equals_quadrature():
         ref = quad(lambda x: analytic.slab_temperature(x, t, L, ALPHA, 500, 300, 400), a, b,
                    epsabs=1e-12)[0] / (b - a)
         assert g == pytest.approx(ref, abs=1e-9)
+
+
+@pytest.mark.parametrize("t_b, t_t, t_i", [(500.0, 400.0, 300.0), (500.0, 300.0, 350.0),
+                                           (400.0, 400.0, 300.0)])
+def test_midplane_characteristic_time_is_l2_over_8_alpha(t_b, t_t, t_i):
+    # the cubic of slab_characteristic_time at x = L/2, whatever the temperatures (issue 15)
+    tau = analytic.slab_midplane_characteristic_time(L, ALPHA)
+    assert tau == pytest.approx(L ** 2 / (8 * ALPHA), rel=1e-15)
+    assert analytic.slab_characteristic_time(L / 2, L, ALPHA, t_b, t_t, t_i) == \
+        pytest.approx(tau, rel=1e-12)
+    # ... and the time integral of the series at the mid-plane (eq. 41 by quadrature)
+    t_s = 0.5 * (t_b + t_t)
+    integral = quad(lambda t: t_s - analytic.slab_temperature(L / 2, t, L, ALPHA, t_b, t_t,
+                                                              t_i), 0, 60 * L ** 2 / ALPHA,
+                    limit=400)[0]
+    assert integral / (t_s - t_i) == pytest.approx(tau, rel=1e-6)
+    # the slowest mode alone, L^2/(pi^2 alpha), is 19 % short of it
+    assert L ** 2 / (np.pi ** 2 * ALPHA) / tau == pytest.approx(8 / np.pi ** 2, rel=1e-12)
