@@ -140,12 +140,19 @@ def _cmd_calibrate(args):
 
 def _cmd_laws(args):
     from thermal_kernel.laws import LAWS
-    width = max(len(n) for n in LAWS)
-    for name, law in LAWS.items():
-        params = ", ".join(f"{k} = {v!r}" for k, v in law.defaults.items())
-        print(f"{name:<{width}}  {law.formula}")
-        print(f"{'':<{width}}  source: {law.reference}" + (f"; parameters: {params}"
-                                                          if params else ""))
+    physical = [n for n, law in LAWS.items() if not law.diagnostic]
+    diagnostic = [n for n, law in LAWS.items() if law.diagnostic]
+    for group in (physical, diagnostic):
+        if group is diagnostic and group:
+            print("\ndiagnostic laws: hypothesis tools, not physical laws (docs/campaign.md, "
+                  "issue 15)")
+        width = max((len(n) for n in group), default=0)
+        for name in group:
+            law = LAWS[name]
+            params = ", ".join(f"{k} = {v!r}" for k, v in law.defaults.items())
+            print(f"{name:<{width}}  {law.formula}")
+            print(f"{'':<{width}}  source: {law.reference}" + (f"; parameters: {params}"
+                                                              if params else ""))
 
 
 def _cmd_demo(args):

@@ -15,8 +15,11 @@ from thermal_kernel.laws.terreros import local_volume_fraction, transmission_sur
 
 # Laws whose conductance comes from the normal force (no force -> H = 0) and laws that are
 # geometric (every row of the dump conducts, gaps included). A new law must be put in one.
-FORCE_BASED = {"pipe", "bob", "argento", "ott", "chaudhuri"}
+FORCE_BASED = {"pipe", "bob", "argento", "ott", "chaudhuri", "pipe_resistance_as_conductance"}
 GEOMETRIC = {"terreros", "haddad", "yade"}
+# Hypothesis tools, not physical laws (law.diagnostic): the battery runs on them too, except the
+# linear scaling with conductivity (a resistance used as a conductance scales as 1/k: tested).
+DIAGNOSTIC = {"pipe_resistance_as_conductance"}
 
 E, NU = 5e10, 0.2
 E_STAR = E / (2 * (1 - NU ** 2))           # two bodies of one material
@@ -87,6 +90,9 @@ def _g(name, walls, **params):
 
 def test_every_law_is_classified_and_documented():
     assert set(LAWS) == FORCE_BASED | GEOMETRIC
+    assert {name for name, law in LAWS.items() if law.diagnostic} == DIAGNOSTIC
+    for name in DIAGNOSTIC:
+        assert LAWS[name].formula.startswith("DIAGNOSTIC, not a physical law")
     for name, law in LAWS.items():
         assert law.name == name
         assert law.formula and "\n" not in law.formula
@@ -139,7 +145,7 @@ def test_degenerate_rows_give_zero_not_nan(name):
     assert np.all(np.isfinite(h)) and np.all(h == 0)
 
 
-@pytest.mark.parametrize("name", sorted(LAWS))
+@pytest.mark.parametrize("name", sorted(set(LAWS) - DIAGNOSTIC))
 def test_conductance_scales_linearly_with_conductivity(name):
     c = _contacts()
     s = 3.7
@@ -177,7 +183,8 @@ def test_wall_conductance_battery(name):
     s = 2.5
     scaled = dataclasses.replace(w, conductivity_particle=s * w.conductivity_particle,
                                  conductivity_wall=s * w.conductivity_wall)
-    np.testing.assert_allclose(_g(name, scaled), s * g, rtol=1e-13)
+    power = -1 if name in DIAGNOSTIC else 1          # a resistance: 1/k
+    np.testing.assert_allclose(_g(name, scaled), s ** power * g, rtol=1e-13)
 
 
 # --- hand-computed values, one (or more) per law -----------------------------------------------
@@ -268,6 +275,33 @@ def test_pipe_is_1033_times_bob_for_equal_spheres():
         ratio = _h("pipe", c)[0] / _h("bob", c)[0]
         assert ratio == pytest.approx(1.033, abs=5e-4)
         assert ratio == pytest.approx(math.sqrt(2) / (2 * 0.6846), rel=1e-12)
+
+
+def test_pipe_resistance_as_conductance_by_hand():
+    """The diagnostic law (issue 15): the resistance sum of 003 eq. 18-20 as a number, for the
+    Table 1 particle at F_n = 10 N and for unequal spheres; equal spheres give 1/H_pipe; it
+    scales as 1/k and as F_n^(-1/3) (so gamma would fall as p^(-1/3))."""
+    r, kappa, force = 2e-3, 205.0, 10.0
+    k_n = 4 * E / (6 * (1 - NU ** 2)) * math.sqrt(r / 2)           # eq. 39
+    r_dphi = math.sqrt(r) * (force / k_n) ** (1 / 3)                 # eq. 38: R_P dphi
+    r_e = 0.6846 / (2 * kappa * r_dphi)                              # eq. 17-19: R_eP = R_eL
+    c = _one(r, r, 2 * r - 1e-6, kappa, kappa, force=force)
+    h = _h("pipe_resistance_as_conductance", c)[0]
+    assert h == pytest.approx(2 * r_e, rel=1e-12)
+    assert h == pytest.approx(1 / _h("pipe", c)[0], rel=1e-12)
+    assert h == pytest.approx(0.6846 / (math.sqrt(2) * kappa * _zeta(force, r)), rel=1e-12)
+    r_i, r_j, k_i, k_j, f = 1e-3, 2e-3, 10.0, 40.0, 3.0
+    a_l = math.sqrt(2) * (3 * f * (2e-3 / 3) / (4 * E_STAR)) ** (1 / 3)
+    c2 = _one(r_i, r_j, 3e-3 - 1e-6, k_i, k_j, force=f)
+    assert _h("pipe_resistance_as_conductance", c2)[0] == pytest.approx(
+        0.6846 / (2 * k_i * a_l) + 0.6846 / (2 * k_j * a_l), rel=1e-12)
+    contacts = _contacts()
+    scaled = dataclasses.replace(contacts, conductivity_i=3.7 * contacts.conductivity_i,
+                                 conductivity_j=3.7 * contacts.conductivity_j)
+    np.testing.assert_allclose(_h("pipe_resistance_as_conductance", scaled),
+                               _h("pipe_resistance_as_conductance", contacts) / 3.7, rtol=1e-13)
+    c8 = _one(r, r, 2 * r - 1e-6, kappa, kappa, force=8 * force)
+    assert _h("pipe_resistance_as_conductance", c8)[0] == pytest.approx(h / 2, rel=1e-12)
 
 
 def test_chaudhuri_by_hand():

@@ -2,13 +2,14 @@
 
 Each law is a :class:`~thermal_kernel.laws.base.Law`: a conductance function (W/K per contact),
 a capacity function (J/K per particle), optionally a particle-wall conductance, a one-line
-formula, a reference and default parameters. ``docs/laws.md`` describes each one.
+formula, a reference and default parameters. Laws with ``diagnostic = True`` are hypothesis
+tools, not physical laws (``tdem laws`` lists them apart). ``docs/laws.md`` describes each one.
 """
 from __future__ import annotations
 
 from .base import Law
 from .chaudhuri import CHAUDHURI
-from .granular import ARGENTO, BOB, OTT, PIPE
+from .granular import ARGENTO, BOB, OTT, PIPE, PIPE_RESISTANCE_AS_CONDUCTANCE
 from .haddad import HADDAD
 from .terreros import TERREROS
 from .yade import YADE
@@ -22,6 +23,8 @@ LAWS: dict[str, Law] = {
     "ott": OTT,
     "chaudhuri": CHAUDHURI,
     "yade": YADE,
+    # diagnostic (law.diagnostic): a hypothesis tool, not a physical law (issue 15)
+    "pipe_resistance_as_conductance": PIPE_RESISTANCE_AS_CONDUCTANCE,
 }
 
 

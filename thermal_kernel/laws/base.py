@@ -67,6 +67,8 @@ class Law:
     reference: str                  # paper file and equation numbers
     defaults: dict = field(default_factory=dict)
     wall_conductance: Callable[[WallContactInput, dict], np.ndarray] | None = None
+    # True for a hypothesis tool that is not a physical law (listed apart by `tdem laws`)
+    diagnostic: bool = False
 
 
 def sphere_volume(radius_m):

@@ -188,3 +188,55 @@ OTT = Law(
     reference="003_b45c5691e422fa58.txt, eq. 35 (Ott, beta = 0.952)",
     defaults={"beta": 0.952},
 )
+
+
+# --- pipe_resistance_as_conductance: a DIAGNOSTIC, not a physical law (issue 15) --------------
+
+def pipe_resistance_as_conductance(contacts: ContactInput, params: dict) -> np.ndarray:
+    """DIAGNOSTIC (a hypothesis tool, not a physical law): the pipe model's resistance sum of
+    003 eq. 18-20 used as if it were the conductance, "H" = R_eP + R_eL (its number in K/W read
+    as W/K).
+
+    R_eP = 0.6846 / (2 k_P a_l), R_eL = 0.6846 / (2 k_L a_l), a_l = sqrt(2) a the lens radius
+    at the Hertz overlap (eq. 38), a = (3 F_n R* / (4 E*))^(1/3). Equal spheres:
+    "H" = 0.6846 / (sqrt(2) k a) = 1 / H_pipe (numerically), so "H" ∝ 1/ζ ∝ F_n^(-1/3): a code
+    that did this would find gamma falling with pressure. It tests the hypothesis that 003's
+    falling gamma(p) comes from such a slip; nothing else should use it. F_n = 0 (no contact,
+    no pipe) or a zero conductivity (no pipe): 0, not infinity."""
+    return _resistance_sum(_pair_radius(contacts), contacts.conductivity_i,
+                           contacts.conductivity_j)
+
+
+def _resistance_sum(a_hertz, k_i, k_j):
+    a_lens = math.sqrt(2.0) * np.asarray(a_hertz, dtype=np.float64)
+    k_i = np.asarray(k_i, dtype=np.float64)
+    k_j = np.asarray(k_j, dtype=np.float64)
+    lam = abs(PIPE_LEGENDRE_SUM)
+    ok = (a_lens > 0) & (k_i > 0) & (k_j > 0)
+    out = np.zeros(np.broadcast(a_lens, k_i, k_j).shape)
+    den_i = np.where(ok, 2.0 * k_i * a_lens, 1.0)
+    den_j = np.where(ok, 2.0 * k_j * a_lens, 1.0)
+    np.copyto(out, lam / den_i + lam / den_j, where=ok)
+    return out
+
+
+def pipe_resistance_as_conductance_wall(walls: WallContactInput, params: dict) -> np.ndarray:
+    """The same diagnostic on a plane: R_eP + R_eW of the sphere and its mirror (the wall's
+    conductivity), a from Hertz with R* = r; F_n = 0 gives 0."""
+    return _resistance_sum(_wall_radius(walls), walls.conductivity_particle,
+                           walls.conductivity_wall)
+
+
+PIPE_RESISTANCE_AS_CONDUCTANCE = Law(
+    name="pipe_resistance_as_conductance",
+    conductance=pipe_resistance_as_conductance,
+    capacity=mass_capacity,
+    wall_conductance=pipe_resistance_as_conductance_wall,
+    formula="DIAGNOSTIC, not a physical law: \"H\" = R_eP + R_eL = 0.6846/(2 k_P sqrt(2) a) + "
+            f"0.6846/(2 k_L sqrt(2) a) (K/W read as W/K; equal spheres: 1/H_pipe), {_HERTZ}; "
+            "C = rho c_p 4/3 pi R^3",
+    reference="003_b45c5691e422fa58.txt, eq. 17-20 (resistances), used as a conductance to test "
+              "why 003's gamma falls with pressure (issue 15)",
+    defaults={},
+    diagnostic=True,
+)
