@@ -52,9 +52,10 @@ def read_campaign(path: Path) -> tuple[dict, str]:
     camp = data.get("campaign")
     if not isinstance(camp, dict):
         raise UserError(f"{path}: campaign: missing [campaign] table (laws = [...])")
-    unknown = set(camp) - {"laws", "n_bins"}
+    unknown = set(camp) - {"laws", "n_bins", "seeds"}
     if unknown:
-        raise UserError(f"{path}: campaign.{sorted(unknown)[0]}: unknown key (known: laws, n_bins)")
+        raise UserError(f"{path}: campaign.{sorted(unknown)[0]}: unknown key (known: laws, "
+                        "n_bins, seeds)")
     laws = camp.get("laws")
     from thermal_kernel.laws import LAWS
     if not (isinstance(laws, list) and laws and all(isinstance(x, str) for x in laws)):
@@ -66,9 +67,16 @@ def read_campaign(path: Path) -> tuple[dict, str]:
     n_bins = camp.get("n_bins", 8)
     if not (isinstance(n_bins, int) and n_bins >= 3):
         raise UserError(f"{path}: campaign.n_bins: expected an integer >= 3")
+    seeds = camp.get("seeds")
+    if seeds is not None and not (
+            isinstance(seeds, list) and seeds
+            and all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in seeds)
+            and len(set(seeds)) == len(seeds)):
+        raise UserError(f"{path}: campaign.seeds: expected a list of distinct integers >= 0 "
+                        f"(one packing series per seed), got {seeds!r}")
     if "packing" in data:
         raise UserError(f"{path}: packing: a campaign builds its packings from [pack]")
-    return dict(laws=laws, n_bins=n_bins), text
+    return dict(laws=laws, n_bins=n_bins, seeds=seeds), text
 
 
 def _scene_text(campaign_text: str, packing: Path, law: str) -> str:
@@ -104,7 +112,11 @@ def check_case_scenes(campaign_path: Path, conf: dict, text: str, out_dir: Path)
                             "packing is built)") from None
 
 
-def build_packings(campaign_path: Path, out_dir: Path, *, threads: int, quiet: bool) -> list:
+def build_packings(campaign_path: Path, out_dir: Path, *, threads: int, quiet: bool,
+                   seed: int | None = None) -> list:
+    """The campaign's packing series in ``<out_dir>/packings/``: reused when ``params.json``
+    there equals the [pack] table (with ``seed`` in place of its seed, when given) and every
+    ``packing_<p>Pa.h5`` exists; built by YADE otherwise."""
     from .pack import build, built_packings, read_pack_table
     generator, params = read_pack_table(campaign_path)
     if generator != "bed":
@@ -112,79 +124,142 @@ def build_packings(campaign_path: Path, out_dir: Path, *, threads: int, quiet: b
                         "generator")
     pdir = out_dir / "packings"
     expected = [pdir / f"packing_{p:.4g}Pa.h5" for p in params["pressures_pa"]]
-    if built_packings(campaign_path, pdir) and all(p.exists() for p in expected):
+    if seed is None:
+        reusable = built_packings(campaign_path, pdir)
+    else:
+        params = dict(params, seed=seed)
+        reusable = _same_params(pdir, params)
+    if reusable and all(p.exists() for p in expected):
         print(f"tdem campaign: reusing the {len(expected)} packings in {pdir}/", flush=True)
         return expected
-    build(campaign_path, pdir, threads=threads, quiet=quiet)
+    if seed is None:
+        build(campaign_path, pdir, threads=threads, quiet=quiet)
+    else:
+        _build_seed(campaign_path, generator, params, pdir, threads=threads, quiet=quiet)
     missing = [p for p in expected if not p.exists()]
     if missing:
         raise UserError(f"{campaign_path}: pack: YADE did not write {missing[0].name}")
     return expected
 
 
+def _same_params(pdir: Path, params: dict) -> bool:
+    """``pdir/params.json`` (written by the YADE run) equals ``params``, output folder aside."""
+    try:
+        old = json.loads((pdir / "params.json").read_text())
+    except (FileNotFoundError, json.JSONDecodeError):
+        return False
+    old.pop("output_dir", None)
+    return old == {k: v for k, v in params.items() if k != "output_dir"}
+
+
+def _build_seed(campaign_path, generator, params, pdir, *, threads, quiet):
+    from thermal_kernel.packing import format_statistics, packing_statistics, read_packing
+    from . import yade
+    pdir = Path(pdir).resolve()
+    print(f"tdem campaign: building the series of seed {params['seed']} with YADE -> {pdir}/ "
+          f"({threads} thread(s))", flush=True)
+    try:
+        wall = yade.run_generator(generator, params, pdir, threads=threads, quiet=quiet)
+    except yade.YadeError as e:
+        raise UserError(f"{campaign_path}: seed {params['seed']}: {e}") from None
+    for p in sorted(pdir.glob("packing_*.h5")):
+        print(f"{p}:", flush=True)
+        print(format_statistics(packing_statistics(read_packing(p))), flush=True)
+    print(f"tdem campaign: seed {params['seed']}: packings in {wall:.1f} s", flush=True)
+
+
 def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads: int = 1,
-                 quiet: bool = False, repost: bool = False) -> dict:
+                 quiet: bool = False, repost: bool = False, jobs: int = 1) -> dict:
     """Packings (YADE, ``yade_threads``; 1 keeps them bit-reproducible for a seed: YADE's
     parallel force summation order varies between runs), then thermal cases (numba, ``threads``).
     Finished cases are kept; with ``repost`` their thermal runs are kept and post-processed anew
-    (after a change of the post-processing)."""
-    from thermal_kernel.laws import LAWS
-    from thermal_kernel.run import run_scene
-    from thermal_kernel.scene import load_scene
-    from tdem_post.post_run import post_run
+    (after a change of the post-processing).
+
+    With ``[campaign] seeds = [...]`` each seed has its own packing series and cases under
+    ``<out>/seed_<s>/`` (``packings/``, ``cases/``) and the report gives mean +- sd over the
+    seeds. ``jobs`` = 1: seed after seed, each series built and then its cases run (an
+    interrupted campaign has whole seeds done); ``jobs`` > 1: the missing series are built first,
+    ``jobs`` YADE processes at a time, then all the cases."""
     from .pack import default_out_dir
 
     campaign_path = Path(campaign_path)
     conf, text = read_campaign(campaign_path)
+    if jobs < 1:
+        raise UserError(f"--jobs: expected a number of YADE series at a time >= 1, got {jobs}")
     out_dir = Path(out_dir) if out_dir else default_out_dir(campaign_path)
     check_case_scenes(campaign_path, conf, text, out_dir)     # before YADE builds anything
     out_dir.mkdir(parents=True, exist_ok=True)
     start = time.time()
-    packings = build_packings(campaign_path, out_dir, threads=yade_threads, quiet=quiet)
-    cases = [(p, law) for p in packings for law in conf["laws"]]
-    rows = []
-    for k, (packing, law) in enumerate(cases, 1):
-        name = f"{packing.stem.removeprefix('packing_')}_{law}"
-        case_dir = out_dir / "cases" / name
-        summary_path = case_dir / "post" / "summary.json"
-        thermal_path = case_dir / "thermal.h5"
-        if summary_path.exists() and repost and thermal_path.exists():
-            old = json.loads(summary_path.read_text())
-            t0 = time.time()
-            summary = post_run(thermal_path, n_bins=conf["n_bins"])
-            for key in ("case_wall_seconds", "thermal_wall_seconds"):
-                summary[key] = old.get(key, float("nan"))
-            summary["flags"] = run_flags(thermal_path)
-            write_text_atomic(summary_path, json.dumps(summary, indent=1))
-            print(f"[{k}/{len(cases)}] {name}: thermal run kept, post-processed again: gamma "
-                  f"{old['gamma']:.4g} -> {summary['gamma']:.4g} ({time.time() - t0:.1f} s)",
-                  flush=True)
-        elif summary_path.exists():
-            summary = json.loads(summary_path.read_text())
-            summary["flags"] = run_flags(thermal_path, summary.get("flags"))
-            print(f"[{k}/{len(cases)}] {name}: done before (gamma {summary['gamma']:.4g}), kept"
-                  + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
-        else:
-            case_dir.mkdir(parents=True, exist_ok=True)
-            scene_path = case_dir / "scene.toml"
-            write_text_atomic(scene_path, _scene_text(text, packing.resolve(), law))
-            scene = load_scene(scene_path, known_laws=LAWS, out_dir=case_dir)
-            t0 = time.time()
-            result = run_scene(scene, packing, quiet=True, threads=threads)
-            run_seconds = time.time() - t0
-            summary = post_run(result.output, n_bins=conf["n_bins"])
-            summary["case_wall_seconds"] = time.time() - t0
-            summary["thermal_wall_seconds"] = run_seconds
-            summary["flags"] = run_flags(result.output)
-            write_text_atomic(summary_path, json.dumps(summary, indent=1))
-            print(f"[{k}/{len(cases)}] {name}: gamma {summary['gamma']:.4g} "
-                  f"[{summary['gamma_ci95'][0]:.4g}, {summary['gamma_ci95'][1]:.4g}], steady "
-                  f"{summary['gamma_steady']:.4g}, tau {summary['tau_s']:.4g} s "
-                  f"({summary['case_wall_seconds']:.1f} s)"
-                  + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
-        rows.append(summary)
-    report = write_report(out_dir, campaign_path, conf, rows, time.time() - start)
-    return report
+    seeds = conf["seeds"]
+    series = [(None, out_dir)] if seeds is None else [(s, out_dir / f"seed_{s}") for s in seeds]
+    if seeds is not None and jobs > 1:
+        from concurrent.futures import ThreadPoolExecutor
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            list(pool.map(lambda sd: build_packings(campaign_path, sd[1], threads=yade_threads,
+                                                    quiet=True, seed=sd[0]), series))
+    rows, k = [], 0
+    for seed, sdir in series:
+        packings = build_packings(campaign_path, sdir, threads=yade_threads, quiet=quiet,
+                                  seed=seed)
+        n_cases = len(series) * len(packings) * len(conf["laws"])
+        for packing in packings:
+            for law in conf["laws"]:
+                k += 1
+                summary = _run_case(text, conf, sdir, packing, law, repost, threads,
+                                    label=f"[{k}/{n_cases}] "
+                                          + (f"seed {seed} " if seed is not None else ""))
+                if seed is not None:
+                    summary["seed"] = seed
+                rows.append(summary)
+    return write_report(out_dir, campaign_path, conf, rows, time.time() - start)
+
+
+def _run_case(text, conf, series_dir, packing, law, repost, threads, label):
+    """One pressure x law case in ``series_dir/cases/<p>Pa_<law>/``: kept when its
+    ``post/summary.json`` exists (post-processed again with ``repost``), run otherwise."""
+    from thermal_kernel.laws import LAWS
+    from thermal_kernel.run import run_scene
+    from thermal_kernel.scene import load_scene
+    from tdem_post.post_run import post_run
+    name = f"{packing.stem.removeprefix('packing_')}_{law}"
+    case_dir = series_dir / "cases" / name
+    summary_path = case_dir / "post" / "summary.json"
+    thermal_path = case_dir / "thermal.h5"
+    if summary_path.exists() and repost and thermal_path.exists():
+        old = json.loads(summary_path.read_text())
+        t0 = time.time()
+        summary = post_run(thermal_path, n_bins=conf["n_bins"])
+        for key in ("case_wall_seconds", "thermal_wall_seconds"):
+            summary[key] = old.get(key, float("nan"))
+        summary["flags"] = run_flags(thermal_path)
+        write_text_atomic(summary_path, json.dumps(summary, indent=1))
+        print(f"{label}{name}: thermal run kept, post-processed again: gamma "
+              f"{old['gamma']:.4g} -> {summary['gamma']:.4g} ({time.time() - t0:.1f} s)",
+              flush=True)
+    elif summary_path.exists():
+        summary = json.loads(summary_path.read_text())
+        summary["flags"] = run_flags(thermal_path, summary.get("flags"))
+        print(f"{label}{name}: done before (gamma {summary['gamma']:.4g}), kept"
+              + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
+    else:
+        case_dir.mkdir(parents=True, exist_ok=True)
+        scene_path = case_dir / "scene.toml"
+        write_text_atomic(scene_path, _scene_text(text, packing.resolve(), law))
+        scene = load_scene(scene_path, known_laws=LAWS, out_dir=case_dir)
+        t0 = time.time()
+        result = run_scene(scene, packing, quiet=True, threads=threads)
+        run_seconds = time.time() - t0
+        summary = post_run(result.output, n_bins=conf["n_bins"])
+        summary["case_wall_seconds"] = time.time() - t0
+        summary["thermal_wall_seconds"] = run_seconds
+        summary["flags"] = run_flags(result.output)
+        write_text_atomic(summary_path, json.dumps(summary, indent=1))
+        print(f"{label}{name}: gamma {summary['gamma']:.4g} "
+              f"[{summary['gamma_ci95'][0]:.4g}, {summary['gamma_ci95'][1]:.4g}], steady "
+              f"{summary['gamma_steady']:.4g}, tau {summary['tau_s']:.4g} s "
+              f"({summary['case_wall_seconds']:.1f} s)"
+              + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
+    return summary
 
 
 def run_flags(thermal_path: Path, fallback: str | None = None) -> str:

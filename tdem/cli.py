@@ -169,7 +169,7 @@ def _cmd_campaign(args):
     run_campaign(Path(args.campaign), _out_dir(args),
                  threads=_threads(args, default=2), yade_threads=_positive(args, "yade_threads"),
                  quiet=args.quiet,
-                 repost=args.repost)
+                 repost=args.repost, jobs=_positive(args, "jobs"))
 
 
 def _cmd_post(args):
@@ -377,6 +377,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="do not stream YADE's output")
     p.add_argument("--repost", action="store_true",
                    help="keep finished thermal runs but post-process them again")
+    p.add_argument("--jobs", type=int, default=1,
+                   help="with [campaign] seeds: YADE series built at a time, default 1 (seed "
+                        "after seed, each one's cases run before the next is built)")
     p.set_defaults(func=_cmd_campaign)
 
     p = sub.add_parser("post", help="post-process a run: profiles, gamma, tau, mean field, flux field")

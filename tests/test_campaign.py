@@ -14,6 +14,7 @@ Without YADE (the committed 300-sphere beds stand in for the built packings): ev
 ``flags`` (the attribute of its thermal.h5) is a column of results.csv and of the report's
 table, and the flagged runs are listed; a clean campaign says none is flagged.
 """
+import json
 import shutil
 import subprocess
 import sys
@@ -218,3 +219,93 @@ def test_case_scenes_checked_before_any_packing(tmp_path, monkeypatch, capsys, o
     assert err.count("\n") == 1 and err.startswith(f"tdem: error: {path}: {key}"), err
     assert "checked before any packing is built" in err
     assert not out.exists()
+
+
+# --- seeds (issue 15): one packing series per seed, without YADE -----------------------------
+
+def test_seeds_campaign_runs_each_series_and_resumes(tmp_path, monkeypatch, capsys):
+    """[campaign] seeds = [3, 5]: the committed beds stand in for each seed's series (the fake
+    build records the seed and folder); the cases go to seed_<s>/cases/, results.csv has a seed
+    column, the report gives mean +- sd over the seeds, and a rerun keeps every case; a case
+    whose summary is removed is the only one run again, to the same table."""
+    from tdem import campaign as camp
+    calls = []
+
+    def fake_build(path, out_dir, *, threads, quiet, seed=None):
+        calls.append((seed, Path(out_dir).name))
+        return BEDS
+    monkeypatch.setattr(camp, "build_packings", fake_build)
+    path = tmp_path / "seeds.toml"
+    path.write_text(NO_PACK.replace('n_bins = 5', 'n_bins = 5\nseeds = [3, 5]')
+                    + 'theta = 0.5\n')
+    out = tmp_path / "out"
+    camp.run_campaign(path, out, threads=1, quiet=True, jobs=2)
+    assert sorted(calls) == [(3, "seed_3"), (3, "seed_3"), (5, "seed_5"), (5, "seed_5")]
+    table = pd.read_csv(out / "results.csv", keep_default_na=False)
+    assert sorted(table.seed) == [3, 3, 5, 5] and len(table) == 4
+    for s in (3, 5):
+        for bed in BEDS:
+            assert (out / f"seed_{s}" / "cases" / f"{bed.stem}_pipe" / "post"
+                    / "summary.json").exists()
+    # the same beds under both seeds: the spread is zero and the means are the values
+    assert (table.groupby("pressure_pa").gamma.std() < 1e-12).all()
+    report = (out / "report.md").read_text()
+    assert "## Over the 2 packing seeds" in report and "| pipe | 16.1 | 2 |" in report
+    assert "log-log slope of γ(p) = " in report and "| seed | p (bar) |" in report
+    assert (out / "gamma_p.png").exists() and (out / "contact_angles.png").exists()
+    for col in ("gamma_paper", "gamma_affine", "fabric_nz2", "tau_slab_s"):
+        assert col in table.columns
+    capsys.readouterr()
+    camp.run_campaign(path, out, threads=1, quiet=True)
+    assert capsys.readouterr().out.count("done before") == 4
+    (out / "seed_5" / "cases" / f"{BEDS[1].stem}_pipe" / "post" / "summary.json").unlink()
+    camp.run_campaign(path, out, threads=1, quiet=True)
+    printed = capsys.readouterr().out
+    assert printed.count("done before") == 3 and "[4/4] seed 5" in printed
+    again = pd.read_csv(out / "results.csv", keep_default_na=False)
+    pd.testing.assert_series_equal(again.gamma, table.gamma, rtol=1e-12)
+
+
+def test_a_seeds_series_is_built_once_and_reused(tmp_path, monkeypatch, capsys):
+    """build_packings with a seed: YADE (a fake that writes params.json and copies the committed
+    beds, as compressed_bed.py would) runs with [pack] and that seed into seed_<s>/packings/;
+    a second call reuses the series; another seed, or changed parameters, builds again."""
+    from tdem import campaign as camp
+    from tdem import yade
+    runs = []
+
+    def fake_generator(generator, params, out_dir, *, threads=1, quiet=False):
+        out_dir = Path(out_dir)
+        assert out_dir.is_absolute()
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / "params.json").write_text(json.dumps(dict(params,
+                                                             output_dir=str(out_dir))))
+        for p, bed in zip(params["pressures_pa"], BEDS):
+            shutil.copy(bed, out_dir / f"packing_{p:.4g}Pa.h5")
+        runs.append((params["seed"], out_dir.parent.name))
+        return 0.1
+    monkeypatch.setattr(yade, "run_generator", fake_generator)
+    path = tmp_path / "c.toml"
+    path.write_text(CAMPAIGN)
+    out = tmp_path / "out"
+    made = camp.build_packings(path, out / "seed_2", threads=1, quiet=True, seed=2)
+    assert runs == [(2, "seed_2")] and [p.name for p in made] == [
+        "packing_2.8e+04Pa.h5", "packing_1.6e+06Pa.h5"]
+    camp.build_packings(path, out / "seed_2", threads=1, quiet=True, seed=2)
+    assert runs == [(2, "seed_2")]
+    assert "reusing the 2 packings" in capsys.readouterr().out
+    camp.build_packings(path, out / "seed_4", threads=1, quiet=True, seed=4)
+    assert runs[-1] == (4, "seed_4")
+    path.write_text(CAMPAIGN.replace("n_particles = 200", "n_particles = 201"))
+    camp.build_packings(path, out / "seed_2", threads=1, quiet=True, seed=2)
+    assert runs[-1] == (2, "seed_2") and len(runs) == 3
+
+
+@pytest.mark.parametrize("seeds", ["[1, 1]", "[-1]", '"1"', "[]", "[1.5]", "[true]"])
+def test_bad_seeds_are_one_line(tmp_path, seeds):
+    from tdem import campaign as camp
+    from tdem.errors import UserError
+    path = tmp_path / "bad.toml"
+    path.write_text(CAMPAIGN.replace("n_bins = 5", f"n_bins = 5\nseeds = {seeds}"))
+    with pytest.raises(UserError, match="campaign.seeds: expected a list of distinct"):
+        camp.read_campaign(path)
