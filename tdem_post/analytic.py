@@ -225,3 +225,51 @@ def rod_mean_temperature(x0, x1, t, length, alpha, t_hot, t_initial, tol=1e-12):
     x0 <= x <= x1, what a binned profile along the rod measures: the slab of length 2L with
     both faces hot, averaged by slab_mean_temperature."""
     return slab_mean_temperature(x0, x1, t, 2 * length, alpha, t_hot, t_hot, t_initial, tol)
+
+
+# ------------------------------------------------ effective conductivity of two-phase media
+# k_m matrix, k_i inclusions (spheres), f the inclusions' volume fraction; used by
+# tdem_post.etc / etc_sweep (tdem etc) and validation cases 8-10 (002 sec. 4-5).
+
+def maxwell(k_m, k_i, f):
+    """Maxwell (Maxwell-Garnett) for dilute spheres in a matrix (002 ref. [10]); equals the
+    Hashin-Shtrikman bound on the matrix side:
+    k = k_m (k_i + 2 k_m + 2 f (k_i - k_m)) / (k_i + 2 k_m - f (k_i - k_m))."""
+    k_m, k_i, f = (np.asarray(x, float) for x in (k_m, k_i, f))
+    return k_m * (k_i + 2 * k_m + 2 * f * (k_i - k_m)) / (k_i + 2 * k_m - f * (k_i - k_m))
+
+
+def hashin_shtrikman(k_m, k_i, f):
+    """(lower, upper) Hashin-Shtrikman bounds of an isotropic two-phase medium (3-D): Maxwell
+    with either phase as the matrix."""
+    a = maxwell(k_m, k_i, f)
+    b = maxwell(k_i, k_m, 1.0 - np.asarray(f, float))
+    return np.minimum(a, b), np.maximum(a, b)
+
+
+def bruggeman(k_m, k_i, f):
+    """Bruggeman's symmetric effective-medium theory (002 ref. [13]):
+    f (k_i - k)/(k_i + 2k) + (1 - f)(k_m - k)/(k_m + 2k) = 0, the positive root of
+    2 k^2 - b k - k_i k_m = 0 with b = (3f - 1) k_i + (2 - 3f) k_m."""
+    k_m, k_i, f = (np.asarray(x, float) for x in (k_m, k_i, f))
+    b = (3 * f - 1) * k_i + (2 - 3 * f) * k_m
+    return (b + np.sqrt(b * b + 8 * k_i * k_m)) / 4
+
+
+def rayleigh_cubic_array(k_m, k_i, f):
+    """Simple-cubic array of spheres (Rayleigh 1892, with the lattice sum 1.305 of McKenzie,
+    McPhedran & Derrick 1978, Proc. R. Soc. A 362, 211):
+
+        k / k_m = 1 - 3 f / (T1 + f - 1.305 T3 f^(10/3)),
+        T1 = (2 k_m + k_i) / (k_m - k_i),  T3 = (k_m - k_i) / (4 k_m / 3 + k_i)
+
+    (dipole and octupole terms; at f = 0.155 the octupole term itself moves k by 0.1 %, and the
+    further terms of McKenzie et al. are of higher order in f). It is the exact ETC of a cube with one centred sphere, two
+    opposite faces held and the others adiabatic (the faces are symmetry planes of the array):
+    002 sec. 4's configuration, where it lies within 0.11 % of Maxwell (f = 4 pi / 81)."""
+    k_m, k_i, f = (np.asarray(x, float) for x in (k_m, k_i, f))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = (2 * k_m + k_i) / (k_m - k_i)
+        t3 = (k_m - k_i) / (4 * k_m / 3 + k_i)
+        ratio = 1 - 3 * f / (t1 + f - 1.305 * t3 * f ** (10 / 3))
+    return k_m * np.where(k_i == k_m, 1.0, ratio)

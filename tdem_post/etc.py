@@ -6,28 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def maxwell(k_m, k_i, f):
-    """Maxwell (Maxwell-Garnett) for dilute spheres in a matrix (002 ref. [10]); equals the
-    Hashin-Shtrikman bound on the matrix side."""
-    k_m, k_i, f = (np.asarray(x, float) for x in (k_m, k_i, f))
-    return k_m * (k_i + 2 * k_m + 2 * f * (k_i - k_m)) / (k_i + 2 * k_m - f * (k_i - k_m))
-
-
-def hashin_shtrikman(k_m, k_i, f):
-    """(lower, upper) Hashin-Shtrikman bounds of an isotropic two-phase medium (3-D)."""
-    a = maxwell(k_m, k_i, f)
-    b = maxwell(k_i, k_m, 1.0 - np.asarray(f, float))
-    return np.minimum(a, b), np.maximum(a, b)
-
-
-def bruggeman(k_m, k_i, f):
-    """Bruggeman's symmetric effective-medium theory (002 ref. [13]):
-    f (k_i - k)/(k_i + 2k) + (1 - f)(k_m - k)/(k_m + 2k) = 0, the positive root of
-    2 k^2 - b k - k_i k_m = 0 with b = (3f - 1) k_i + (2 - 3f) k_m."""
-    k_m, k_i, f = (np.asarray(x, float) for x in (k_m, k_i, f))
-    b = (3 * f - 1) * k_i + (2 - 3 * f) * k_m
-    return (b + np.sqrt(b * b + 8 * k_i * k_m)) / 4
+# The estimates live with the other analytical solutions (one home, tdem_post/analytic.py);
+# re-exported here for tdem etc and its callers.
+from .analytic import bruggeman, hashin_shtrikman, maxwell, rayleigh_cubic_array  # noqa: F401
 
 
 def zehner_schluender(k_f, k_s, solid_fraction):

@@ -1,0 +1,315 @@
+"""Shared machinery of cases 8-10 of docs/validation.md (002 sec. 4-5): spherical inclusions put
+into a dense packing that models a continuum, and the steady flux test of the composite.
+
+Phases are assigned as 002 and the YADE generator do: a particle whose centre lies inside an
+inclusion is phase 1 (conductivity c x the matrix's). A contact between the two phases gets the
+conductivity of 002 eq. 24, the harmonic mean (the haddad law's ``interface_mean``): this is the
+paper's model, ``interface="harmonic"``. The variant ``interface="cut"`` (tdem's, not the
+paper's) uses where the inclusion's surface cuts the branch: a fraction s of the centre-to-centre
+segment lies inside, and the contact's conductivity is the series value
+1 / (s / l_i + (1 - s) / l_m) - the harmonic mean is its value at s = 1/2 only. It changes
+nothing but the interface contacts' conductance and shows how much of the error is the interface.
+
+The flux test is 002 sec. 2.2 and 4.2: the faces ymin / ymax held at 25 / 35 C, adiabatic sides,
+one sparse steady solve; k_eff / k_m is the composite's heat flow over the single-phase one on the same
+packing, so that C_t and the domain length cancel.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from thermal_kernel.network import assemble
+from thermal_kernel.packing import Packing, read_packing
+from thermal_kernel.problem import build_problem
+from thermal_kernel.scene import Boundary, Material, SolverConfig, load_scene
+from thermal_kernel.solvers.steady import solve_steady
+
+from validation.framework import ROOT
+
+# The matrix of 002 sec. 4 (lambda 33 W/m/K; rho and c do not matter at steady state), law
+# haddad with the paper's C_t (it cancels in k_eff / k_m), harmonic interfaces (002 eq. 24).
+SCENE_TEXT = """
+packing = "{packing}"
+law = "haddad"
+[law_params]
+ct = 0.806
+[material]
+conductivity = 33.0
+density = 7800.0
+heat_capacity = 0.9
+[initial]
+temperature = 303.15
+[[boundary]]
+kind = "temperature"
+name = "cold"
+on = "ymin"
+value = 298.15
+[[boundary]]
+kind = "temperature"
+name = "hot"
+on = "ymax"
+value = 308.15
+[solver]
+method = "steady"
+"""
+K_MATRIX = 33.0
+SINGLE_FRACTION = 4.0 * math.pi / 81.0       # a = L/3 in a cube of side L: 15.51 % (002 sec. 4)
+
+
+def load(path):
+    """(scene, packing) of the flux test on the packing file ``path``."""
+    path = str(Path(path).resolve())
+    scene = load_scene(ROOT / "validation" / "inclusions_scene.toml",
+                       text=SCENE_TEXT.format(packing=path))
+    return scene, read_packing(path)
+
+
+def centred_inclusion(packing: Packing, fraction: float = SINGLE_FRACTION):
+    """(centres (1, 3), radius) of the sphere at the box's centre holding ``fraction`` of its
+    volume (a = L/3 for the paper's 15.51 % in a cube)."""
+    lo, hi = packing.domain_lo, packing.domain_hi
+    radius = (3.0 * fraction * float(np.prod(hi - lo)) / (4.0 * math.pi)) ** (1.0 / 3.0)
+    return (0.5 * (lo + hi))[None, :], float(radius)
+
+
+def phase_of(packing: Packing, centres, radius) -> np.ndarray:
+    """Phase 1 for the particles whose centre is inside one of the spheres."""
+    phase = np.zeros(packing.n_particles, np.int32)
+    tree = cKDTree(packing.position)
+    for c in np.atleast_2d(centres):
+        phase[tree.query_ball_point(c, radius)] = 1
+    return phase
+
+
+def owner_of(packing: Packing, centres, radius) -> np.ndarray:
+    """Index of the inclusion holding each particle's centre, -1 in the matrix."""
+    owner = np.full(packing.n_particles, -1, np.int64)
+    tree = cKDTree(packing.position)
+    for k, c in enumerate(np.atleast_2d(centres)):
+        owner[tree.query_ball_point(c, radius)] = k
+    return owner
+
+
+def cut_fraction(inside_pos, outside_pos, centre, radius):
+    """Fraction s of the segment inside -> outside that lies in the sphere (centre, radius):
+    the root in (0, 1] of |inside + s (outside - inside) - centre| = radius."""
+    d = outside_pos - inside_pos
+    m = inside_pos - centre
+    a = np.einsum("ij,ij->i", d, d)
+    b = 2.0 * np.einsum("ij,ij->i", m, d)
+    c = np.einsum("ij,ij->i", m, m) - radius ** 2          # < 0: the start is inside
+    return np.clip((-b + np.sqrt(b * b - 4 * a * c)) / (2 * a), 0.0, 1.0)
+
+
+def interface_factor(packing: Packing, owner: np.ndarray, centres, radius, contrast: float):
+    """Per-contact factor turning the harmonic interface conductance into the cut one (1 for
+    contacts that do not cross an inclusion's surface)."""
+    i, j = packing.pair[:, 0], packing.pair[:, 1]
+    cross = (owner[i] >= 0) != (owner[j] >= 0)
+    factor = np.ones(len(i))
+    if not cross.any():
+        return factor
+    rows = np.flatnonzero(cross)
+    ii, jj = i[rows], j[rows]
+    i_in = owner[ii] >= 0
+    pos_i = packing.position[ii]
+    pos_j = pos_i + packing.branch[rows]
+    inside = np.where(i_in[:, None], pos_i, pos_j)
+    outside = np.where(i_in[:, None], pos_j, pos_i)
+    k_in = np.where(i_in, owner[ii], owner[jj])
+    s = cut_fraction(inside, outside, np.atleast_2d(centres)[k_in], radius)
+    harmonic = 2.0 * contrast / (1.0 + contrast)
+    cut = 1.0 / (s / contrast + (1.0 - s))
+    factor[rows] = cut / harmonic
+    return factor
+
+
+@dataclass
+class FluxResult:
+    k_eff: float              # W/m/K, Q L / (A dT) with the domain length
+    heat_flow_w: float
+    balance: float
+    seconds: float
+    temperature: np.ndarray   # steady temperatures (hot face 1, cold face 0)
+    net: object               # the assembled network (conductances for the flux)
+
+
+T_COLD, T_HOT = 298.15, 308.15          # 25 C at y = 0, 35 C at y = L (002 sec. 2.2, 4.2)
+
+
+def flux_test(scene, packing: Packing, phase, contrast: float, *, factor=None,
+              keep=False, axis: int = 1) -> FluxResult:
+    """The steady flux test of the composite (phase 1 at ``contrast`` x the matrix) along
+    ``axis`` (y by default, as 002 sec. 4.2): the face at the axis' minimum held at 25 C, the
+    other at 35 C, adiabatic sides. ``factor`` multiplies the contacts' conductances (the cut
+    interface). k_eff = Q L / (A dT) with the domain's length and face."""
+    t0 = time.perf_counter()
+    name = "xyz"[axis]
+    matrix = scene.material(0)
+    inclusion = Material(conductivity=contrast * matrix.conductivity, density=matrix.density,
+                         heat_capacity=matrix.heat_capacity)
+    sc = dataclasses.replace(scene, materials={0: matrix, 1: inclusion},
+                             boundaries=(Boundary(kind="temperature", name="hot",
+                                                  on=f"{name}max", value=T_HOT),
+                                         Boundary(kind="temperature", name="cold",
+                                                  on=f"{name}min", value=T_COLD)),
+                             solver=SolverConfig(method="steady"))
+    pk = dataclasses.replace(packing, phase=np.asarray(phase, np.int32))
+    problem, _ = build_problem(sc, pk)
+    if factor is not None:
+        problem = dataclasses.replace(problem,
+                                      conductance_w_k=problem.conductance_w_k * factor)
+    net = assemble(problem)
+    result = solve_steady(net, np.full(packing.n_particles, 0.5 * (T_HOT + T_COLD)))
+    q_hot, q_cold = (float(q) for q in result.boundary_heat_flow_w[-1])
+    ext = packing.domain_hi - packing.domain_lo
+    area = float(np.prod(np.delete(ext, axis)))
+    return FluxResult(k_eff=q_hot * float(ext[axis]) / (area * (T_HOT - T_COLD)),
+                      heat_flow_w=q_hot, balance=abs(q_hot + q_cold) / q_hot,
+                      seconds=time.perf_counter() - t0,
+                      temperature=np.asarray(result.temperature_k[-1]) if keep else None,
+                      net=net if keep else None)
+
+
+def cell_fraction(packing: Packing, phase: np.ndarray, grid: int = 96, k: int = 8) -> float:
+    """The inclusions' share of the box by the particles' Laguerre (power) cells: the fraction
+    of the points of a grid x grid x grid lattice of the box whose nearest particle in the
+    power distance |x - c|^2 - r^2 is of phase 1 - the volume the network's inclusion stands
+    for (the particles' own volume share is biased wherever the packing is looser, e.g. at
+    walls)."""
+    lo, hi = packing.domain_lo, packing.domain_hi
+    tree = cKDTree(packing.position)
+    hits, total = 0, 0
+    axes = [lo[a] + (np.arange(grid) + 0.5) * (hi[a] - lo[a]) / grid for a in range(3)]
+    for x in axes[0]:                      # one plane at a time: bounded memory
+        yy, zz = np.meshgrid(axes[1], axes[2], indexing="ij")
+        pts = np.column_stack([np.full(yy.size, x), yy.ravel(), zz.ravel()])
+        dist, idx = tree.query(pts, k=k)
+        power = dist ** 2 - packing.radius[idx] ** 2
+        own = idx[np.arange(len(pts)), np.argmin(power, axis=1)]
+        hits += int(phase[own].sum())
+        total += len(pts)
+    return hits / total
+
+
+def particle_fraction(packing: Packing, phase: np.ndarray) -> float:
+    v = packing.radius ** 3
+    return float(v[phase == 1].sum() / v.sum())
+
+
+def fit_order(n, err):
+    """Slope p of log|err| = log C + p log N by least squares (NaN with < 2 points)."""
+    n, err = np.asarray(n, float), np.abs(np.asarray(err, float))
+    ok = (n > 0) & (err > 0)
+    if ok.sum() < 2:
+        return float("nan"), float("nan")
+    p, logc = np.polyfit(np.log(n[ok]), np.log(err[ok]), 1)
+    return float(p), float(np.exp(logc))
+
+
+def write_csv(path, header, rows):
+    path = Path(path).with_suffix(".csv")
+    with open(path, "w") as f:
+        f.write(",".join(header) + "\n")
+        for r in rows:
+            f.write(",".join(v if isinstance(v, str) else f"{v:.10g}" for v in r) + "\n")
+    return path
+
+
+# ---------------------------------------------------------------- periodic homogenisation
+# A cube of side L with one centred sphere, two opposite faces held and the others adiabatic is,
+# for the continuum, exactly the unit cell of the simple-cubic array of spheres (the faces are
+# symmetry planes of the array): Rayleigh's formula (tdem_post.analytic.rayleigh_cubic_array) is
+# its exact ETC and Maxwell is within 0.1 % of it at f = 15.5 %. The same unit cell can be given
+# to the network WITHOUT faces: the relaxed periodic cell of runs/dense_box_1e5.toml tiled
+# m x m x m times with its contacts wrapped around the block is a periodic packing of side
+# m x cell, and a mean temperature gradient G imposed on it (T = theta + G.x, theta periodic)
+# leaves no held layer and no cut face. Then k_eff comes from the volume average of the
+# contact flows: q = (1/V) sum_c H_c (T_i - T_j) l_c, k_eff = -q.G / |G|^2.
+
+def periodic_block(cell: Packing, m: int) -> Packing:
+    """The periodic cell ``cell`` (a packing.h5 of shape "periodic") copied m x m x m times,
+    its contacts wrapped around the block: a periodic packing of side m x cell."""
+    size = cell.domain_hi - cell.domain_lo
+    pos = cell.position - cell.domain_lo
+    n = cell.n_particles
+    grid = np.indices((m, m, m)).reshape(3, -1).T
+    position = (pos[None, :, :] + (grid * size)[:, None, :]).reshape(-1, 3)
+    i, j = cell.pair[:, 0], cell.pair[:, 1]
+    shift = np.rint((pos[i] + cell.branch - pos[j]) / size).astype(np.int64)
+    stride = np.array([m * m, m, 1], np.int64)
+    pairs = []
+    for k, g in enumerate(grid):
+        tj = np.mod(g + shift, m) @ stride
+        pairs.append(np.stack([k * n + i, tj * n + j], axis=1))
+    pair = np.concatenate(pairs)
+    reps = len(grid)
+    return dataclasses.replace(
+        cell, position=position, radius=np.tile(cell.radius, reps),
+        phase=np.zeros(n * reps, np.int32), pair=pair,
+        overlap=np.tile(cell.overlap, reps), normal_force=np.tile(cell.normal_force, reps),
+        branch=np.tile(cell.branch, (reps, 1)),
+        contact_radius=None if cell.contact_radius is None else np.tile(cell.contact_radius,
+                                                                        reps),
+        domain_lo=np.zeros(3), domain_hi=m * size, periodic=np.ones(3, bool), yade_id=None,
+        path=f"{cell.path} x {m}^3")
+
+
+def contact_conductance(scene, packing: Packing, phase, contrast: float) -> np.ndarray:
+    """H per contact (W/K) of the scene's law with phase 1 at ``contrast`` x the matrix."""
+    from thermal_kernel.laws import get_law
+    from thermal_kernel.problem import build_law_inputs, law_params
+    matrix = scene.material(0)
+    inclusion = Material(conductivity=contrast * matrix.conductivity, density=matrix.density,
+                         heat_capacity=matrix.heat_capacity)
+    sc = dataclasses.replace(scene, materials={0: matrix, 1: inclusion})
+    pk = dataclasses.replace(packing, phase=np.asarray(phase, np.int32))
+    law = get_law(sc.law)
+    contacts, _ = build_law_inputs(sc, pk)
+    return np.asarray(law.conductance(contacts, law_params(sc, law)), float)
+
+
+def periodic_conductivity(packing: Packing, conductance, axis: int = 0, tol: float = 1e-11):
+    """k_eff (W/m/K) of a periodic network under a unit mean gradient along ``axis``: solve
+    L theta = b, b_i = sum_j H_ij l_ij (the flows the gradient drives through the contacts),
+    on the particles of the largest connected cluster (others carry no heat), then
+    k = -(1/V) sum_c H_c (theta_i - theta_j - l_c) l_c along the axis. Returns (k, seconds)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+    t0 = time.perf_counter()
+    n = packing.n_particles
+    i, j = packing.pair[:, 0], packing.pair[:, 1]
+    h = np.asarray(conductance, float)
+    lx = packing.branch[:, axis]
+    adj = sp.coo_matrix((h, (i, j)), shape=(n, n)).tocsr()
+    adj = adj + adj.T
+    _, label = connected_components(adj > 0, directed=False)
+    main = np.bincount(label).argmax()
+    keep = np.flatnonzero(label == main)
+    lap = (sp.diags(np.asarray(adj.sum(axis=1)).ravel()) - adj).tocsr()
+    b = np.zeros(n)
+    np.add.at(b, i, h * lx)
+    np.add.at(b, j, -h * lx)
+    k_sub = lap[keep][:, keep]
+    free = keep[1:]                         # theta = 0 at one particle (the field's gauge)
+    a = lap[free][:, free].tocsr()
+    rhs = b[free]
+    theta = np.zeros(n)
+    if len(free) <= 5_000:
+        from scipy.sparse.linalg import spsolve
+        theta[free] = spsolve(a.tocsc(), rhs)
+    else:
+        import pyamg
+        ml = pyamg.smoothed_aggregation_solver(a, symmetry="symmetric", max_coarse=500)
+        theta[free] = ml.solve(rhs, tol=tol, accel="cg", maxiter=500)
+    del k_sub
+    flow = h * (theta[i] - theta[j] - lx)
+    volume = float(np.prod(packing.domain_hi - packing.domain_lo))
+    return float(-(flow * lx).sum() / volume), time.perf_counter() - t0
