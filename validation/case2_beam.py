@@ -17,11 +17,13 @@ heterogeneity and the held layer), which is what this case measures. The paper's
 Profile: partial-volume weighted means over equal bins of the rod [z0, L_domain] (z0 the mean
 centre plane of the held spheres; the adiabatic end the domain face), rattlers excluded, against
 the bin mean of eq. 8 (tdem_post.analytic.rod_mean_temperature). Time scheme: Crank-Nicolson
-with Rannacher start-up (implicit; its dt error is measured below and is far under the packing's).
+with Rannacher start-up (implicit; steps 10x shorter up to the first output; its dt error is
+measured against dt/4 and reported).
 """
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -103,9 +105,16 @@ def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: floa
     times = [fo * length ** 2 / ALPHA for fo in fourier]
     dt = dt_fo * length ** 2 / ALPHA
     r0 = time.perf_counter()
-    res = run_implicit(net, np.full(packing.n_particles, T_INIT), times, dt=dt,
-                       scheme="rannacher")
+    # the first output interval (the steep start) with steps 10x shorter, then dt: one run
+    # resumed from the first one's state (the ledger and the step count continue)
+    first = run_implicit(net, np.full(packing.n_particles, T_INIT), times[:1], dt=dt / 10,
+                         scheme="rannacher")
+    rest = run_implicit(net, first.state, times[1:], dt=dt, scheme="rannacher")
     run_s = time.perf_counter() - r0
+    res = _Joined(np.vstack([first.temperature_k, rest.temperature_k]),
+                  np.concatenate([first.ledger_residual_j(), rest.ledger_residual_j()]),
+                  np.concatenate([first.stored_energy_j, rest.stored_energy_j]),
+                  first.steps + rest.steps)
 
     conducting = np.asarray(net.degree_w_k > 0) | np.asarray(net.held)
     z = packing.position[:, 2] - z0
@@ -135,6 +144,17 @@ def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: floa
         "edges_over_L": (edges / length).tolist(), "profile_k": prof.tolist(),
         "exact_k": exact.tolist(),
     }
+
+
+@dataclass(frozen=True)
+class _Joined:
+    temperature_k: np.ndarray
+    ledger: np.ndarray
+    stored_energy_j: np.ndarray
+    steps: int
+
+    def ledger_residual_j(self):
+        return self.ledger
 
 
 # ---------------------------------------------------------------------------- the case
@@ -329,7 +349,8 @@ material's conductivity by construction, so what remains is the packing's own er
 heterogeneity, the held layer). The paper's own law (`terreros`, 000 eq. 7, no free parameter)
 on the same beams: max error {100 * terr_worst:.2f} % of ΔT (its capacity ρcV/f_vl(n) and its
 conductance are not calibrated to the material; shown for reference). Time scheme:
-Crank–Nicolson with Rannacher start-up, dt = 0.0025 L²/α; its own error (against dt/4) is
+Crank–Nicolson with Rannacher start-up, dt = 0.0025 L²/α (0.00025 L²/α up to the first
+output, where the profile is steepest); its own error (against dt/4) is
 {100 * dt_rows[-1, 3]:.3f} % of ΔT, far under the packing's.
 
 **Result** (max over {BINS} bins of |T − T_eq.8| / ΔT, ΔT = 500 K, all {len(seeds)} seeds): **{100 * worst:.2f} %**
