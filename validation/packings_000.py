@@ -56,9 +56,11 @@ def register(seeds=SEEDS) -> None:
                                  cell_particles=CELL_PARTICLES, cell_packing=_cell_path(s),
                                  seed=s))
         for n in SHEET_NS:
+            # cell_particles is only checked (<= n_particles) when cell_packing is given: the
+            # copied cell keeps its own 2,000 spheres
             fw.register_packing(sheet_name(n, s), "runs/dense_box.toml",
                                 dict(shape="box", aspect=[25.0, 15.0, 1.0], n_particles=n,
-                                     method="tiled", cell_particles=CELL_PARTICLES,
+                                     method="tiled", cell_particles=min(n, CELL_PARTICLES),
                                      cell_packing=_cell_path(s), seed=s))
 
 
