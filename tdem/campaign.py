@@ -306,6 +306,7 @@ def results_table(rows: list):
         "gamma_affine_transverse": r.get("gamma_affine_transverse", nan),
         "fabric_nz2": r.get("fabric_nz2", nan),
         "fabric_nz2_conductance": r.get("fabric_nz2_conductance", nan),
+        "contact_stress_axial_pa": r.get("contact_stress_axial_pa", nan),
         "tau_s": r["tau_s"], "tau_series_s": r["tau_series_s"],
         "tau_slab_s": r.get("tau_slab_s", nan), "length_m": r.get("length_m", nan),
         **{f"gamma_mean_field_{k}": v for k, v in r["gamma_mean_field"].items()},

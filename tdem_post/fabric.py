@@ -88,3 +88,17 @@ def contact_angle_pdf(branch, mask, axis, bins=18):
     edges = np.linspace(0.0, np.pi / 2, bins + 1)
     pdf, _ = np.histogram(angle, bins=edges, density=True)
     return edges, pdf
+
+
+def love_weber_stress(branch, normal_force_n, volume_m3) -> np.ndarray:
+    """The mean stress carried by the contacts (Love-Weber), sigma_ij = (1/V) sum_c F_c n_i l_j,
+    Pa (compression positive); n = l/|l|. Over a bed's particle-particle contacts and the bed's
+    volume, sigma_zz is the plate's pressure (plus the weight of the bed above, minus the share
+    of the wall contacts): the vertical component of the contact fabric cannot vanish while the
+    bed carries the plate."""
+    b = np.asarray(branch, dtype=float)
+    length = np.linalg.norm(b, axis=1)
+    f = np.asarray(normal_force_n, dtype=float)
+    use = (length > 0) & (f > 0)
+    n = b[use] / length[use, None]
+    return (n * f[use, None]).T @ b[use] / float(volume_m3)

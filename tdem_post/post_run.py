@@ -38,7 +38,7 @@ from thermal_kernel.solvers.steady import solve_steady
 
 from .analytic import (slab_mean_temperature, slab_midplane_characteristic_time,
                        slab_temperature)
-from .fabric import affine_conductivity, contact_angle_pdf, mean_nz2
+from .fabric import affine_conductivity, contact_angle_pdf, love_weber_stress, mean_nz2
 from .flux import coefficient_of_variation, particle_flux
 from .fits import characteristic_time_network, characteristic_time_series, fit_gamma
 from .profiles import binned_profile, partial_volumes
@@ -222,6 +222,10 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
         "fabric_nz2_conductance": mean_nz2(packing.branch, touching, axis,
                                            weights=problem.conductance_w_k),
         "contact_angle_edges": angle_edges.tolist(), "contact_angle_pdf": angle_pdf.tolist(),
+        # Love-Weber stress of the particle contacts over the bed between the walls, along the
+        # axis (compare with the plate's pressure)
+        "contact_stress_axial_pa": float(love_weber_stress(
+            packing.branch, packing.normal_force, area * wall_gap)[axis, axis]),
         "length_m": length, "wall_gap_m": wall_gap,
         "n_bins": n_bins,
         "run_wall_seconds": float(attrs.get("wall_seconds", float("nan"))),

@@ -126,3 +126,16 @@ def test_contact_angle_pdf_and_nz2_on_known_fabrics():
     axial = np.array([[0, 0, 1.0], [1.0, 0, 0], [0, 1.0, 0]])
     assert mean_nz2(axial, np.ones(3, bool), 2, weights=[1.0, 0, 0]) == 1.0
     assert mean_nz2(axial, np.ones(3, bool), 2) == pytest.approx(1 / 3)
+
+
+def test_love_weber_stress_of_a_loaded_lattice():
+    """A simple-cubic lattice of pitch a with force F on every z-contact and none on the others:
+    sigma_zz = F/a^2 on the volume the z-contacts span, the other components 0."""
+    from tdem_post.fabric import love_weber_stress
+    from thermal_kernel.lattice import simple_cubic_packing
+    a, force = 2e-3, 7.0
+    p = simple_cubic_packing((4, 5, 6), spacing_m=a)
+    f = np.where(np.abs(p.branch[:, 2]) > 0, force, 0.0)
+    sigma = love_weber_stress(p.branch, f, volume_m3=4 * 5 * 5 * a ** 3)
+    assert sigma[2, 2] == pytest.approx(force / a ** 2, rel=1e-12)
+    np.testing.assert_allclose(np.delete(sigma.ravel(), 8), 0.0, atol=1e-9)
