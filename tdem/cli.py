@@ -274,6 +274,25 @@ def _cmd_info(args):
     if packing.wall_name:
         print("  walls                " + ", ".join(
             f"{n} ({k})" for n, k in zip(packing.wall_name, packing.wall_kind)))
+    _print_provenance(packing.attrs)
+
+
+def _print_provenance(attrs):
+    """What an imported packing's importer inferred, and its force-law check (docs/import.md)."""
+    from thermal_kernel.contact_check import describe
+    if attrs.get("source"):
+        print(f"  source               {attrs['source']}")
+    if attrs.get("inferred") not in (None, "", "none"):
+        for k, item in enumerate(str(attrs["inferred"]).split("; ")):
+            print(("  inferred             " if k == 0 else " " * 23) + item)
+    line = describe(attrs)
+    if line:
+        print(f"  force law check      {line}")
+
+
+def _cmd_yade_path(args):
+    from .yade import YADE_SCRIPTS
+    print(Path(YADE_SCRIPTS).resolve())
 
 
 def _output_file(args, suffix):
@@ -412,6 +431,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("info", help="validate a packing.h5 and print its statistics")
     p.add_argument("packing")
     p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser("yade-path", help="print the folder holding tdem_yade.py, to put on "
+                                         "sys.path in your own YADE script (docs/import.md)")
+    p.set_defaults(func=_cmd_yade_path)
 
     p = sub.add_parser("export", help="export a packing to VTK (.vtu) for ParaView")
     p.add_argument("packing")

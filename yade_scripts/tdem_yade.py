@@ -1,0 +1,545 @@
+"""Dump the scene of any YADE script as a tdem packing (``packing.h5``, docs/packing-format.md).
+
+Use it from your own script, run with Debian's YADE, at any point of the simulation::
+
+    import sys
+    sys.path.insert(0, "/path/to/tdem/yade_scripts")      # what `tdem yade-path` prints
+    import tdem_yade
+    ...                                                    # your scene, O.run(...)
+    tdem_yade.dump("packing.h5", young_pa=70e9, poisson=0.3)
+
+What it reads (docs/import.md):
+- particles: every body whose shape is a ``Sphere`` (``utils.sphere``); ``phase`` numbers the
+  spheres' materials in order of their material id (0 = the first);
+- walls (``walls="auto"``): ``Wall`` bodies (``utils.wall``), ``Facet`` bodies grouped into planes
+  (coplanar facets of one ``facetBox`` face are one plane) and the faces of ``Box`` bodies
+  (``utils.box``) that the spheres touch or face; each becomes a plane of the format, named
+  ``xmin`` ... ``zmax`` when it is normal to an axis (``plane_<k>`` otherwise; ``wall_names``
+  renames them by body id, e.g. ``{plate.id: "plate"}``); ``walls="none"`` leaves them and their
+  contacts out;
+- periodic cells (``O.periodic``): the cell becomes the periodic domain ``[0, size]``; centres
+  are wrapped into it and branch vectors take YADE's ``cellDist`` image;
+- contacts: real interactions with ``ScGeom`` geometry. The overlap is recomputed from the dumped
+  positions (r_i + r_j - |branch|; for a wall, r - the centre's distance to its plane), so that the
+  file's geometry is consistent; YADE's ``penetrationDepth`` is one step older, and the largest
+  difference is recorded (``overlap_vs_yade_max_m``). The normal force is YADE's own
+  ``phys.normalForce`` along ``geom.normal`` (compression > 0), whatever the law: Hertz-Mindlin,
+  linear Cundall, frictional or cohesive. A tensile (cohesive) force is written as 0 and counted
+  (``tensile_contacts_clipped``). Only touching contacts are kept unless ``gaps=True`` (then the
+  real interactions with overlap <= 0 are kept as gaps, force 0). A sphere touching two facets
+  of one plane (on the diagonal of a ``facetBox`` face) has two YADE interactions and one wall
+  contact in the file, whose force is their sum (what YADE applies; ``wall_interactions_merged``
+  counts them).
+
+What it measures: ``solid_fraction`` (sphere volume inside the domain over its volume; the
+domain is bounded by the axis-normal walls or the periodic cell, and along an axis with neither by
+the spheres' bounding box, which is then recorded as inferred), ``mean_coordination`` (2 M / N,
+touching sphere-sphere contacts), ``pressure_pa`` when not given (periodic cell: -trace/3 of
+YADE's ``utils.getStress()``; walls: the normal force on the wall named ``plate`` (see
+``wall_names``) over the domain's face area, else the mean of that over the axis-normal walls). Everything inferred is listed in the attribute ``inferred`` and
+printed by ``tdem info``. The stated contact law is checked against the forces (``force_law*``,
+``thermal_kernel/contact_check.py``): Hertz (``MindlinPhys``) against 4/3 E* sqrt(R*) delta^1.5
+with the given ``young_pa``/``poisson``, linear laws against k_n delta with YADE's own k_n.
+
+What it refuses, in one line (``tdem_yade: error: ...``, exit status 2; with
+``exit_on_error=False`` a ``DumpError`` is raised instead): clumps, non-spherical particles,
+contact geometries other than ScGeom, sheared periodic cells, a wall with spheres on both sides,
+an empty scene. Standard library + numpy + h5py + yade only (Debian's Python); the file is
+written by the same single writer as tdem's generators (``thermal_kernel/packing_h5.py``).
+"""
+import importlib.util
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+_HERE = os.path.dirname(os.path.abspath(__file__))
+GENERATOR = "yade_scripts/tdem_yade.py"
+
+
+def _load(name, path):
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+_writer = _load("tdem_packing_h5", os.path.join(_HERE, os.pardir, "thermal_kernel",
+                                                "packing_h5.py"))
+_check = _load("tdem_contact_check", os.path.join(_HERE, os.pardir, "thermal_kernel",
+                                                  "contact_check.py"))
+
+WALL_SHAPES = ("Wall", "Facet", "Box")
+HERTZ_PHYS = ("MindlinPhys",)
+LINEAR_PHYS = ("FrictPhys", "ViscoFrictPhys", "CohFrictPhys", "NormShearPhys")
+AXIS_TOL = 1e-9          # |n . e_a| > 1 - AXIS_TOL: the plane is normal to axis a
+
+
+class DumpError(ValueError):
+    """The scene cannot be represented in the format; the message is one line."""
+
+
+def dump(path, young_pa=None, poisson=None, density=None, walls="auto", wall_names=None,
+         pressure_pa=None, seed=0, gaps=False, attrs=None, quiet=False, exit_on_error=True):
+    """Write the current YADE scene (``O``) to ``path`` as a tdem packing; return a dict of
+    the measured numbers (n_particles, n_contacts, solid_fraction, mean_coordination,
+    pressure_pa, inferred, force law check).
+
+    young_pa, poisson, density: the real material (Pa, -, kg/m^3) the thermal laws will use;
+    when not given they are read from the spheres' material and recorded as inferred (a linear
+    law's FrictMat ``poisson`` is k_s/k_n, not Poisson's ratio: give ``poisson`` then).
+    walls: "auto" (Wall, Facet and Box bodies become planes) or "none".
+    wall_names: {body id: name} to name the plane a body makes (e.g. a loading plate "plate").
+    pressure_pa: the confining pressure (Pa); measured when None (see the module docstring).
+    seed: the seed of your generator (recorded). attrs: extra root attributes to record.
+    """
+    try:
+        return _dump(str(path), young_pa, poisson, density, walls, dict(wall_names or {}),
+                     pressure_pa, seed, gaps, dict(attrs or {}), quiet)
+    except DumpError as e:
+        if not exit_on_error:
+            raise
+        print(f"tdem_yade: error: {e}", file=sys.stderr, flush=True)
+        raise SystemExit(2) from None
+
+
+def _fail(path, what):
+    raise DumpError(f"{path}: {what}")
+
+
+def _vec(v):
+    return np.array([float(v[0]), float(v[1]), float(v[2])])
+
+
+def _rot(ori, v):
+    """Quaternion ``ori`` (YADE's) applied to the vector v."""
+    from yade.minieigenHP import Vector3
+    return _vec(ori * Vector3(float(v[0]), float(v[1]), float(v[2])))
+
+
+def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa, seed, gaps,
+          extra, quiet):
+    import yade
+    from yade.wrapper import Omega
+    O = Omega()
+    t0 = time.time()
+    if walls_mode not in ("auto", "none"):
+        _fail(path, f"walls: expected 'auto' or 'none', got {walls_mode!r}")
+    if os.path.isdir(path):
+        _fail(path, "is a folder; expected a packing file name (packing.h5)")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        _fail(path, f"the folder {folder} does not exist")
+
+    # --- bodies: spheres, wall bodies, refusals ------------------------------------------
+    spheres, wall_bodies = [], []
+    for b in O.bodies:
+        if b is not None and b.isClump:
+            members = len(b.shape.members)
+            _fail(path, f"body {b.id} is a clump of {members} spheres: the format holds single "
+                        "spheres, a clump would need its members' rigid link and a conductance "
+                        "inside the clump (release it: O.bodies.releaseFromClump, or dump before "
+                        "clumping)")
+    for b in O.bodies:
+        if b is None:
+            continue
+        shape = type(b.shape).__name__ if b.shape is not None else "None"
+        if shape == "Sphere":
+            if b.isClumpMember:
+                _fail(path, f"body {b.id} is a member of clump {b.clumpId}: the format holds "
+                            "free spheres only (release the clump first)")
+            spheres.append(b)
+        elif shape in WALL_SHAPES:
+            wall_bodies.append(b)
+        else:
+            _fail(path, f"body {b.id} has shape {shape}: the format holds spheres (and plane "
+                        f"walls) only; a {shape} particle would need its surface and contact "
+                        "geometry, for which the format has no field")
+    if not spheres:
+        _fail(path, "the scene has no spheres (utils.sphere bodies) to dump")
+    n = len(spheres)
+    index = {b.id: k for k, b in enumerate(spheres)}
+    raw = np.array([_vec(b.state.pos) for b in spheres])
+    radius = np.array([float(b.shape.radius) for b in spheres])
+    yade_id = np.array([b.id for b in spheres], dtype=np.int64)
+    mat_ids = [b.material.id if b.material is not None else -1 for b in spheres]
+    phase_of = {m: k for k, m in enumerate(sorted(set(mat_ids)))}
+    phase = np.array([phase_of[m] for m in mat_ids], dtype=np.int32)
+    inferred = []
+
+    # --- periodic cell ---------------------------------------------------------------------
+    periodic = bool(O.periodic)
+    hsize = None
+    if periodic:
+        h = np.array([[float(O.cell.hSize[i, j]) for j in range(3)] for i in range(3)])
+        if np.max(np.abs(h - np.diag(np.diag(h)))) > 1e-12 * np.max(np.abs(h)):
+            _fail(path, "O.cell.hSize is sheared (off-diagonal terms): the format's periodic "
+                        "domain is an axis-aligned box; dump before shearing or with an "
+                        "orthogonal cell")
+        hsize = h
+        cell = np.diag(h).copy()
+        position = raw - np.floor(raw / cell) * cell
+        position[position >= cell] = 0.0
+        if walls_mode == "auto" and wall_bodies:
+            _fail(path, f"body {wall_bodies[0].id}: walls in a periodic cell are not "
+                        "represented (the format's walls bound a non-periodic axis); use "
+                        "walls='none'")
+    else:
+        position = raw.copy()
+
+    # --- walls -----------------------------------------------------------------------------
+    walls = []              # dicts: name, kind, point, normal, radius
+    body_wall = {}          # body id -> wall index (Wall, Facet)
+    box_faces = {}          # body id -> list of (wall index or None, point, outward normal)
+    rmax = float(radius.max())
+
+    def side_normal(point, normal, body_id):
+        """The plane's normal oriented towards the spheres; refuse spheres on both sides."""
+        s = (position - point) @ normal
+        pos_side = np.count_nonzero(s > -radius)
+        neg_side = np.count_nonzero(s < radius)
+        if pos_side == n:
+            return normal
+        if neg_side == n:
+            return -normal
+        _fail(path, f"body {body_id}: spheres on both sides of its plane (point "
+                    f"{np.round(point, 9).tolist()}, normal {np.round(normal, 9).tolist()}): "
+                    "the format's plane wall bounds the domain on one side")
+
+    def add_wall(point, normal, body_id):
+        walls.append(dict(name=None, kind="plane", point=np.asarray(point, float),
+                          normal=np.asarray(normal, float), radius=math.nan, body=body_id))
+        return len(walls) - 1
+
+    if walls_mode == "auto" and not periodic:
+        facets = []
+        for b in wall_bodies:
+            shape = type(b.shape).__name__
+            if shape == "Wall":
+                axis = int(b.shape.axis)
+                normal = np.zeros(3)
+                normal[axis] = 1.0
+                point = np.zeros(3)
+                point[axis] = float(b.state.pos[axis])
+                body_wall[b.id] = add_wall(point, side_normal(point, normal, b.id), b.id)
+            elif shape == "Facet":
+                v = [_vec(b.state.pos) + _rot(b.state.ori, x) for x in b.shape.vertices]
+                normal = np.cross(v[1] - v[0], v[2] - v[0])
+                normal /= np.linalg.norm(normal)
+                facets.append((b.id, v[0], side_normal(v[0], normal, b.id)))
+            else:  # Box: six faces; kept when every sphere faces them (or one touches them)
+                faces = []
+                c = _vec(b.state.pos)
+                for axis in range(3):
+                    e = np.zeros(3)
+                    e[axis] = 1.0
+                    out = _rot(b.state.ori, e)
+                    ext = float(b.shape.extents[axis])
+                    for sign in (1.0, -1.0):
+                        point, normal = c + sign * ext * out, sign * out
+                        facing = np.all((position - point) @ normal > -radius)
+                        faces.append([add_wall(point, normal, b.id) if facing else None,
+                                      point, normal])
+                box_faces[b.id] = faces
+        # coplanar facets -> one plane
+        scale = max(1.0, float(np.abs(position).max()) + rmax)
+        groups = []
+        for body_id, point, normal in facets:
+            for g in groups:
+                if np.dot(g[1], normal) > 1 - 1e-9 and abs(np.dot(point - g[0], normal)) \
+                        < 1e-9 * scale:
+                    g[2].append(body_id)
+                    break
+            else:
+                groups.append((point, normal, [body_id]))
+        for point, normal, ids in groups:
+            w = add_wall(point, normal, ids[0])
+            walls[w]["bodies"] = ids
+            for body_id in ids:
+                body_wall[body_id] = w
+    elif walls_mode == "none" and wall_bodies:
+        inferred.append(f"walls: none: {len(wall_bodies)} wall bodies and their contacts left "
+                        "out")
+
+    # --- contacts ---------------------------------------------------------------------------
+    pair, p_over, p_force, p_branch, p_yade = [], [], [], [], []
+    w_part, w_wall, w_over, w_force, w_yade = [], [], [], [], []
+    phys_kinds = {}
+    linear_kn = []
+    clipped = merged = 0
+    wall_row = {}                # (particle, wall) -> row: one row per sphere and plane
+    for i in O.interactions.all():
+        if not i.isReal:
+            continue
+        a, b = i.id1, i.id2
+        ia, ib = index.get(a), index.get(b)
+        if ia is None and ib is None:
+            continue
+        other = b if ia is not None and ib is None else a if ib is not None and ia is None \
+            else None
+        if other is not None and (walls_mode == "none" or periodic):
+            continue
+        geom_name = type(i.geom).__name__
+        if not hasattr(i.geom, "penetrationDepth"):
+            _fail(path, f"interaction ({a}, {b}) has geometry {geom_name}: expected ScGeom "
+                        "(Ig2_*_ScGeom functors), whose penetration depth and normal the dump "
+                        "reads")
+        phys_name = type(i.phys).__name__
+        phys_kinds[phys_name] = phys_kinds.get(phys_name, 0) + 1
+        force = float(np.dot(_vec(i.phys.normalForce), _vec(i.geom.normal)))
+        depth_yade = float(i.geom.penetrationDepth)
+        if other is None:                              # sphere - sphere
+            if ia > ib:
+                ia, ib = ib, ia
+                a, b = b, a
+            branch = raw[ib] - raw[ia]
+            if periodic:
+                dist = np.array([int(x) for x in i.cellDist], float)
+                sign = 1.0 if a == i.id1 else -1.0
+                branch = branch + sign * (hsize @ dist)
+            overlap = radius[ia] + radius[ib] - float(np.linalg.norm(branch))
+            if overlap <= 0 and not gaps:
+                continue
+            if force < 0:
+                clipped += 1
+            force = max(force, 0.0) if overlap > 0 else 0.0
+            pair.append((ia, ib))
+            p_over.append(overlap)
+            p_force.append(force)
+            p_branch.append(branch)
+            p_yade.append(depth_yade)
+            if phys_name not in HERTZ_PHYS and hasattr(i.phys, "kn"):
+                linear_kn.append((len(pair) - 1, float(i.phys.kn)))
+        else:                                          # sphere - wall body
+            k = ia if ia is not None else ib
+            wb = O.bodies[other]
+            if type(wb.shape).__name__ == "Box":
+                faces = box_faces[other]
+                s = [float((position[k] - f[1]) @ f[2]) for f in faces]
+                best = int(np.argmax(s))
+                if faces[best][0] is None:
+                    faces[best][0] = add_wall(faces[best][1], faces[best][2], other)
+                w = faces[best][0]
+            else:
+                w = body_wall[other]
+            dist = float((position[k] - walls[w]["point"]) @ walls[w]["normal"])
+            overlap = radius[k] - dist
+            if overlap <= 0 and not gaps:
+                continue
+            if force < 0:
+                clipped += 1
+            force = max(force, 0.0) if overlap > 0 else 0.0
+            row = wall_row.get((k, w))
+            if row is not None:          # a sphere on the edge of two facets of one plane:
+                w_force[row] += force    # YADE applies both forces; one contact, their sum
+                w_yade[row] = max(w_yade[row], depth_yade)
+                merged += 1
+                continue
+            wall_row[(k, w)] = len(w_part)
+            w_part.append(k)
+            w_wall.append(w)
+            w_over.append(overlap)
+            w_force.append(force)
+            w_yade.append(depth_yade)
+
+    pair = np.array(pair, dtype=np.int64).reshape(-1, 2)
+    p_over = np.array(p_over, float)
+    p_force = np.array(p_force, float)
+    p_branch = np.array(p_branch, float).reshape(-1, 3)
+    w_part = np.array(w_part, dtype=np.int64)
+    w_over = np.array(w_over, float)
+    w_force = np.array(w_force, float)
+
+    # --- wall names, renumbered (walls without a role dropped only if unnamed and unused) ---
+    used = set(w_wall)
+    keep = [k for k, w in enumerate(walls)
+            if k in used or w["body"] in wall_names or _axis_of(w["normal"]) is not None
+            or any(b in wall_names for b in w.get("bodies", ()))]
+    renumber = {old: new for new, old in enumerate(keep)}
+    walls = [walls[k] for k in keep]
+    w_wall = np.array([renumber[w] for w in w_wall], dtype=np.int32)
+    taken = set()
+    for k, w in enumerate(walls):
+        ids = [w["body"]] + list(w.get("bodies", ()))
+        given = next((wall_names[b] for b in ids if b in wall_names), None)
+        axis = _axis_of(w["normal"])
+        name = given or (f"{'xyz'[axis]}{'min' if w['normal'][axis] > 0 else 'max'}"
+                         if axis is not None else f"plane_{k}")
+        base, j = name, 2
+        while name in taken:
+            name, j = f"{base}_{j}", j + 1
+        taken.add(name)
+        w["name"] = name
+
+    # --- domain, solid fraction -------------------------------------------------------------
+    lo = (position - radius[:, None]).min(axis=0)
+    hi = (position + radius[:, None]).max(axis=0)
+    bounded = [None, None, None]
+    if periodic:
+        lo, hi = np.zeros(3), np.diag(hsize).copy()
+        bounded = ["periodic"] * 3
+    else:
+        for axis in range(3):
+            mins = [w["point"][axis] for w in walls if _axis_of(w["normal"]) == axis
+                    and w["normal"][axis] > 0]
+            maxs = [w["point"][axis] for w in walls if _axis_of(w["normal"]) == axis
+                    and w["normal"][axis] < 0]
+            if mins and maxs:
+                lo[axis], hi[axis] = max(mins), min(maxs)
+                bounded[axis] = "walls"
+            elif mins or maxs:
+                if mins:
+                    lo[axis] = max(mins)
+                else:
+                    hi[axis] = min(maxs)
+                bounded[axis] = "one wall"
+        free = [("xyz"[a] if bounded[a] is None else "xyz"[a] + " (one side)")
+                for a in range(3) if bounded[a] != "walls"]
+        if free:
+            inferred.append("domain: " + ", ".join(free) + " from the spheres' bounding box "
+                            "(no wall on that side)")
+    volume_cells = float(np.prod(hi - lo))
+    v_solid = float(np.sum(4.0 / 3.0 * np.pi * radius ** 3))
+    if not periodic and w_part.size:                   # caps beyond the axis-normal walls
+        bounding = np.array([_axis_of(walls[w]["normal"]) is not None for w in w_wall], bool)
+        h = np.clip(w_over, 0.0, None)[bounding]
+        v_solid -= float(np.sum(np.pi * h ** 2 * (3 * radius[w_part][bounding] - h) / 3.0))
+    solid_fraction = v_solid / volume_cells
+    touching = p_over > 0
+    mean_z = 2.0 * int(touching.sum()) / n
+
+    # --- material, law, pressure ------------------------------------------------------------
+    mat = spheres[0].material
+    hertz = sum(v for k, v in phys_kinds.items() if k in HERTZ_PHYS)
+    linear = sum(v for k, v in phys_kinds.items() if k in LINEAR_PHYS)
+    if young_pa is None:
+        if mat is None or not hasattr(mat, "young"):
+            _fail(path, "young_pa: not given and the spheres' material has no 'young'; pass "
+                        "young_pa=...")
+        young_pa = float(mat.young)
+        inferred.append(f"young_pa: the spheres' material young ({young_pa:.6g} Pa)")
+    if poisson is None:
+        if linear and not hertz:
+            _fail(path, "poisson: not given, and the contact law is linear (FrictMat "
+                        "'poisson' is k_s/k_n there, not Poisson's ratio); pass poisson=...")
+        if mat is None or not hasattr(mat, "poisson"):
+            _fail(path, "poisson: not given and the spheres' material has no 'poisson'; pass "
+                        "poisson=...")
+        poisson = float(mat.poisson)
+        inferred.append(f"poisson: the spheres' material poisson ({poisson:.6g})")
+    if density is None:
+        if mat is None or not hasattr(mat, "density"):
+            _fail(path, "density: not given and the spheres' material has none; pass "
+                        "density=...")
+        density = float(mat.density)
+        inferred.append(f"density: the spheres' material density ({density:.6g} kg/m^3)")
+    for key, value in (("young_pa", young_pa), ("poisson", poisson), ("density", density)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            _fail(path, f"{key}: expected a finite number > 0, got {value!r}")
+
+    if pressure_pa is None:
+        if periodic:
+            from yade import utils
+            s = utils.getStress()
+            pressure_pa = -float(s[0, 0] + s[1, 1] + s[2, 2]) / 3.0
+            inferred.append("pressure_pa: -trace/3 of utils.getStress() (the cell's mean "
+                            "stress)")
+        else:
+            per_wall = {}
+            for k, w in enumerate(walls):
+                axis = _axis_of(w["normal"])
+                if axis is None or bounded[axis] is None:
+                    continue
+                area = float(np.prod(np.delete(hi - lo, axis)))
+                per_wall[w["name"]] = float(w_force[w_wall == k].sum()) / area
+            if "plate" in per_wall:
+                pressure_pa = per_wall["plate"]
+                inferred.append("pressure_pa: the plate's normal force over the domain's face "
+                                "area")
+            elif per_wall:
+                pressure_pa = float(np.mean(list(per_wall.values())))
+                inferred.append(f"pressure_pa: mean over {len(per_wall)} axis-normal walls of "
+                                "their normal force over the domain's face area")
+            else:
+                pressure_pa = math.nan
+                inferred.append("pressure_pa: NaN (no periodic cell, no axis-normal wall)")
+
+    if hertz >= linear and hertz:
+        r_i, r_j = radius[pair[:, 0]], radius[pair[:, 1]]
+        e_star = _check.effective_modulus(young_pa, poisson)
+        law = _check.check(p_force[touching], _check.hertz_force(
+            (r_i * r_j / (r_i + r_j))[touching], p_over[touching], e_star),
+            "hertz (E* from young_pa, poisson; particle-particle contacts)")
+    elif linear:
+        kn = np.zeros(len(p_over))
+        for c, value in linear_kn:
+            kn[c] = value
+        law = _check.check(p_force[touching], (kn * np.clip(p_over, 0, None))[touching],
+                           "linear (k_n delta, YADE's k_n per contact; particle-particle)")
+    else:
+        law = {"force_law": "unknown (" + ", ".join(sorted(phys_kinds)) + "): not checked"
+               if phys_kinds else "none (no contacts)", "force_law_contacts": 0}
+
+    laws = []
+    for e in O.engines:
+        if type(e).__name__ == "InteractionLoop":
+            laws += [type(f).__name__ for f in e.lawDispatcher.functors]
+    over_diff = np.abs(np.concatenate([p_over - np.array(p_yade, float),
+                                       w_over - np.array(w_yade, float)]))
+    script = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "?"
+    out_attrs = dict(
+        generator=GENERATOR, seed=int(seed), solid_fraction=solid_fraction,
+        mean_coordination=mean_z, pressure_pa=float(pressure_pa), young_pa=float(young_pa),
+        poisson=float(poisson), density=float(density),
+        source=f"YADE script {script}", yade_version=str(yade.config.version),
+        yade_iteration=int(O.iter), yade_time_s=float(O.time), yade_dt_s=float(O.dt),
+        contact_law=", ".join(laws) or "none", contact_phys=", ".join(
+            f"{k} ({v})" for k, v in sorted(phys_kinds.items())) or "none",
+        overlap_source="positions (r_i + r_j - |branch|; walls: r - distance to the plane)",
+        overlap_vs_yade_max_m=float(over_diff.max()) if over_diff.size else 0.0,
+        tensile_contacts_clipped=int(clipped),
+        # YADE interactions of one sphere with several facets of one plane, merged (force summed)
+        wall_interactions_merged=int(merged),
+        inferred="; ".join(inferred) if inferred else "none",
+        wall_seconds=time.time() - t0,
+    )
+    out_attrs.update(law)
+    out_attrs.update(extra)
+    wall_rows = [dict(name=w["name"], kind=w["kind"], point=w["point"], normal=w["normal"],
+                      radius=w["radius"]) for w in walls]
+    r_star = np.zeros(len(p_over))
+    if len(p_over):
+        r_i, r_j = radius[pair[:, 0]], radius[pair[:, 1]]
+        r_star = r_i * r_j / (r_i + r_j)
+    try:
+        _writer.write_packing(
+            path, position, radius, phase, pair, p_over, p_force, p_branch, wall_rows, w_part,
+            w_wall, w_over, w_force, lo, hi, (periodic,) * 3, out_attrs,
+            contact_radius=np.sqrt(r_star * np.clip(p_over, 0, None)),
+            wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)),
+            yade_id=yade_id)
+    except BaseException:
+        if os.path.exists(path + ".tmp"):
+            os.remove(path + ".tmp")
+        raise
+    summary = dict(n_particles=n, n_contacts=int(touching.sum()), n_wall_contacts=len(w_part),
+                   walls=[w["name"] for w in walls], solid_fraction=solid_fraction,
+                   mean_coordination=mean_z, pressure_pa=float(pressure_pa),
+                   inferred=inferred, **law)
+    if not quiet:
+        line = _check.describe(out_attrs)
+        print(f"tdem_yade: wrote {path}: N {n}, contacts {summary['n_contacts']}, wall contacts "
+              f"{len(w_part)} ({', '.join(summary['walls']) or 'no walls'}), phi "
+              f"{solid_fraction:.4f}, Z {mean_z:.3f}, p {pressure_pa:.4g} Pa; force law {line}",
+              flush=True)
+    return summary
+
+
+def _axis_of(normal):
+    normal = np.asarray(normal, float)
+    for axis in range(3):
+        if abs(normal[axis]) > 1.0 - AXIS_TOL:
+            return axis
+    return None
