@@ -261,6 +261,8 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s) -> CaseR
             curve = rod_temperature(xs, fo, 1.0, 1.0, T_HOT, T_INIT)
             ax.plot(xs * PAPER_L * 1e3, curve, "k-", lw=0.8,
                     label="eq. 8" if k == 0 else None)
+            ax.plot(mid * PAPER_L * 1e3, exact[k], "k+", ms=5,
+                    label="eq. 8, bin means" if k == 0 else None)
             ax.errorbar(mid * PAPER_L * 1e3, prof[:, k].mean(axis=0),
                         yerr=[prof[:, k].mean(axis=0) - prof[:, k].min(axis=0),
                               prof[:, k].max(axis=0) - prof[:, k].mean(axis=0)],
@@ -321,6 +323,23 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s) -> CaseR
                     "dt_fourier,steps,run_seconds,dt_error_over_dT,error_vs_eq8_over_dT",
                     [tuple(float(v) for v in r) for r in dt_rows])
 
+    ntab = ["| N (mean of seeds) | max error, mean / min / max of seeds | seeds under 1 % | "
+            "thermal s (calibration + run) |", "|---|---|---|---|"]
+    n_ok = {}
+    for n, row in zip(ladder, conv):
+        e = [runs[(n, s, "haddad")]["max_error_over_dT"] for s in seeds]
+        n_ok[n] = int(sum(v < 0.01 for v in e))
+        ntab.append(f"| {row[0]:,.0f} | {100 * row[1]:.2f} / {100 * row[2]:.2f} / "
+                    f"{100 * row[3]:.2f} % | {n_ok[n]} of {len(seeds)} | {row[4]:.1f} |")
+    signed = np.array([(np.array(r["profile_k"]) - np.array(r["exact_k"])) / DT_K
+                       for r in main])                        # (seeds, times, bins)
+    bias_first = float(signed[:, 0, 0].mean())
+    bias_all = float(np.nanmean(signed))
+    bias_note = (" The error is this bias more than noise: heat enters through the held "
+                 "layer more slowly than through the continuum's face (the boundary resistance "
+                 "of a cut face that case 4 measured on the cube slab; the held-plane C_t "
+                 "spreads it over the whole beam but cannot put it at the end)."
+                 if bias_first < -0.5 * worst else "")
     per_time_txt = ", ".join(f"{times_ms[k]:.3g} ms {100 * per_time[:, k].max():.2f} %"
                              for k in range(len(FOURIER)))
     seed_txt = ", ".join(f"{100 * r['max_error_over_dT']:.2f} %" for r in main)
@@ -354,7 +373,13 @@ output, where the profile is steepest); its own error (against dt/4) is
 {100 * dt_rows[-1, 3]:.3f} % of ΔT, far under the packing's.
 
 **Result** (max over {BINS} bins of |T − T_eq.8| / ΔT, ΔT = 500 K, all {len(seeds)} seeds): **{100 * worst:.2f} %**
-(goal < 1 %: {'met' if met else 'not met'}). Per time: {per_time_txt}. Per seed: {seed_txt}.
+(goal < 1 %: {'met' if met else f'met on {n_ok[main_n]} of {len(seeds)} seeds, not on all'}). Per time: {per_time_txt}. Per seed: {seed_txt}.
+Signed, next to the hot end at the first time the beam is {'colder' if bias_first < 0 else 'hotter'} than eq. 8 by
+{100 * abs(bias_first):.2f} % of ΔT (the hottest bin, seed mean; over all bins and times the mean
+is {100 * bias_all:+.3f} %).{bias_note}
+
+{chr(10).join(ntab)}
+
 Sphere by sphere (no binning), the rms of T − T_eq.8 at each time is {rms_txt} of ΔT: the scatter
 a single sphere carries, which the bin means average out.
 
@@ -396,6 +421,9 @@ average. The beam is thin (~6.8 mean diameters across), so each bin holds few sp
         our_error=f"max {100 * worst:.2f} % of ΔT over {len(FOURIER)} times and {len(seeds)} seeds "
                   f"(haddad, C_t calibrated); terreros {100 * terr_worst:.1f} %",
         wall_time=f"{pack_s:.0f} s + {thermal_s:.0f} s",
-        verdict=("goal < 1 % of ΔT met" if met else "goal < 1 % of ΔT not met")
-        + f"; error falls as N^{order:.2f}",
+        verdict=("goal < 1 % of ΔT met on all seeds" if met else
+                 f"goal < 1 % of ΔT met on {n_ok[main_n]} of {len(seeds)} seeds at "
+                 f"{int(np.mean(n_actual)):,}, {n_ok[max(ladder)]} of {len(seeds)} at "
+                 f"{int(conv[-1, 0]):,}")
+        + f"; a cold bias at the hot end (held layer); error ~ N^{order:.2f}",
         section_md=section, numbers=numbers, command=".venv/bin/python -m validation.run 2")

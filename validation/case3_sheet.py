@@ -51,8 +51,8 @@ Q, R_SRC, V_SRC, X_SRC = 1e11, 4e-3, 3.3e-3, 20e-3          # Table 4
 POINTS = {"A": (9.5e-3, -0.5e-3), "B": (31.0e-3, 0.0), "C": (41.5e-3, -9.5e-3)}  # Table 5
 T_END, T_OUT = 12.0, 0.05                                  # s: the source leaves at 10.3 s
 PROBE_RADIUS = 1e-3
-# continuum grids: cells of 1, 0.5 (the paper's FEM), 0.25, 0.125 mm with dt 0.04 ... 0.005 s
-GRIDS = ((50, 0.04), (100, 0.02), (200, 0.01), (400, 0.005))
+# continuum grids: cells of 1, 0.5 (the paper's FEM), 0.25, 0.125 mm with dt 0.05 ... 0.00625 s
+GRIDS = ((50, 0.05), (100, 0.025), (200, 0.0125), (400, 0.00625))
 QUICK_GRIDS = ((25, 0.05), (50, 0.025), (100, 0.0125))
 QUICK_CELL = fw.ROOT / "tests" / "data" / "dense_periodic.h5"
 
