@@ -59,7 +59,9 @@ def fit_gamma(times_s, edges_m, profiles_k, *, conductivity_w_mk, volumetric_cap
     jac = sol.jac[:, 0] * 1.0                       # d resid / d log gamma
     var_log = s2 / float(jac @ jac) if float(jac @ jac) > 0 else np.inf
     half = student_t.ppf(0.975, dof) * np.sqrt(var_log)
-    return GammaFit(gamma, (gamma * np.exp(-half), gamma * np.exp(half)),
+    with np.errstate(over="ignore"):        # a profile that no longer depends on gamma
+        interval = (gamma * np.exp(-half), gamma * np.exp(half))
+    return GammaFit(gamma, interval,
                     float(np.sqrt(np.mean(r * r))), n,
                     gamma * conductivity_w_mk / volumetric_capacity_j_m3k)
 
