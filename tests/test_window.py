@@ -31,3 +31,7 @@ def test_window_fit_of_a_campaign_case(tmp_path, monkeypatch, capsys):
     capsys.readouterr()
     assert main([str(case)]) == 0                       # kept: printed from window.json
     assert f"{r['gamma_window']:.4g}" in capsys.readouterr().out
+    # the comparison figure of docs/campaign.md reads the campaign and its window fits
+    from tdem_post.paper_compare import plot
+    plot(tmp_path / "out", tmp_path / "cmp.png", diag_out=None)
+    assert (tmp_path / "cmp.png").stat().st_size > 10_000
