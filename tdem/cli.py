@@ -188,8 +188,13 @@ def _cmd_post(args):
     else:
         print(f"  gamma = k_eff/k_p  {s['gamma']:.5g}   95 % CI [{s['gamma_ci95'][0]:.5g}, "
               f"{s['gamma_ci95'][1]:.5g}], profile residual {s['gamma_residual_rms_k']:.3g} K")
+        print(f"  gamma_paper = g/phi {s['gamma_paper']:.5g}   (003's convention: alpha = "
+              "gamma kappa_p/(rho_p c_p))")
     print(f"  gamma (steady ETC) {s['gamma_steady']:.5g}   heat in/out balance "
           f"{s['steady_balance']:.1e}")
+    print(f"  gamma affine k_zz  {s['gamma_affine']:.5g}   (upper bound of the steady ETC; "
+          f"<n_z^2> {s['fabric_nz2']:.4f}, conductance-weighted "
+          f"{s['fabric_nz2_conductance']:.4f})")
     print("  gamma mean field   " + ", ".join(f"{k} {v:.4g}" for k, v in
                                               s["gamma_mean_field"].items()))
     series = ("" if s["tau_series_s"] is None
