@@ -187,7 +187,7 @@ def _report(ctx, recs) -> CaseResult:
         y = 100 * np.array([r["cov_abs"] for r in rr])
         ax.loglog(x, y, "o-", ms=4, label=f"tdem, {rec['n_particles']:,} spheres, |q|")
         ax.loglog([1.0], [100 * _at(rec, 0.0)], "o", mfc="none", color=ax.lines[-1].get_color())
-        fit = x >= 3
+        fit = x >= 5
         if fit.sum() >= 2:
             slopes[rec["n_particles"]] = float(np.polyfit(np.log(x[fit]), np.log(y[fit]), 1)[0])
     main = next((r for r in recs if r["n_nominal"] == 100_000), recs[-1])
@@ -305,7 +305,9 @@ def _summary(recs, main, slopes) -> CaseResult:
         for n, rec in zip(r5, recs))
     n_main = main["n_particles"]
     raw, c4, c11 = (100 * _at(main, x) for x in (0.0, 4.0, 11.0))
-    mean_dev = max(abs(r["mean_x"] - 1) for r in main["rows"])
+    mean_x4 = _at(main, 4.0, "mean_x")
+    us4, us11 = (1e6 * _at(main, x, "seconds_per_particle") for x in (4.0, 11.0))
+    frac11 = 100 * _at(main, 11.0, "n_inside") / n_main
     section = f"""
 Setup (002 sec. 3): the cube of case 4 at steady state (faces normal to x held at 25 and 35 °C,
 adiabatic sides, λ 33 W/m/K, law haddad), on cubes carved from copies of the relaxed
@@ -324,40 +326,44 @@ CoV of |q| against the halo/DE radius ratio:
 {table}
 
 At {n_main:,} spheres: raw {raw:.1f} % (paper 27 %), {c4:.2f} % at ratio 4 (paper 5 %),
-{c11:.2f} % at 11 (paper 2 %). The component along the gradient (q_x, dotted in the figure)
-scatters more than |q| at small halos (the raw fluxes tilt), the same at large ones. The mean
-flux is preserved by the Halo average: mean q_x / (Q/A) within {100 * mean_dev:.2f} % of 1 at
-every ratio (the paper's Fig. 11 "mean values very close to the analytical one").
+{c11:.2f} % at 11 (paper 2 %). The component along the gradient (q_x, dotted) scatters as
+|q| does. Our raw scatter is higher than the paper's (our packing: Gaussian radii σ/μ 0.3
+truncated at ±2σ, Z with gaps ~8.5 against its 7.5) and our curve falls faster at large halos
+(slope ≈ −3/2, the paper's 5 % → 2 % between 4 and 11 is a slope of −0.9): 2 % is reached at a
+ratio of {r2.get(n_main, float('nan')):.1f}, not 11. Between ratios 3 and 4 the CoV drops by
+3×: below it the halos of the smallest spheres (R_p ≈ 0.4 mean radius) hold no other sphere.
+The Halo average keeps the mean: mean q_x / (Q/A) is the same at every ratio ≥ 4
+({mean_x4:.4f} at {n_main:,}); it is above 1 by a 1/L amount (4.6 % at 1e4, 2.2 % at 1e5),
+because the layers along the cube's adiabatic cut faces conduct less (neighbours missing beyond
+the cut), so the interior carries more than the average flux Q/A.
 
 ![CoV of the particle flux against the halo ratio, with the paper's values](img/validation_case7_cov.png)
 
 ![mean, min and max flux against the halo ratio](img/validation_case7_minmax.png)
 
 **Against N and the ratio** (ratios where the CoV crosses 5 % and 2 %, log-log interpolated; the
-slope of log CoV against log ratio fitted for ratio ≥ 3; times on 1 thread of a shared machine):
+slope of log CoV against log ratio fitted for ratio ≥ 5; times on 1 thread of a shared machine):
 
 | N | ratio at 5 % | ratio at 2 % | slope (ratio ≥ 3) | steady solve (s) | Halo, all ratios (s) | packing (s) |
 |---|---|---|---|---|---|---|
 {ratio_lines}
 
-As the paper found, the curve does not depend on N: it is a property of the packing's local
-disorder, and a halo holding M ≈ φ ratio³ / (1 + 3σ²) spheres averages M roughly independent
-fluxes, so the CoV falls about as ratio^(-3/2) — the fitted slopes. There is no convergence in N
-to fit; N only sets how many particles have a whole halo inside the cube (none at ratio 14 below
-~1e4 spheres).
+As the paper found, the curve hardly depends on N: it is a property of the packing's local
+disorder (the cut faces only shift the mean, above), and a halo holding M ≈ φ ratio³ / (1 + 3σ²)
+spheres averages M roughly independent fluxes, so the CoV falls about as ratio^(−3/2) — the fitted
+slopes. There is no convergence in N to fit; N sets how many particles have a whole halo inside
+the cube.
 
 **Speed against error**: the Halo evaluation costs about the number of spheres in a halo per
-particle (ratio³): from a few µs per particle raw to ~1 ms at ratio 14
-(`img/validation_case7_speed_error.png`, CSV beside it). The paper's 2 % level (ratio 11 in the
-paper, {r2.get(n_main, float('nan')):.1f} here) costs ~0.5 ms per particle on one thread, i.e.
-~1 min per 1e5 particles; the steady solve itself is {main['steady_seconds']:.0f} s at {n_main:,}.
+particle (ratio³): {us4:.0f} µs per particle at ratio 4, {us11:.0f} µs at 11 (1 thread); the
+steady solve itself is {main['steady_seconds']:.0f} s at {n_main:,}.
 
 ![speed against error of the Halo smoothing](img/validation_case7_speed_error.png)
 
 What limits us: the cube's boundary layer of depth ratio × R_p is excluded (at ratio 11 the
 evaluated particles are the inner ~40 % of the 1e5 cube), and large halos near a boundary would
-need a truncated halo (eq. 23's volume counts only particles inside) — not studied here, as in
-the paper's CoV.
+need a truncated halo (eq. 23's volume counts only particles inside) — not studied here. At
+ratio 11, {frac11:.0f} % of the {n_main:,} spheres have their halo inside the cube.
 """
     return CaseResult(
         our_n=f"{n_main:,}" + (" (also " + ", ".join(f"{r['n_particles']:,}" for r in recs
@@ -368,9 +374,9 @@ the paper's CoV.
                    f"2 % at {r2.get(n_main, float('nan')):.1f}"),
         wall_time=(f"{_pack(main['name'])} + {main['steady_seconds']:.0f} s steady + "
                    f"{sum(r['seconds'] for r in main['rows']):.0f} s Halo (11 ratios)"),
-        verdict=("the paper's curve reproduced in shape and N-independence; "
-                 + ("levels as the paper's" if abs(c4 - 5) < 1.5 and abs(c11 - 2) < 0.7
-                    else "levels differ from the paper's (see section)")),
+        verdict=(f"the paper's shape and N-independence; raw scatter {raw:.0f} % (paper 27 %), "
+                 f"5 % at ratio {r5.get(n_main, float('nan')):.1f} (paper ≈ 4), 2 % at "
+                 f"{r2.get(n_main, float('nan')):.1f} (paper ≈ 11): ours falls as ratio^-3/2"),
         section_md=section,
         numbers={"n_particles": n_main, "cov_raw": raw / 100, "cov_ratio4": c4 / 100,
                  "cov_ratio11": c11 / 100, "ratio_at_5pct": r5, "ratio_at_2pct": r2,
