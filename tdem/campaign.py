@@ -428,8 +428,8 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
                   f"{PAPER_TAU['c']:+} s (Fig. 10).", ""]
     write_text_atomic(out_dir / "report.md", "\n".join(lines))
     print(f"tdem campaign: report {out_dir / 'report.md'}", flush=True)
-    print(table[(["seed"] if seeded else []) + ["pressure_pa", "law", "gamma", "gamma_paper",
-                "gamma_steady", "gamma_affine", "tau_s", "flags"]].to_string(
+    print(table[(["seed"] if seeded else []) + ["pressure_pa", "law", "gamma",
+                "gamma_steady", "tau_s", "flags"]].to_string(
         index=False, float_format=lambda x: f"{x:.4g}"), flush=True)
     return dict(table=table, fits=fits, report=out_dir / "report.md")
 
