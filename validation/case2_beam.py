@@ -388,7 +388,9 @@ a single sphere carries, which the bin means average out.
 (data: `{_rel(f_prof.with_suffix('.csv'))}`)
 
 **Convergence with N** (max error over bins and times, mean of the seeds, min–max as bars):
-fitted order N^{order:.2f}.
+fitted order N^{order:.2f}, to compare with N^(−1/3), the order of an error made by a layer one
+sphere thick at the end of a beam of fixed shape (r/L ∝ N^(−1/3)); the seeds scatter by a
+factor 2–5 at every N, so the fit is rough.
 
 ![case 2 convergence]({_rel(f_conv)})
 
