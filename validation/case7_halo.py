@@ -331,7 +331,8 @@ At {n_main:,} spheres: raw {raw:.1f} % (paper 27 %), {c4:.2f} % at ratio 4 (pape
 truncated at ±2σ, Z with gaps ~8.5 against its 7.5) and our curve falls faster at large halos
 (slope ≈ −3/2, the paper's 5 % → 2 % between 4 and 11 is a slope of −0.9): 2 % is reached at a
 ratio of {r2.get(n_main, float('nan')):.1f}, not 11. Between ratios 3 and 4 the CoV drops by
-3×: below it the halos of the smallest spheres (R_p ≈ 0.4 mean radius) hold no other sphere.
+3×; our reading (not measured further): below it the halos of the smallest spheres
+(R_p ≈ 0.4 mean radius) hold few or no other spheres.
 The Halo average keeps the mean: mean q_x / (Q/A) is the same at every ratio ≥ 4
 ({mean_x4:.4f} at {n_main:,}); it is above 1 by a 1/L amount (4.6 % at 1e4, 2.2 % at 1e5),
 because the layers along the cube's adiabatic cut faces conduct less (neighbours missing beyond
@@ -344,7 +345,7 @@ the cut), so the interior carries more than the average flux Q/A.
 **Against N and the ratio** (ratios where the CoV crosses 5 % and 2 %, log-log interpolated; the
 slope of log CoV against log ratio fitted for ratio ≥ 5; times on 1 thread of a shared machine):
 
-| N | ratio at 5 % | ratio at 2 % | slope (ratio ≥ 3) | steady solve (s) | Halo, all ratios (s) | packing (s) |
+| N | ratio at 5 % | ratio at 2 % | slope (ratio ≥ 5) | steady solve (s) | Halo, all ratios (s) | packing (s) |
 |---|---|---|---|---|---|---|
 {ratio_lines}
 
