@@ -52,10 +52,10 @@ def read_campaign(path: Path) -> tuple[dict, str]:
     camp = data.get("campaign")
     if not isinstance(camp, dict):
         raise UserError(f"{path}: campaign: missing [campaign] table (laws = [...])")
-    unknown = set(camp) - {"laws", "n_bins", "seeds"}
+    unknown = set(camp) - {"laws", "n_bins", "seeds", "packings"}
     if unknown:
         raise UserError(f"{path}: campaign.{sorted(unknown)[0]}: unknown key (known: laws, "
-                        "n_bins, seeds)")
+                        "n_bins, seeds, packings)")
     laws = camp.get("laws")
     from thermal_kernel.laws import LAWS
     if not (isinstance(laws, list) and laws and all(isinstance(x, str) for x in laws)):
@@ -76,7 +76,11 @@ def read_campaign(path: Path) -> tuple[dict, str]:
                         f"(one packing series per seed), got {seeds!r}")
     if "packing" in data:
         raise UserError(f"{path}: packing: a campaign builds its packings from [pack]")
-    return dict(laws=laws, n_bins=n_bins, seeds=seeds), text
+    packings = camp.get("packings")
+    if packings is not None:        # existing packing files instead of [pack] (tdem/imported.py)
+        from .imported import campaign_packings
+        packings = campaign_packings(path, packings, "pack" in data, seeds)
+    return dict(laws=laws, n_bins=n_bins, seeds=seeds, packings=packings), text
 
 
 def _scene_text(campaign_text: str, packing: Path, law: str) -> str:
@@ -199,8 +203,8 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
                                                     quiet=True, seed=sd[0]), series))
     rows, k = [], 0
     for seed, sdir in series:
-        packings = build_packings(campaign_path, sdir, threads=yade_threads, quiet=quiet,
-                                  seed=seed)
+        packings = conf["packings"] or build_packings(campaign_path, sdir, threads=yade_threads,
+                                                      quiet=quiet, seed=seed)
         n_cases = len(series) * len(packings) * len(conf["laws"])
         for packing in packings:
             for law in conf["laws"]:
