@@ -313,3 +313,103 @@ def periodic_conductivity(packing: Packing, conductance, axis: int = 0, tol: flo
     flow = h * (theta[i] - theta[j] - lx)
     volume = float(np.prod(packing.domain_hi - packing.domain_lo))
     return float(-(flow * lx).sum() / volume), time.perf_counter() - t0
+
+
+# ---------------------------------------------------------------- random dispersions (case 10)
+def rsa(lo, hi, radius: float, count: int, rng, max_attempts: int = 200_000):
+    """Random sequential addition of ``count`` non-overlapping spheres of ``radius`` wholly
+    inside the box [lo, hi]: (centres placed, attempts). Stops short of ``count`` when
+    ``max_attempts`` trial centres in a row fail (jammed)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    centres = np.zeros((0, 3))
+    fails = 0
+    attempts = 0
+    while len(centres) < count and fails < max_attempts:
+        trial = rng.uniform(lo + radius, hi - radius, size=(256, 3))
+        for c in trial:
+            attempts += 1
+            if len(centres) == 0 or np.min(np.sum((centres - c) ** 2, axis=1)) >= 4 * radius ** 2:
+                centres = np.vstack([centres, c])
+                fails = 0
+                if len(centres) == count:
+                    break
+            else:
+                fails += 1
+    return centres, attempts
+
+
+def compress_dispersion(lo, hi, radius: float, count: int, rng, start_fraction: float = 0.2,
+                        max_sweeps: int = 20_000):
+    """``count`` non-overlapping spheres of ``radius`` inside the box by Monte Carlo
+    compression (a Lubachevsky-Stillinger-like inflation without dynamics, how volume
+    fractions beyond random sequential addition's jamming are reached): place them by RSA at the
+    radius giving ``start_fraction``, then alternate a sweep of random hard-sphere moves with
+    growing every sphere to the largest radius the configuration allows (half the closest
+    distance, the distance to the walls), up to ``radius``. Returns (centres, radius reached,
+    sweeps)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    f_target = count * 4 / 3 * math.pi * radius ** 3 / float(np.prod(hi - lo))
+    r = radius * min(1.0, (start_fraction / f_target) ** (1 / 3))
+    centres, _ = rsa(lo, hi, r, count, rng)
+    if len(centres) < count:
+        raise ValueError(f"compress_dispersion: RSA could not start at f {start_fraction}")
+    step = 0.5 * r
+    sweeps = 0
+    while r < radius and sweeps < max_sweeps:
+        sweeps += 1
+        accepted = 0
+        for k in rng.permutation(count):
+            trial = centres[k] + rng.uniform(-step, step, 3)
+            if np.any(trial < lo + r) or np.any(trial > hi - r):
+                continue
+            d2 = np.sum((centres - trial) ** 2, axis=1)
+            d2[k] = np.inf
+            if d2.min() >= 4 * r * r:
+                centres[k] = trial
+                accepted += 1
+        rate = accepted / count
+        step *= 1.1 if rate > 0.4 else 0.9
+        tree = cKDTree(centres)
+        dmin = tree.query(centres, k=2)[0][:, 1].min()
+        wall = np.min(np.minimum(centres - lo, hi - centres))
+        r = min(radius, 0.5 * dmin, wall)
+        step = min(step, 0.5 * r)
+    return centres, r, sweeps
+
+
+# ---------------------------------------------------------------- the continuum reference
+def continuum_field(centres, radius: float, contrast: float, n: int, size: float = 1.0,
+                    mixing: str = "arithmetic", axis: int = 1, sub: int = 4):
+    """Steady finite-volume solve (tdem_post.continuum's operator, harmonic face conductances)
+    of the unit cube [0, size]^3 holding the spheres (centres, radius) of conductivity
+    ``contrast`` in a matrix of 1: faces normal to ``axis`` held at 0 (min) and 1 (max), the
+    others adiabatic, n^3 cells. A cell's conductivity mixes the two phases by the fraction of it
+    inside the spheres (``mixing`` arithmetic or harmonic). Solved by AMG-preconditioned CG
+    (pyamg) to 1e-10, so that grids of 1e6 cells fit. Returns (grid, T, k_eff/k_m)."""
+    import pyamg
+    from tdem_post import continuum as C
+    grid = C.make_grid((0, 0, 0), (size,) * 3, (n, n, n))
+    X, Y, Z = grid.mesh()
+    frac = np.zeros(grid.shape)
+    h = size / n
+    for c in np.atleast_2d(centres):
+        # only the cells near this sphere are sampled
+        sl = tuple(slice(max(0, int((c[a] - radius) / h) - 1),
+                         min(n, int((c[a] + radius) / h) + 2)) for a in range(3))
+        sub_lo = tuple(grid.lo[a] + sl[a].start * h for a in range(3))
+        sub_hi = tuple(grid.lo[a] + sl[a].stop * h for a in range(3))
+        sub_grid = C.make_grid(sub_lo, sub_hi, tuple(s.stop - s.start for s in sl))
+        frac[sl] += C.ball_fraction(sub_grid, c, radius, sub=sub)
+    frac = np.clip(frac, 0.0, 1.0)
+    if mixing == "arithmetic":
+        k = 1.0 + (contrast - 1.0) * frac
+    else:
+        k = 1.0 / ((1.0 - frac) + frac / contrast)
+    faces = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")[2 * axis: 2 * axis + 2]
+    dirichlet = {faces[0]: 0.0, faces[1]: 1.0}
+    L, _, b = C.conductance_matrix(grid, k, dirichlet)
+    ml = pyamg.smoothed_aggregation_solver(L, symmetry="symmetric", max_coarse=500)
+    T = ml.solve(b, tol=1e-10, accel="cg", maxiter=500)
+    heat = C._face_heat(grid, k, dirichlet, T)
+    q = heat[faces[1]]
+    return grid, T.reshape(grid.shape), q * size / (size * size * 1.0), k
