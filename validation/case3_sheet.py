@@ -434,6 +434,7 @@ cell (0.5 mm).
                   f"{100 * last['C']['err_mean_of_seeds']:.1f} % of the peak rise (vs our "
                   f"continuum, converged to {100 * rich_pt.max():.2f} %); dispersion "
                   + " / ".join(f"{100 * last[p]['dispersion']:.1f} %" for p in names),
-        wall_time=f"{pack_s:.0f} s + {thermal_s:.0f} s (continuum {sum(cont_s):.0f} s)",
+        wall_time=f"{pack_s:.0f} s (carving; the cells are case 2's) + {thermal_s:.0f} s "
+                  f"(continuum {sum(cont_s):.0f} s)",
         verdict=f"error falls as N^{order:.2f}; continuum reference converged",
         section_md=section, numbers=numbers, command=".venv/bin/python -m validation.run 3")
