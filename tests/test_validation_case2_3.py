@@ -56,6 +56,12 @@ def test_case3_quick_sheet_within_its_documented_error():
     assert max(n["continuum_richardson_over_rise"]) < 0.002
     assert 1.7 < n["continuum_order"] < 2.5
     assert max(n["dem_dt_error"].values()) < 0.003
+    # the DEM's source puts in the disc's heat to the sampling of the disc by sphere centres
+    assert row["source_energy_ratio"] == pytest.approx(1.0, abs=0.05)
+    # the exact heat of the disc: full disc for (50 - 20) / 3.3 s by the symmetry of its exit
+    assert case3_sheet.source_energy_exact() == pytest.approx(
+        case3_sheet.Q * np.pi * case3_sheet.R_SRC ** 2 * case3_sheet.LZ * 30e-3 / 3.3e-3,
+        rel=1e-6)
 
 
 def test_dem_moving_source_heats_as_much_as_the_continuum():
