@@ -413,3 +413,8 @@ def continuum_field(centres, radius: float, contrast: float, n: int, size: float
     heat = C._face_heat(grid, k, dirichlet, T)
     q = heat[faces[1]]
     return grid, T.reshape(grid.shape), q * size / (size * size * 1.0), k
+
+
+def centred_inclusion_unit():
+    """(centres (1, 3), radius) of 002 sec. 4's inclusion in the unit cube: a = 1/3."""
+    return np.array([[0.5, 0.5, 0.5]]), 1.0 / 3.0
