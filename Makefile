@@ -5,7 +5,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-APT_PACKAGES := yade python3-h5py python3-scipy python3-venv
+APT_PACKAGES := yade python3-h5py python3-scipy python3-venv liggghts openmpi-bin
 
 .PHONY: demo test deps apt validate bench bench-packings clean
 

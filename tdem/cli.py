@@ -295,6 +295,26 @@ def _print_provenance(attrs):
         print(f"  force law check      {line}")
 
 
+def _cmd_import_liggghts(args):
+    from thermal_kernel.contact_check import describe, is_mismatch
+    from thermal_kernel.packing import format_statistics, packing_statistics
+    from .liggghts import import_liggghts
+    packing = import_liggghts(args.atoms, args.pairs, args.walls_dump, args.output,
+                              walls=args.walls, young=args.young, poisson=args.poisson,
+                              density=args.density, pressure=args.pressure_pa, seed=args.seed,
+                              timestep=args.timestep, law=args.law)
+    print(f"tdem import: wrote {args.output} ({packing.attrs['source']})")
+    print(format_statistics(packing_statistics(packing)))
+    if packing.wall_name:
+        print("  walls                " + ", ".join(packing.wall_name))
+    _print_provenance(dict(packing.attrs, source=None))
+    if is_mismatch(packing.attrs):
+        print(f"tdem import: warning: {args.output}: force-law MISMATCH: F / F_law median "
+              f"{packing.attrs['force_law_ratio_median']:.4g}, 95 % of |F / F_law - 1| below "
+              f"{packing.attrs['force_law_mismatch_p95']:.3g} (written; recorded in force_law_*)",
+              file=sys.stderr)
+
+
 def _cmd_yade_path(args):
     from .yade import YADE_SCRIPTS
     print(Path(YADE_SCRIPTS).resolve())
@@ -436,6 +456,31 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("info", help="validate a packing.h5 and print its statistics")
     p.add_argument("packing")
     p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser("import", help="import a packing made by another DEM code "
+                                      "(docs/import.md)")
+    isub = p.add_subparsers(dest="source", required=True)
+    p = isub.add_parser("liggghts", help="LIGGGHTS dumps (dump custom atoms, dump local of "
+                                         "pair/gran/local and wall/gran/local) -> packing.h5")
+    p.add_argument("atoms", help="dump custom file: id type x y z radius")
+    p.add_argument("pairs", help="dump local of compute pair/gran/local id force_normal delta")
+    p.add_argument("walls_dump", nargs="?", metavar="walls",
+                   help="dump local of compute wall/gran/local id force_normal delta (optional)")
+    p.add_argument("--walls", default="",
+                   help="the meshes of fix wall/gran in order, as planes: NAME[:SIDE][=COORD],... "
+                        "e.g. zmin,plate:zmax (SIDE xmin ... zmax; COORD in m, else inferred)")
+    p.add_argument("--young", type=float, help="Young's modulus of the spheres, Pa (required)")
+    p.add_argument("--poisson", type=float, help="Poisson's ratio (required)")
+    p.add_argument("--density", type=float,
+                   help="kg/m^3 (default: from a mass column of the atoms dump)")
+    p.add_argument("--pressure-pa", type=float,
+                   help="pressure to record (default: the plate's force / area, else the walls')")
+    p.add_argument("--law", default="hertz", choices=["hertz", "none"],
+                   help="contact law the forces are checked against (default hertz)")
+    p.add_argument("--timestep", type=int, help="snapshot to read (default: the last)")
+    p.add_argument("--seed", type=int, default=0, help="seed to record (default 0)")
+    p.add_argument("-o", "--output", required=True, help="packing file to write (.h5)")
+    p.set_defaults(func=_cmd_import_liggghts)
 
     p = sub.add_parser("yade-path", help="print the folder holding tdem_yade.py, to put on "
                                          "sys.path in your own YADE script (docs/import.md)")

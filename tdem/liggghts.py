@@ -1,0 +1,451 @@
+"""``tdem import liggghts``: a LIGGGHTS packing (text dumps) -> ``packing.h5`` (docs/import.md).
+
+Three dumps of one timestep, as ``runs/liggghts/bed.in`` writes them (any number of MPI ranks;
+LIGGGHTS gathers every rank's rows into one file):
+
+- atoms: ``dump custom`` with the columns ``id x y z radius`` (``type`` -> phase, ``mass`` ->
+  density; any order; unscaled, SI);
+- pairs: ``dump local`` of ``compute pair/gran/local id force_normal delta``: 7 columns, in the
+  order LIGGGHTS writes them whatever the order of the keywords (measured with 3.8.0): id1, id2,
+  periodic flag (1: the contact crosses a periodic boundary), the normal force vector on the
+  first atom (N), the overlap delta (m, r_i + r_j - distance);
+- walls (optional): ``dump local`` of ``compute wall/gran/local id force_normal delta``: mesh id
+  (the order of the meshes in ``fix wall/gran ... meshes``), triangle id, atom id, normal force
+  vector (N), overlap (m).
+
+Walls are planes normal to an axis, named with ``--walls`` in mesh order
+(``zmin,plate:zmax``: mesh 0 is ``zmin``, mesh 1 ``plate``, the upper bound along z). Their
+position is ``name:side=COORD`` when given, otherwise inferred from their contacts (the median of
+x +- (r - delta) over them) or, with no contact, from the spheres' extreme (recorded in the
+attribute ``inferred``). Without a walls dump, wall contacts are taken from the geometry
+(overlap r - distance > 0) with Hertz forces at the stated modulus, also recorded.
+The overlap written is LIGGGHTS' ``delta``; the largest difference to r_i + r_j - |branch| from the
+dumped positions is recorded (``overlap_vs_positions_max_m``): with the default ``%g`` dump
+format positions carry 6 digits and it reaches ~1 % of an overlap.
+"""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .errors import UserError
+
+AXES = {f"{a}{s}": (k, s) for k, a in enumerate("xyz") for s in ("min", "max")}
+PAIR_COLUMNS = ("id1", "id2", "periodic", "fx", "fy", "fz", "delta")
+WALL_COLUMNS = ("mesh", "triangle", "atom", "fx", "fy", "fz", "delta")
+PAIR_HINT = "compute pair/gran/local id force_normal delta"
+WALL_HINT = "compute wall/gran/local id force_normal delta"
+
+
+class Snapshot:
+    def __init__(self, timestep, bounds, boundary, columns, data):
+        self.timestep = timestep
+        self.bounds = bounds          # (3, 2) lo, hi
+        self.boundary = boundary      # ['pp', 'pp', 'ff']
+        self.columns = columns
+        self.data = data              # (rows, columns) float
+
+
+def read_dump(path, kind, timestep=None) -> Snapshot:
+    """One snapshot of a LAMMPS/LIGGGHTS text dump (``kind``: 'ATOMS' or 'ENTRIES'); the last
+    one, or the one at ``timestep``. Raises UserError naming the file and the item."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: file not found" if not path.exists()
+                        else f"{path}: is a folder; expected a LIGGGHTS dump file")
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        raise UserError(f"{path}: not a text dump (binary?); expected a LIGGGHTS text dump "
+                        "(dump custom / dump local)") from None
+    starts = [k for k, line in enumerate(lines) if line.strip() == "ITEM: TIMESTEP"]
+    if not starts:
+        raise UserError(f"{path}: ITEM: TIMESTEP: not found; expected a LIGGGHTS text dump "
+                        f"(dump {'custom' if kind == 'ATOMS' else 'local'})")
+    snaps = []
+    for k, start in enumerate(starts):
+        end = starts[k + 1] if k + 1 < len(starts) else len(lines)
+        snaps.append((start, end))
+    steps = []
+    for start, end in snaps:
+        try:
+            steps.append(int(lines[start + 1].split()[0]))
+        except (IndexError, ValueError):
+            raise UserError(f"{path}: ITEM: TIMESTEP (line {start + 2}): expected an integer "
+                            "timestep") from None
+    if timestep is None:
+        pick = len(snaps) - 1
+    elif timestep in steps:
+        pick = steps.index(timestep)
+    else:
+        raise UserError(f"{path}: --timestep: no snapshot at timestep {timestep} (timesteps: "
+                        f"{', '.join(map(str, steps[:10]))}{' ...' if len(steps) > 10 else ''})")
+    start, end = snaps[pick]
+    block = lines[start:end]
+    item = {}
+    for k, line in enumerate(block):
+        if line.startswith("ITEM:"):
+            item[line[5:].strip().split()[0] if line[5:].strip() else ""] = k
+    count_key = "NUMBER" if kind in ("ATOMS", "ENTRIES") else kind
+    if count_key not in item or kind not in item or "BOX" not in item:
+        missing = [x for x in ("NUMBER", "BOX", kind) if x not in item]
+        what = {"NUMBER": f"ITEM: NUMBER OF {'ATOMS' if kind == 'ATOMS' else 'ENTRIES'}",
+                "BOX": "ITEM: BOX BOUNDS", kind: f"ITEM: {kind}"}[missing[0]]
+        other = "ENTRIES" if kind == "ATOMS" else "ATOMS"
+        hint = (f" (this is a dump {'local' if other == 'ENTRIES' else 'custom'} file: the "
+                "arguments are ATOMS PAIRS [WALLS])") if other in item else ""
+        raise UserError(f"{path}: {what}: missing at timestep {steps[pick]}{hint}")
+    try:
+        n = int(block[item["NUMBER"] + 1].split()[0])
+    except (IndexError, ValueError):
+        raise UserError(f"{path}: ITEM: NUMBER OF ...: expected an integer count") from None
+    box_line = block[item["BOX"]].split()
+    boundary = box_line[3:6] if len(box_line) >= 6 else ["ff"] * 3
+    try:
+        bounds = np.array([[float(v) for v in block[item["BOX"] + 1 + a].split()[:2]]
+                           for a in range(3)])
+    except (IndexError, ValueError):
+        raise UserError(f"{path}: ITEM: BOX BOUNDS: expected three lines 'lo hi'") from None
+    if bounds.shape != (3, 2):
+        raise UserError(f"{path}: ITEM: BOX BOUNDS: expected three lines 'lo hi' (a triclinic "
+                        "box is not supported)")
+    header = block[item[kind]].split()[2:]
+    rows = block[item[kind] + 1:item[kind] + 1 + n]
+    if len(rows) < n:
+        raise UserError(f"{path}: ITEM: {kind}: expected {n} rows (ITEM: NUMBER OF ...), got "
+                        f"{len(rows)} (a truncated file?)")
+    try:
+        data = np.array([[float(v) for v in r.split()] for r in rows], dtype=float) \
+            if n else np.zeros((0, len(header)))
+    except ValueError:
+        raise UserError(f"{path}: ITEM: {kind}: a row that is not numbers") from None
+    if data.ndim != 2 or (n and data.shape[1] != len(header)):
+        raise UserError(f"{path}: ITEM: {kind}: rows do not all have the {len(header)} columns "
+                        f"of the header ({' '.join(header)})")
+    if not np.all(np.isfinite(data)):
+        r = int(np.argwhere(~np.isfinite(data))[0][0])
+        raise UserError(f"{path}: ITEM: {kind}: non-finite value (NaN or inf) in row {r}")
+    return Snapshot(steps[pick], bounds, boundary, header, data)
+
+
+def parse_walls(text):
+    """``zmin,plate:zmax,ymax=0.012`` -> [(name, axis, side, coord or None)] in mesh order."""
+    out = []
+    if not text:
+        return out
+    for k, item in enumerate(text.split(",")):
+        item = item.strip()
+        coord = None
+        if "=" in item:
+            item, value = item.split("=", 1)
+            try:
+                coord = float(value)
+            except ValueError:
+                raise UserError(f"--walls: wall {k} ({item}): expected a coordinate in m after "
+                                f"'=', got {value!r}") from None
+        name, _, side = item.partition(":")
+        side = side or name
+        if side not in AXES:
+            raise UserError(f"--walls: wall {k} ({name or '?'}): expected a side xmin ... zmax "
+                            f"(a name that is one, or name:side, e.g. plate:zmax), got "
+                            f"{side!r}")
+        if not name or any(name == o[0] for o in out):
+            raise UserError(f"--walls: wall {k}: expected a unique name, got {name!r}")
+        out.append((name, *AXES[side], coord))
+    return out
+
+
+def _columns(snap, path, wanted, hint):
+    if len(snap.columns) != len(wanted):
+        raise UserError(f"{path}: ITEM: ENTRIES: expected {len(wanted)} columns ({' '.join(wanted)}"
+                        f": `{hint}`), got {len(snap.columns)} ({' '.join(snap.columns)})")
+    return {name: snap.data[:, k] for k, name in enumerate(wanted)}
+
+
+def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=None,
+                    poisson=None, density=None, pressure=None, seed=0, timestep=None,
+                    law="hertz"):
+    """Read the dumps, build the packing, write it (validated) to ``out``; return (packing,
+    stats line items)."""
+    from thermal_kernel import contact_check
+    from thermal_kernel.packing import Packing, PackingError, read_packing, write_packing
+
+    for key, value, low, high in (("--young", young, 0, math.inf),
+                                  ("--poisson", poisson, -1, 0.5)):
+        if value is None:
+            raise UserError(f"{key}: required (LIGGGHTS dumps carry no material; give the "
+                            "values of your input's fix property/global)")
+        if not (math.isfinite(value) and low < value < high):
+            raise UserError(f"{key}: expected a number in ({low}, {high}), got {value!r}")
+    out = Path(out)
+    if out.suffix.lower() != ".h5":
+        raise UserError(f"{out}: -o: expected a file name ending in .h5")
+    if out.is_dir() or not out.parent.is_dir():
+        raise UserError(f"{out}: -o: " + ("is a folder; expected a .h5 file name" if out.is_dir()
+                                          else f"the folder {out.parent} does not exist"))
+    wall_spec = parse_walls(walls)
+    if law not in ("hertz", "none"):
+        raise UserError(f"--law: expected hertz or none, got {law!r}")
+
+    a = read_dump(atoms_path, "ATOMS", timestep)
+    p = read_dump(pairs_path, "ENTRIES", a.timestep if timestep is None else timestep)
+    w = read_dump(walls_path, "ENTRIES", a.timestep) if walls_path else None
+    for snap, path in ((p, pairs_path), (w, walls_path)):
+        if snap is not None and snap.timestep != a.timestep:
+            raise UserError(f"{path}: ITEM: TIMESTEP: {snap.timestep}, but the atoms dump is at "
+                            f"{a.timestep}; expected the three dumps of one timestep")
+    if w is not None and not wall_spec:
+        raise UserError(f"{walls_path}: --walls: a walls dump needs the walls named in mesh "
+                        "order (e.g. --walls zmin,plate:zmax)")
+
+    col = {c: k for k, c in enumerate(a.columns)}
+    for c in ("xs", "xu", "xsu"):
+        if c in col and "x" not in col:
+            raise UserError(f"{atoms_path}: ITEM: ATOMS: column {c}: expected unscaled, wrapped "
+                            "x y z (dump custom ... id type x y z radius)")
+    for c in ("id", "x", "y", "z", "radius"):
+        if c not in col:
+            raise UserError(f"{atoms_path}: ITEM: ATOMS: missing column {c!r} (expected `dump "
+                            f"custom ... id type x y z radius`; got {' '.join(a.columns)})")
+    d = a.data
+    n = d.shape[0]
+    if n == 0:
+        raise UserError(f"{atoms_path}: ITEM: ATOMS: no atoms at timestep {a.timestep}")
+    order = np.argsort(d[:, col["id"]], kind="stable")
+    d = d[order]
+    ids = d[:, col["id"]].astype(np.int64)
+    if np.any(np.diff(ids) == 0):
+        dup = int(ids[np.flatnonzero(np.diff(ids) == 0)[0]])
+        raise UserError(f"{atoms_path}: ITEM: ATOMS: atom id {dup} appears twice")
+    index = {int(i): k for k, i in enumerate(ids)}
+    position = d[:, [col["x"], col["y"], col["z"]]].copy()
+    radius = d[:, col["radius"]].copy()
+    if np.any(radius <= 0):
+        raise UserError(f"{atoms_path}: radius: atom {int(ids[np.argmin(radius)])} has radius "
+                        f"{radius.min()!r}; expected > 0")
+    types = d[:, col["type"]].astype(np.int64) if "type" in col else np.ones(n, np.int64)
+    phase = np.searchsorted(np.unique(types), types).astype(np.int32)
+    inferred = []
+    if density is None:
+        if "mass" not in col:
+            raise UserError("--density: required (or dump the atoms' mass column, from which "
+                            "it is computed)")
+        rho = d[:, col["mass"]] / (4 / 3 * np.pi * radius ** 3)
+        density = float(np.median(rho))
+        inferred.append(f"density: median mass / sphere volume of the atoms ({density:.6g} "
+                        "kg/m^3)")
+    periodic = np.array([b.startswith("p") for b in a.boundary])
+    lo_box, hi_box = a.bounds[:, 0], a.bounds[:, 1]
+    period = hi_box - lo_box
+    if periodic.any():                   # wrap (dump custom x y z is wrapped; be sure)
+        for ax in np.flatnonzero(periodic):
+            position[:, ax] = lo_box[ax] + np.mod(position[:, ax] - lo_box[ax], period[ax])
+
+    # --- pairs ----------------------------------------------------------------------------
+    cols = _columns(p, pairs_path, PAIR_COLUMNS, PAIR_HINT)
+    i_id, j_id = cols["id1"].astype(np.int64), cols["id2"].astype(np.int64)
+    unknown = [x for x in np.concatenate([i_id, j_id]) if int(x) not in index]
+    if unknown:
+        raise UserError(f"{pairs_path}: id1/id2 (columns 1-2): atom id {int(unknown[0])} is not "
+                        f"in {atoms_path}; expected the pairs of the same timestep")
+    i = np.array([index[int(x)] for x in i_id], np.int64)
+    j = np.array([index[int(x)] for x in j_id], np.int64)
+    swap = i > j
+    i, j = np.where(swap, j, i), np.where(swap, i, j)
+    delta = cols["delta"]
+    force = np.linalg.norm(np.column_stack([cols["fx"], cols["fy"], cols["fz"]]), axis=1)
+    if np.any(i == j):
+        raise UserError(f"{pairs_path}: id1/id2: row {int(np.flatnonzero(i == j)[0])} is a self "
+                        "contact")
+    key = i * n + j
+    uniq, first, counts = np.unique(key, return_index=True, return_counts=True)
+    duplicates = int((counts - 1).sum())
+    if duplicates:                      # (not seen with LIGGGHTS 3.8.0 on 2 ranks; kept safe)
+        for k in np.flatnonzero(counts > 1):
+            rows = np.flatnonzero(key == uniq[k])
+            if np.ptp(delta[rows]) > 1e-9 * max(abs(delta[rows]).max(), 1e-300):
+                raise UserError(f"{pairs_path}: pair ({int(ids[i[rows[0]]])}, "
+                                f"{int(ids[j[rows[0]]])}) appears {len(rows)} times with "
+                                "different overlaps; expected one row per contact")
+    keep = np.sort(first)
+    i, j, delta, force = i[keep], j[keep], delta[keep], force[keep]
+    touching = delta > 0
+    gaps = int((~touching).sum())
+    i, j, delta, force = i[touching], j[touching], delta[touching], force[touching]
+    branch = position[j] - position[i]
+    for ax in np.flatnonzero(periodic):
+        branch[:, ax] -= period[ax] * np.round(branch[:, ax] / period[ax])
+    geo = radius[i] + radius[j] - np.linalg.norm(branch, axis=1)
+    diff = float(np.abs(geo - delta).max()) if len(delta) else 0.0
+
+    # --- walls ------------------------------------------------------------------------------
+    wall_names = [s[0] for s in wall_spec]
+    wall_point, wall_normal = [], []
+    w_part = np.zeros(0, np.int64)
+    w_wall = np.zeros(0, np.int32)
+    w_over = np.zeros(0)
+    w_force = np.zeros(0)
+    merged = 0
+    if w is not None:
+        wc = _columns(w, walls_path, WALL_COLUMNS, WALL_HINT)
+        mesh = wc["mesh"].astype(np.int64)
+        if mesh.size and (mesh.min() < 0 or mesh.max() >= len(wall_spec)):
+            bad = int(mesh[(mesh < 0) | (mesh >= len(wall_spec))][0])
+            raise UserError(f"{walls_path}: mesh (column 1): mesh id {bad}, but --walls names "
+                            f"{len(wall_spec)} mesh(es) ({', '.join(wall_names)}); expected one "
+                            "name per mesh of fix wall/gran, in its order")
+        atom = wc["atom"].astype(np.int64)
+        missing = [x for x in atom if int(x) not in index]
+        if missing:
+            raise UserError(f"{walls_path}: atom (column 3): atom id {int(missing[0])} is not in "
+                            f"{atoms_path}")
+        part = np.array([index[int(x)] for x in atom], np.int64)
+        fw = np.linalg.norm(np.column_stack([wc["fx"], wc["fy"], wc["fz"]]), axis=1)
+        dw = wc["delta"]
+        ok = dw > 0
+        part, mesh, fw, dw = part[ok], mesh[ok], fw[ok], dw[ok]
+        # one row per (atom, mesh): an atom on the edge of two triangles of one mesh
+        wkey = part * len(wall_spec) + mesh
+        uk, inv = np.unique(wkey, return_inverse=True)
+        merged = int(len(wkey) - len(uk))
+        w_part = (uk // len(wall_spec)).astype(np.int64)
+        w_wall = (uk % len(wall_spec)).astype(np.int32)
+        w_force = np.bincount(inv, weights=fw, minlength=len(uk))
+        w_over = np.zeros(len(uk))
+        np.maximum.at(w_over, inv, dw)
+    for k, (name, axis, side, coord) in enumerate(wall_spec):
+        sign = 1.0 if side == "min" else -1.0       # the normal points into the domain
+        normal = np.zeros(3)
+        normal[axis] = sign
+        if periodic[axis]:
+            raise UserError(f"--walls: {name}: a wall normal to {'xyz'[axis]}, a periodic axis "
+                            f"of the dump (BOX BOUNDS {a.boundary[axis]})")
+        if coord is None:
+            rows = w_wall == k
+            if rows.any():
+                q = w_part[rows]
+                coord = float(np.median(position[q, axis] - sign * (radius[q] - w_over[rows])))
+                inferred.append(f"wall {name}: {'xyz'[axis]} = {coord:.9g} m from its "
+                                f"{int(rows.sum())} contacts (x -+ (r - delta))")
+            else:
+                ext = position[:, axis] - sign * radius
+                coord = float(ext.min() if sign > 0 else ext.max())
+                inferred.append(f"wall {name}: {'xyz'[axis]} = {coord:.9g} m from the spheres' "
+                                "extreme (no contact)")
+        point = np.zeros(3)
+        point[axis] = coord
+        wall_point.append(point)
+        wall_normal.append(normal)
+    if w is None and wall_spec:              # contacts from the geometry, forces from Hertz
+        e_star = contact_check.effective_modulus(young, poisson)
+        rows_p, rows_w, rows_d = [], [], []
+        for k, (name, axis, side, _) in enumerate(wall_spec):
+            dist = (position[:, axis] - wall_point[k][axis]) * wall_normal[k][axis]
+            over = radius - dist
+            hit = np.flatnonzero(over > 0)
+            rows_p.append(hit)
+            rows_w.append(np.full(len(hit), k, np.int32))
+            rows_d.append(over[hit])
+        w_part = np.concatenate(rows_p).astype(np.int64)
+        w_wall = np.concatenate(rows_w).astype(np.int32)
+        w_over = np.concatenate(rows_d)
+        w_force = contact_check.hertz_force(radius[w_part], w_over, e_star)
+        inferred.append("wall contacts: from the positions (r - distance > 0), forces Hertz "
+                        "4/3 E* sqrt(r) delta^1.5 at --young/--poisson (no walls dump)")
+
+    # --- domain, phi, Z, pressure ---------------------------------------------------------------
+    lo = (position - radius[:, None]).min(axis=0)
+    hi = (position + radius[:, None]).max(axis=0)
+    free = []
+    for ax in range(3):
+        if periodic[ax]:
+            lo[ax], hi[ax] = lo_box[ax], hi_box[ax]
+            continue
+        for k, (name, axis, side, _) in enumerate(wall_spec):
+            if axis == ax:
+                if side == "min":
+                    lo[ax] = wall_point[k][ax]
+                else:
+                    hi[ax] = wall_point[k][ax]
+        sides = {s for (_, axis, s, _) in wall_spec if axis == ax}
+        if sides != {"min", "max"}:
+            free.append("xyz"[ax] + ("" if not sides else f" ({'max' if 'min' in sides else 'min'}"
+                                                          " side)"))
+    if free:
+        inferred.append("domain: " + ", ".join(free) + " from the spheres' bounding box (no "
+                        "wall there)")
+    volume = float(np.prod(hi - lo))
+    v_solid = float(np.sum(4 / 3 * np.pi * radius ** 3))
+    if len(w_part):
+        h = np.clip(w_over, 0, None)
+        v_solid -= float(np.sum(np.pi * h ** 2 * (3 * radius[w_part] - h) / 3))
+    solid_fraction = v_solid / volume
+    mean_z = 2.0 * len(i) / n
+    if pressure is None:
+        per = {}
+        for k, (name, axis, _, _) in enumerate(wall_spec):
+            per[name] = float(w_force[w_wall == k].sum()) / float(np.prod(np.delete(hi - lo,
+                                                                                      axis)))
+        if "plate" in per:
+            pressure = per["plate"]
+            inferred.append("pressure_pa: the plate's normal force over the domain's face area")
+        elif per:
+            pressure = float(np.mean(list(per.values())))
+            inferred.append(f"pressure_pa: mean over {len(per)} walls of their normal force "
+                            "over the domain's face area")
+        else:
+            pressure = math.nan
+            inferred.append("pressure_pa: NaN (no wall, no --pressure-pa)")
+
+    r_star = radius[i] * radius[j] / (radius[i] + radius[j])
+    if law == "hertz":
+        check = contact_check.check(force, contact_check.hertz_force(
+            r_star, delta, contact_check.effective_modulus(young, poisson)),
+            "hertz (E* from --young, --poisson; particle-particle contacts)")
+    else:
+        check = {"force_law": "none given (--law none): not checked", "force_law_contacts": 0}
+    attrs = dict(
+        generator="tdem import liggghts", seed=int(seed), solid_fraction=solid_fraction,
+        mean_coordination=mean_z, pressure_pa=float(pressure), young_pa=float(young),
+        poisson=float(poisson), density=float(density),
+        source=f"LIGGGHTS dumps {Path(atoms_path).name}, {Path(pairs_path).name}"
+               + (f", {Path(walls_path).name}" if walls_path else "")
+               + f" at timestep {a.timestep}",
+        liggghts_timestep=int(a.timestep),
+        overlap_source="LIGGGHTS delta (compute pair/gran/local, wall/gran/local)",
+        overlap_vs_positions_max_m=diff,
+        pair_rows_duplicate=duplicates, pair_rows_not_touching=gaps,
+        wall_rows_merged=merged,
+        inferred="; ".join(inferred) if inferred else "none",
+    )
+    attrs.update(check)
+    packing = Packing(
+        position=position, radius=radius, phase=phase, pair=np.column_stack([i, j]),
+        overlap=delta, normal_force=force, branch=branch, wall_name=wall_names,
+        wall_kind=["plane"] * len(wall_spec),
+        wall_point=np.array(wall_point).reshape(-1, 3),
+        wall_normal=np.array(wall_normal).reshape(-1, 3),
+        wall_radius=np.full(len(wall_spec), np.nan), wall_particle=w_part, wall_index=w_wall,
+        wall_overlap=w_over, wall_normal_force=w_force, domain_lo=lo, domain_hi=hi,
+        periodic=periodic, attrs=attrs, contact_radius=np.sqrt(r_star * delta),
+        wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)), yade_id=None)
+    # written under a temporary name, validated by the reader, then renamed: a packing the
+    # reader refuses is never left at `out`
+    tmp = out.with_name(f".{out.name}.importing.h5")
+    try:
+        write_packing(tmp, packing)
+        try:
+            read_packing(tmp)
+        except PackingError as e:
+            raise UserError(str(e).replace(str(tmp), str(out))
+                            + " (the LIGGGHTS dumps describe an impossible packing; nothing "
+                              "written)") from None
+        os.replace(tmp, out)
+    finally:
+        for stale in (tmp, Path(str(tmp) + ".tmp")):
+            if stale.exists():
+                stale.unlink()
+    return packing
