@@ -263,7 +263,16 @@ def _run_case(text, conf, series_dir, packing, law, repost, threads, label):
               f"{summary['gamma_steady']:.4g}, tau {summary['tau_s']:.4g} s "
               f"({summary['case_wall_seconds']:.1f} s)"
               + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
+    summary["pressure_target_pa"] = target_pressure(packing, summary["pressure_pa"])
     return summary
+
+
+def target_pressure(packing: Path, measured: float) -> float:
+    """The series' nominal pressure of a packing, from its name (``packing_<p>Pa.h5``, as
+    [pack].pressures_pa); the seeds of one pressure are grouped by it, since each series
+    reaches the target within its own tolerance. ``measured`` when the name has none."""
+    m = re.search(r"_([0-9.]+(?:[eE][+-]?[0-9]+)?)Pa$", Path(packing).stem)
+    return float(m.group(1)) if m else float(measured)
 
 
 def run_flags(thermal_path: Path, fallback: str | None = None) -> str:
@@ -297,7 +306,9 @@ def results_table(rows: list):
     nan = float("nan")
     return pd.DataFrame([{
         **({"seed": r["seed"]} if r.get("seed") is not None else {}),
-        "pressure_pa": r["pressure_pa"], "law": r["law"], "n_particles": r["n_particles"],
+        "pressure_pa": r["pressure_pa"],
+        "pressure_target_pa": r.get("pressure_target_pa", r["pressure_pa"]),
+        "law": r["law"], "n_particles": r["n_particles"],
         "mean_coordination": r["mean_coordination"], "solid_fraction": r["solid_fraction"],
         "mean_normal_force_n": r["mean_normal_force_n"], "gamma": r["gamma"],
         "gamma_ci95_low": r["gamma_ci95"][0], "gamma_ci95_high": r["gamma_ci95"][1],
@@ -343,7 +354,8 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
     first = table[table.seed == seeds[0]] if seeded else table
     lines = [f"# Pressure campaign: {campaign_path.name}", "",
              f"{table['n_particles'].iloc[0]} particles, pressures "
-             f"{', '.join(f'{p / 1e5:.3g}' for p in sorted(table['pressure_pa'].unique()))} bar, "
+             f"{', '.join(f'{p / 1e5:.3g}' for p in sorted(table['pressure_target_pa' if seeded else 'pressure_pa'].unique()))} bar"
+             + (" (nominal)" if seeded else "") + ", "
              f"laws {', '.join(conf['laws'])}"
              + (f", packing seeds {', '.join(str(s) for s in seeds)} (one YADE series each, "
                 "`seed_<s>/`)" if seeded else "")
@@ -448,9 +460,11 @@ def seed_statistics(table):
     gamma_steady, gamma_affine, <n_z^2>, Z, phi and tau per law and pressure."""
     cols = ["gamma", "gamma_paper", "gamma_steady", "gamma_affine", "fabric_nz2",
             "mean_coordination", "solid_fraction", "tau_s"]
-    g = table.groupby(["law", "pressure_pa"])[cols]
+    groups = table.groupby(["law", "pressure_target_pa"])
+    g = groups[cols]
     out = g.mean().add_suffix("_mean").join(g.std(ddof=1).add_suffix("_std"))
     out["n_seeds"] = g.size()
+    out["pressure_pa"] = groups["pressure_pa"].mean()      # the measured pressures' mean
     return out.reset_index()
 
 
@@ -459,14 +473,15 @@ def _seed_summary(table, fits, seeds):
     and the power-law exponents per seed with their mean and spread."""
     stats = seed_statistics(table)
     lines = ["", f"## Over the {len(seeds)} packing seeds (mean ± sample standard deviation)",
-             "", "| law | p (bar) | seeds | Z | φ | γ | γ_paper | γ_steady | γ_aff | ⟨n_z²⟩ | "
-             "τ (s) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "", "| law | p nominal (bar) | p measured, mean (bar) | seeds | Z | φ | γ | γ_paper | "
+             "γ_steady | γ_aff | ⟨n_z²⟩ | τ (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for _, r in stats.iterrows():
         def pm(name, fmt=".4g"):
             sd = r[f"{name}_std"]
             return f"{r[f'{name}_mean']:{fmt}} ± {sd:.2g}" if np.isfinite(sd) \
                 else f"{r[f'{name}_mean']:{fmt}}"
-        lines.append(f"| {r.law} | {r.pressure_pa / 1e5:.3g} | {r.n_seeds} | "
+        lines.append(f"| {r.law} | {r.pressure_target_pa / 1e5:.3g} | {r.pressure_pa / 1e5:.3g} | "
+                     f"{r.n_seeds} | "
                      f"{pm('mean_coordination', '.3f')} | {pm('solid_fraction', '.4f')} | "
                      f"{pm('gamma')} | {pm('gamma_paper')} | {pm('gamma_steady')} | "
                      f"{pm('gamma_affine')} | {pm('fabric_nz2', '.4f')} | {pm('tau_s')} |")
@@ -570,7 +585,8 @@ def _plot_contact_angles(out_dir, rows):
     by_p = {}
     for r in rows:
         if r["law"] == law:
-            by_p.setdefault(r["pressure_pa"], []).append(np.asarray(r["contact_angle_pdf"]))
+            by_p.setdefault(r.get("pressure_target_pa", r["pressure_pa"]), []).append(
+                np.asarray(r["contact_angle_pdf"]))
     edges = np.asarray(rows[0]["contact_angle_edges"])
     centres = 0.5 * (edges[1:] + edges[:-1])
     fig, ax = plt.subplots(figsize=(6, 4.2))

@@ -27,6 +27,11 @@ def _load(out_dir, law):
     return table[table.law == law]
 
 
+def _key(table):
+    """Seeds of one pressure share its nominal value (results.csv's pressure_target_pa)."""
+    return "pressure_target_pa" if "pressure_target_pa" in table.columns else "pressure_pa"
+
+
 def _windows(out_dir, law):
     rows = []
     for path in sorted(Path(out_dir).glob(f"**/cases/*_{law}/window.json")):
@@ -41,8 +46,8 @@ def plot(campaign_out, out_png, *, law="pipe", diag_out=None,
     import matplotlib.pyplot as plt
     from .files import savefig_atomic
     table = _load(campaign_out, law)
-    g = table.groupby("pressure_pa")
-    p = np.array(sorted(table.pressure_pa.unique())) / 1e5
+    g = table.groupby(_key(table))
+    p = g["pressure_pa"].mean().to_numpy() / 1e5
     n_seeds = int(g.size().max())
     grid = np.geomspace(p.min(), p.max(), 100)
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
@@ -62,8 +67,14 @@ def plot(campaign_out, out_png, *, law="pipe", diag_out=None,
                         color="C0", label=f"tdem {law}, fitted on 003's times 0.2–7 s")
         if diag_out is not None:
             d = _load(diag_out, diag_law)
-            ax.plot(d.pressure_pa / 1e5, d[key], "^", color="C3",
-                    label="diagnostic: pipe resistance used as conductance")
+            dg = d.groupby(_key(d))[key]
+            nd = int(d.groupby(_key(d)).size().max())
+            ax.errorbar(d.groupby(_key(d))["pressure_pa"].mean().to_numpy() / 1e5,
+                        dg.mean().to_numpy(),
+                        yerr=dg.std(ddof=1).to_numpy() if nd > 1 else None, fmt="^",
+                        capsize=3, color="C3",
+                        label="diagnostic: pipe resistance used as conductance, 0.2–7 s"
+                              + (f" (mean ± sd, {nd} seeds)" if nd > 1 else ""))
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("plate pressure (bar)")

@@ -230,10 +230,24 @@ def test_seeds_campaign_runs_each_series_and_resumes(tmp_path, monkeypatch, caps
     whose summary is removed is the only one run again, to the same table."""
     from tdem import campaign as camp
     calls = []
+    # each seed's series as the campaign names it; seed 5's measured pressures 1 % off seed 3's
+    # (each series reaches the target within its own tolerance): grouped by the target
+    series = {}
+    for seed, factor in ((3, 1.0), (5, 1.01)):
+        folder = tmp_path / f"beds_{seed}"
+        folder.mkdir()
+        series[seed] = []
+        for bed in BEDS:
+            target = bed.stem.removeprefix("bed_small_")
+            copy = folder / f"packing_{target}.h5"
+            shutil.copy(bed, copy)
+            with h5py.File(copy, "r+") as f:
+                f.attrs["pressure_pa"] = float(f.attrs["pressure_pa"]) * factor
+            series[seed].append(copy)
 
     def fake_build(path, out_dir, *, threads, quiet, seed=None):
         calls.append((seed, Path(out_dir).name))
-        return BEDS
+        return series[seed]
     monkeypatch.setattr(camp, "build_packings", fake_build)
     path = tmp_path / "seeds.toml"
     path.write_text(NO_PACK.replace('n_bins = 5', 'n_bins = 5\nseeds = [3, 5]')
@@ -244,13 +258,16 @@ def test_seeds_campaign_runs_each_series_and_resumes(tmp_path, monkeypatch, caps
     table = pd.read_csv(out / "results.csv", keep_default_na=False)
     assert sorted(table.seed) == [3, 3, 5, 5] and len(table) == 4
     for s in (3, 5):
-        for bed in BEDS:
-            assert (out / f"seed_{s}" / "cases" / f"{bed.stem}_pipe" / "post"
-                    / "summary.json").exists()
-    # the same beds under both seeds: the spread is zero and the means are the values
-    assert (table.groupby("pressure_pa").gamma.std() < 1e-12).all()
+        for bed in series[s]:
+            assert (out / f"seed_{s}" / "cases" / f"{bed.stem.removeprefix('packing_')}_pipe"
+                    / "post" / "summary.json").exists()
+    assert sorted(set(table.pressure_target_pa)) == [1.6e6, 4.05e7]
+    assert table.pressure_pa.nunique() == 4
+    # the same contacts under both seeds: one group per target, spread zero
+    stats = camp.seed_statistics(table)
+    assert list(stats.n_seeds) == [2, 2] and (stats.gamma_std < 1e-12).all()
     report = (out / "report.md").read_text()
-    assert "## Over the 2 packing seeds" in report and "| pipe | 16.1 | 2 |" in report
+    assert "## Over the 2 packing seeds" in report and "| pipe | 16 | 16.2 | 2 |" in report
     assert "log-log slope of γ(p) = " in report and "| seed | p (bar) |" in report
     assert (out / "gamma_p.png").exists() and (out / "contact_angles.png").exists()
     for col in ("gamma_paper", "gamma_affine", "fabric_nz2", "tau_slab_s"):
@@ -258,7 +275,7 @@ def test_seeds_campaign_runs_each_series_and_resumes(tmp_path, monkeypatch, caps
     capsys.readouterr()
     camp.run_campaign(path, out, threads=1, quiet=True)
     assert capsys.readouterr().out.count("done before") == 4
-    (out / "seed_5" / "cases" / f"{BEDS[1].stem}_pipe" / "post" / "summary.json").unlink()
+    (out / "seed_5" / "cases" / "4.05e+07Pa_pipe" / "post" / "summary.json").unlink()
     camp.run_campaign(path, out, threads=1, quiet=True)
     printed = capsys.readouterr().out
     assert printed.count("done before") == 3 and "[4/4] seed 5" in printed
@@ -299,6 +316,14 @@ def test_a_seeds_series_is_built_once_and_reused(tmp_path, monkeypatch, capsys):
     path.write_text(CAMPAIGN.replace("n_particles = 200", "n_particles = 201"))
     camp.build_packings(path, out / "seed_2", threads=1, quiet=True, seed=2)
     assert runs[-1] == (2, "seed_2") and len(runs) == 3
+
+
+def test_target_pressure_from_the_packing_name():
+    from tdem.campaign import target_pressure
+    assert target_pressure(Path("x/packing_2.8e+04Pa.h5"), 2.83e4) == 2.8e4
+    assert target_pressure(Path("bed_small_1.6e+06Pa.h5"), 1.61e6) == 1.6e6
+    assert target_pressure(Path("packing_100000Pa.h5"), 1.01e5) == 1e5
+    assert target_pressure(Path("settled.h5"), 123.0) == 123.0
 
 
 @pytest.mark.parametrize("seeds", ["[1, 1]", "[-1]", '"1"', "[]", "[1.5]", "[true]"])
