@@ -520,9 +520,19 @@ def _plots(out_dir, table, fits, rows=()):
     for key, label, paper, fname in (
             ("gamma", "γ = k_eff / k_p", PAPER_GAMMA, "gamma_p"),
             ("tau_s", "τ (s), middle section", PAPER_TAU, "tau_p")):
-        fig, ax = plt.subplots(figsize=(6, 4.2))
+        if seeded:      # a lower panel: each seed's deviation from the mean, per cent
+            fig, (ax, dev) = plt.subplots(2, 1, figsize=(6, 5.6), sharex=True,
+                                          gridspec_kw={"height_ratios": [3, 1.3]})
+        else:
+            fig, ax = plt.subplots(figsize=(6, 4.2))
         for k, (law, g) in enumerate(table.groupby("law")):
             if seeded:
+                mean = g.groupby("pressure_target_pa")[key].transform("mean")
+                for m, (seed, gs) in enumerate(g.groupby("seed")):
+                    dev.plot(gs.pressure_pa / 1e5, 100 * (gs[key] / mean[gs.index] - 1),
+                             "o-", ms=3, lw=0.8,
+                             color=f"C{m}" if table.law.nunique() == 1 else f"C{k}",
+                             label=f"seed {seed}" if k == 0 else None)
                 stats = seed_statistics(g)
                 p = stats.pressure_pa / 1e5
                 ax.plot(g.pressure_pa / 1e5, g[key], ".", ms=3, alpha=0.5, color=f"C{k}")
@@ -562,9 +572,16 @@ def _plots(out_dir, table, fits, rows=()):
         ax.plot(grid, power_law(grid, **paper), "k--", label="paper (003)")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("plate pressure (bar)")
         ax.set_ylabel(label)
         ax.legend(fontsize=6)
+        if seeded:
+            dev.axhline(0, color="k", lw=0.6)
+            dev.set_xscale("log")
+            dev.set_ylabel("seed − mean (%)", fontsize=8)
+            dev.set_xlabel("plate pressure (bar)")
+            dev.legend(fontsize=6, ncol=3)
+        else:
+            ax.set_xlabel("plate pressure (bar)")
         fig.tight_layout()
         savefig_atomic(fig, out_dir / f"{fname}.png", dpi=110)
         plt.close(fig)
