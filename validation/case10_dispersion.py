@@ -87,7 +87,7 @@ def reference(centres, radius, grids):
 def run(ctx: Context) -> CaseResult:
     t_start = time.perf_counter()
     if ctx.quick:
-        fractions, grids = (0.1, 0.2), (18, 27, 40)
+        fractions, grids = (0.1,), (24, 36, 54)
         boxes = [("dense_box_400", DATA / "dense_box.h5")]
     else:
         fractions, grids = FRACTIONS, (36, 54, 81)
