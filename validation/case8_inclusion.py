@@ -341,12 +341,23 @@ in memory from runs/out/dense_box_1e5/cell.h5 in seconds.
         command=".venv/bin/python -m validation.case8_inclusion")
 
 
+def rebuild() -> None:
+    """Figures, section and row again from validation/results/case8.json (no solve)."""
+    record = framework.load_result(8)
+    result = finish(Context(8), record["result"]["numbers"]["runs"], record["run_seconds"])
+    print(framework.save_result(CASE, result, record["run_seconds"]))
+
+
 def main(argv=None):
     global MAX_M
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--max-m", type=int, default=MAX_M)
+    ap.add_argument("--rebuild", action="store_true",
+                    help="figures and section again from the saved result (no solve)")
     a = ap.parse_args(argv)
+    if a.rebuild:
+        return rebuild()
     MAX_M = a.max_m
     ctx = Context(8, quick=a.quick)
     t0 = time.perf_counter()
