@@ -333,17 +333,21 @@ def readme_text(text: str, cases: dict, records: dict) -> str:
 
 def assemble(cases: dict | None = None) -> None:
     """Rewrite docs/validation.md (and the summary quoted in README.md) from the saved results."""
+    import fcntl
     cases = discover() if cases is None else cases
-    records = _records()
-    for path, build in ((DOC, assemble_text), (README, readme_text)):
-        if not path.exists():
-            continue
-        old = path.read_text()
-        new = build(old, cases, records)
-        if new != old:
-            tmp = path.with_suffix(path.suffix + ".tmp")
-            tmp.write_text(new)
-            tmp.replace(path)
+    framework.OUT.mkdir(parents=True, exist_ok=True)
+    with open(framework.OUT / ".assemble.lock", "w") as lock:   # two cases finishing at once
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        records = _records()
+        for path, build in ((DOC, assemble_text), (README, readme_text)):
+            if not path.exists():
+                continue
+            old = path.read_text()
+            new = build(old, cases, records)
+            if new != old:
+                tmp = path.with_suffix(path.suffix + ".tmp")
+                tmp.write_text(new)
+                tmp.replace(path)
 
 
 if __name__ == "__main__":
