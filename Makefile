@@ -19,7 +19,8 @@ deps: apt $(VENV)/.installed
 
 # Installs only when something is missing, so a second `make` costs nothing.
 apt:
-	@if ! command -v yade >/dev/null 2>&1 || ! /usr/bin/python3 -c "import h5py, scipy" >/dev/null 2>&1 \
+	@if ! command -v yade >/dev/null 2>&1 || ! command -v liggghts >/dev/null 2>&1 || ! command -v mpirun >/dev/null 2>&1 \
+	    || ! /usr/bin/python3 -c "import h5py, scipy" >/dev/null 2>&1 \
 	    || ! $(PYTHON) -m venv --help >/dev/null 2>&1; then \
 	  echo "installing Debian packages: $(APT_PACKAGES)"; \
 	  $(SUDO) apt-get update && \
