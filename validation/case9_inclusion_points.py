@@ -8,6 +8,7 @@ the flux test of validation/inclusions.py on the shared boxes (law haddad, phase
 particles' centres, harmonic interfaces); at each point
 - T: a least-squares linear fit of the temperatures of the 32 particles nearest the point,
   evaluated there (the nearest particle alone is up to a radius off: 0.1 K here);
+- C_t calibrated on the packing (the single-phase flux test gives 33 W/m/K, 002 eq. 8-9);
 - q: the Halo flux (002 eq. 22-23, tdem_post.flux.halo_flux) of the particle nearest the point,
   at Halo/DE radius ratio 11 (002's choice: the 2 % CoV level of its Fig. 10) and 4 (5 %), and
   the raw per-particle flux (ratio 0) for scale; |q| is reported.
@@ -132,6 +133,11 @@ def dem_points(name, path, ctx):
     t0 = time.perf_counter()
     res = I.flux_test(scene, pk, phase, CONTRAST, keep=True)
     solve_s = time.perf_counter() - t0
+    # C_t calibrated on the packing (002 sec. 2.1, eq. 8-9, the domain length): the single-phase
+    # test must give the matrix's 33 W/m/K. Every conductance is proportional to C_t and the
+    # temperatures do not depend on it, so the fluxes are scaled by 33 / k_m.
+    k_m = I.flux_test(scene, pk, np.zeros_like(phase), 1.0).k_eff
+    calib = I.K_MATRIX / k_m
     T = res.temperature
     tree = cKDTree(pk.position)
     pts = lo + np.array(list(POINTS.values())) * size
@@ -146,7 +152,7 @@ def dem_points(name, path, ctx):
     moments = contact_moments(pk.n_particles, pk.pair, pk.branch, h, T)
     volume = 4.0 / 3.0 * np.pi * pk.radius ** 3
     phi = float(pk.attrs["solid_fraction"])
-    scale = float(size[1]) / PAPER_L                     # q x (L / 0.1 m): the paper's cube
+    scale = calib * float(size[1]) / PAPER_L             # calibrated, and x L / 0.1 m
     q = {}
     t1 = time.perf_counter()
     for ratio in HALOS:
@@ -160,6 +166,7 @@ def dem_points(name, path, ctx):
     ctx.progress(f"{name}: T " + ", ".join(f"{t:.3f}" for t in t_pts) + " C; |q| halo 11 "
                  + ", ".join(f"{v:.0f}" for v in q[11.0]) + f" W/m^2 ({solve_s:.1f} s)")
     return dict(name=name, n=pk.n_particles, T=t_pts, q={str(k): v for k, v in q.items()},
+                ct_calibrated=0.806 * calib, k_m_at_ct_0806=k_m,
                 solve_s=solve_s, halo_s=halo_s, balance=res.balance,
                 mean_radius_over_l=float(pk.radius.mean() / size[1]),
                 pack_s=framework.pack_seconds(name))
@@ -275,7 +282,9 @@ def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s):
                        for r in rs)
     return f"""**Setup.** The cube of case 8 with its centred inclusion a = L/3 at c = 5 (33 / 165
 W/m/K), y = 0 at 25 °C, y = L at 35 °C, adiabatic sides (002 sec. 4.2). DEM: one steady solve
-(law `haddad`, phases by the particles' centres, harmonic interfaces); T at a point from a
+(law `haddad`, phases by the particles' centres, harmonic interfaces; C_t calibrated on each
+packing so that the single-phase test gives 33 W/m/K, 002 sec. 2.1: {', '.join(f"{r['ct_calibrated']:.4f}" for r in rs)}
+at N = {', '.join(f"{r['n']:,}" for r in rs)}); T at a point from a
 linear least-squares fit over its 32 nearest particles; |q| the Halo flux (002 eq. 22–23) of the
 particle nearest the point, at Halo/DE ratios 0 (raw eq. 20), 4 and 11 (002's choice), scaled to
 the paper's L = 10 cm (3,300 W/m² without the inclusion). Reference: our finite-volume solve of
