@@ -348,6 +348,23 @@ def rebuild() -> None:
     print(framework.save_result(CASE, result, record["run_seconds"]))
 
 
+def extend(blocks, variants) -> None:
+    """Add periodic blocks m^3 (``variants``: "harmonic", "cut" or both) to the saved result
+    and rebuild it: the convergence grown without solving the rest again."""
+    record = framework.load_result(8)
+    runs = record["result"]["numbers"]["runs"]
+    ctx = Context(8)
+    t0 = time.perf_counter()
+    for m in blocks:
+        for r in periodic_series(framework.CELL_1E5, m, ctx, cut_too="cut" in variants):
+            if r["series"].split("_")[1] in variants and not any(
+                    x["series"] == r["series"] and x["n"] == r["n"] for x in runs):
+                runs.append(r)
+    seconds = record["run_seconds"] + time.perf_counter() - t0
+    result = finish(ctx, runs, seconds)
+    print(framework.save_result(CASE, result, seconds))
+
+
 def main(argv=None):
     global MAX_M
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -355,9 +372,15 @@ def main(argv=None):
     ap.add_argument("--max-m", type=int, default=MAX_M)
     ap.add_argument("--rebuild", action="store_true",
                     help="figures and section again from the saved result (no solve)")
+    ap.add_argument("--extend", type=int, nargs="*", default=None, metavar="M",
+                    help="add periodic blocks M^3 to the saved result (harmonic interface)")
+    ap.add_argument("--extend-cut", action="store_true",
+                    help="with --extend: the cut interface as well")
     a = ap.parse_args(argv)
     if a.rebuild:
         return rebuild()
+    if a.extend:
+        return extend(a.extend, ("harmonic", "cut") if a.extend_cut else ("harmonic",))
     MAX_M = a.max_m
     ctx = Context(8, quick=a.quick)
     t0 = time.perf_counter()
