@@ -14,7 +14,7 @@ Three series, all law haddad (C_t cancels in k_eff / k_m), phases by the particl
 - periodic (cut): as above with the interface contacts' conductivity from where the sphere cuts
   the branch (tdem's variant, not the paper's).
 
-  .venv/bin/python -m validation.case8_inclusion [--quick] [--max-m 4]
+  .venv/bin/python -m validation.case8_inclusion [--quick] [--max-m 5] [--rebuild] [--extend M ...]
 """
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ CASE = CaseInfo(number=8, title="Single spherical inclusion vs Maxwell, contrast
 CONTRASTS = (0.01, 0.1, 0.5, 2.0, 5.0, 10.0, 100.0)
 F = I.SINGLE_FRACTION
 DATA = framework.ROOT / "tests" / "data"
-MAX_M = 3                       # periodic blocks up to 3^3 cells (2.7e5 spheres from 1e4)
+MAX_M = 5                       # periodic blocks up to 5^3 cells (1.25e6 spheres from 1e4)
 MAX_M_CUT = 2                   # the cut variant up to 2^3 (8e4): it costs as much again
 
 
@@ -160,7 +160,8 @@ def _plots(ctx, runs):
         mk, col, lab = styles[s]
         n = np.array([r["n"] for r in runs_s], float)
         e = np.array([max_err(r, key[s]) for r in runs_s])
-        p, c0 = I.fit_order(n, e)
+        fit = _fitted(runs_s)
+        p, c0 = I.fit_order([r["n"] for r in fit], [max_err(r, key[s]) for r in fit])
         orders[s] = p
         ax.loglog(n, 100 * e, mk + "-", color=col,
                   label=f"{lab}: N^{p:.2f}" if np.isfinite(p) else lab)
@@ -251,9 +252,16 @@ def run(ctx: Context) -> CaseResult:
     return finish(ctx, runs, time.perf_counter() - t_start)
 
 
+def _fitted(runs_s):
+    """The runs a power law is fitted to: for the faces series the tiled boxes only (N >= 1e4;
+    the 2,000-sphere box is a walled YADE box, whose wall layers add a bias of their own)."""
+    big = [r for r in runs_s if r["n"] >= 10_000]
+    return big if runs_s and runs_s[0]["series"] == "faces" and len(big) >= 2 else runs_s
+
+
 def _needed_n(runs, series, key, goal=0.005):
     """N at which the fitted power law of the max error reaches ``goal`` (None if not falling)."""
-    rs = [r for r in runs if r["series"] == series]
+    rs = _fitted([r for r in runs if r["series"] == series])
     if len(rs) < 2:
         return None
     p, c = I.fit_order([r["n"] for r in rs], [max_err(r, key) for r in rs])
@@ -314,7 +322,8 @@ Error (max over the contrasts of |k/k_ref − 1|):
 ![k/k_m against contrast]({img}contrast.png)
 
 **Convergence with N** (max error over the contrasts, log-log, fitted order
-{', '.join(f'{s} N^{p:.2f}' for s, p in orders.items() if np.isfinite(p))}) and speed against
+{', '.join(f'{s} N^{p:.2f}' for s, p in orders.items() if np.isfinite(p))}; the faces fit over
+the tiled boxes only) and speed against
 error (wall time per steady solve, one thread on a machine shared with other jobs):
 
 ![convergence and speed]({img}convergence.png)
