@@ -107,7 +107,7 @@ def build_seeds(scene_path: Path, seeds: list[int], out_dir: Path | None = None,
     """One packing per seed, as one yade-batch table (``jobs`` YADE processes at a time, one
     thread each): ``<out>/seed_<s>/packing.h5``. Print each one's statistics."""
     generator, params = read_pack_table(scene_path)
-    out_dir = Path(out_dir) if out_dir else default_out_dir(scene_path)
+    out_dir = Path(out_dir).resolve() if out_dir else default_out_dir(scene_path)
     if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0:
         raise UserError(f"--seeds: expected distinct seeds >= 0, got {seeds}")
     if jobs < 1:
@@ -133,7 +133,7 @@ def build(scene_path: Path, out_dir: Path | None = None, *, threads: int = 1,
           quiet: bool = False) -> list[Path]:
     """Build the packing(s) of a scene and print their statistics; return the files made."""
     generator, params = read_pack_table(scene_path)
-    out_dir = Path(out_dir) if out_dir else default_out_dir(scene_path)
+    out_dir = Path(out_dir).resolve() if out_dir else default_out_dir(scene_path)
     print(f"tdem pack: {scene_path} -> {out_dir}/ (generator {generator}, "
           f"YADE script yade_scripts/{yade.SCRIPTS[generator]}, {threads} thread(s))", flush=True)
     start = time.time()

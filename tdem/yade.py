@@ -69,7 +69,7 @@ def run_generator(generator: str, params: dict, out_dir: Path, *, threads: int =
     Writes ``out_dir/params.json`` and ``out_dir/yade.log``; YADE's output is streamed to
     stdout (unless quiet). A non-zero exit raises YadeError with the script's last error line.
     """
-    out_dir = Path(out_dir)
+    out_dir = Path(out_dir).resolve()      # YADE runs in another folder: no relative paths
     out_dir.mkdir(parents=True, exist_ok=True)
     params = dict(params, output_dir=str(out_dir.resolve()))
     params_path = out_dir / "params.json"

@@ -231,14 +231,16 @@ def test_same_seed_same_packing_and_bad_parameter(tmp_path):
 
 
 def test_tdem_pack_builds_and_prints_statistics(tmp_path):
-    """`tdem pack` end to end: YADE runs, the file is validated and its statistics printed."""
+    """`tdem pack` end to end: YADE runs, the file is validated and its statistics printed.
+    The scene and --out are given relative to the working folder (YADE runs in another one: a
+    relative --out once made it miss params.json)."""
     scene = tmp_path / "tiny.toml"
     scene.write_text('[pack]\ngenerator = "dense"\nshape = "periodic"\nn_particles = 100\n'
                      'young_pa = 5e9\nunbalanced_force_target = 0.05\ngap_tolerance = 0.05\n'
                      'seed = 5\n')
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "tdem.cli", "pack", str(scene), "--out",
-                           str(out)], capture_output=True, text=True, timeout=900)
+    proc = subprocess.run([sys.executable, "-m", "tdem.cli", "pack", "tiny.toml", "--out",
+                           "out"], capture_output=True, text=True, timeout=900, cwd=tmp_path)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     p = read_packing(out / "packing.h5")
     params = json.loads((out / "params.json").read_text())
