@@ -223,3 +223,14 @@ def test_case12_reads_the_campaign_fits():
     fits = parse(DOC.read_text())
     assert set(fits["laws"]) >= {"pipe", "bob"}
     assert fits["paper"]["gamma"][1] < 0 < fits["laws"]["pipe"]["gamma"][1]
+
+
+def test_case12_reads_the_seed_campaign():
+    """The five-seed numbers of docs/campaign.md reach case 12 (both pages say the same): γ rises
+    on every seed's fit (exponent minus two sd > 0) where 003's falls, and a ratio per pressure."""
+    from validation.case12_campaign import DOC, parse, parse_seeds
+    seeds = parse_seeds(DOC.read_text())
+    (b, sd), (tb, _) = seeds["gamma_exponent"], seeds["tau_exponent"]
+    assert b - 2 * sd > 0 > parse(DOC.read_text())["paper"]["gamma"][1]
+    assert tb < 0
+    assert len(seeds["gamma_paper_ratio"]) == 7

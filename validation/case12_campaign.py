@@ -45,6 +45,23 @@ def parse(text: str) -> dict:
     return out
 
 
+def parse_seeds(text: str) -> dict:
+    """The five-seed campaign of docs/campaign.md ("4. Packing realisations", issue 15): the
+    exponents of γ(p) and τ(p) (mean ± sd over seeds) and γ_paper / 003's γ(p) per pressure."""
+    out = {}
+    m = re.search(r"exponent b of γ = a p\^b \+ c is ([\d.]+) ± ([\d.]+) over\s+the (\w+) seeds", text)
+    if m:
+        out["gamma_exponent"] = (float(m.group(1)), float(m.group(2)))
+        out["seeds"] = m.group(3)
+    m = re.search(r"τ = a p\^b \+ c: b = ([−-][\d.]+) ± ([\d.]+)", text)
+    if m:
+        out["tau_exponent"] = (float(m.group(1).replace("−", "-")), float(m.group(2)))
+    m = re.search(r"In 003's convention, γ_paper / 003's γ\(p\) = ([\d., ]+) \(means\)", text)
+    if m:
+        out["gamma_paper_ratio"] = [float(v) for v in m.group(1).split(",")]
+    return out
+
+
 def run(ctx: Context) -> CaseResult:
     source = FRESH if FRESH.exists() and not ctx.quick else DOC
     fits = parse(source.read_text())
@@ -83,12 +100,32 @@ within 7 % on the same contacts.
 The campaign is the first step of `make validate` (`tdem campaign runs/campaign_7500.toml`,
 resumable; YADE ~8 min with the 2026-11 bed defaults, thermal ~3 min)."""
     ratio = pipe.get("ratio_to_paper", [])
+    seeds = parse_seeds(DOC.read_text())
+    if "gamma_exponent" in seeds and "tau_exponent" in seeds:
+        (gb, gs), (tb, ts) = seeds["gamma_exponent"], seeds["tau_exponent"]
+        pr = seeds.get("gamma_paper_ratio", [])
+        section += f"""
+
+**Over {seeds['seeds']} packing seeds** (docs/campaign.md, "Why the paper's γ falls", issue 15):
+γ ∝ p^({gb:.4g} ± {gs:.2g}) and τ ∝ p^({tb:.4g} ± {ts:.2g}) (pipe law, mean ± sd of the per-seed
+fits); in 003's own convention (γ_paper = γ/φ, particle density) γ_paper / 003's γ(p) =
+{', '.join(f'{v:g}' for v in pr)} from 0.28 to 405 bar. The same section tests the explanations
+of the paper's falling γ: the time window does not explain it, a resistance used as a conductance
+reproduces both of the paper's trends (γ ∝ p^-0.33, τ rising), and the contact fabric does not
+change with pressure."""
+        our_error = (f"pipe, {seeds['seeds']} seeds: γ ∝ p^({gb:.3g} ± {gs:.1g}), τ ∝ "
+                     f"p^({tb:.3g} ± {ts:.1g})"
+                     + (f"; γ_paper / paper's γ {min(pr):.2g}–{max(pr):.3g}" if pr else ""))
+    else:
+        our_error = (f"pipe: γ ∝ p^{pipe['gamma'][1]:.3g}, τ ∝ p^{pipe['tau'][1]:.3g}"
+                     + (f"; γ / paper's γ {min(ratio):.2g}–{max(ratio):.3g}" if ratio else ""))
     return CaseResult(
-        our_n="7,500",
-        our_error=(f"pipe: γ ∝ p^{pipe['gamma'][1]:.3g}, τ ∝ p^{pipe['tau'][1]:.3g}"
-                   + (f"; γ / paper's γ {min(ratio):.2g}–{max(ratio):.3g}" if ratio else "")),
+        our_n="7,500" + (f" × {seeds['seeds']} seeds" if "seeds" in seeds else ""),
+        our_error=our_error,
         wall_time="YADE ~8 min + thermal ~3 min (docs/campaign.md)",
         verdict="the paper's curves are not reproduced: our γ rises with p as contact mechanics "
-                "predicts, theirs falls (docs/campaign.md)",
-        section_md=section, numbers=dict(fits, source=str(source.relative_to(ROOT))),
+                "predicts, theirs falls; a resistance used as a conductance reproduces the "
+                "paper's trends (docs/campaign.md)",
+        section_md=section, numbers=dict(fits, seeds=seeds,
+                                         source=str(source.relative_to(ROOT))),
         command="the campaign itself: `tdem campaign runs/campaign_7500.toml`")
