@@ -368,12 +368,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if a.rebuild:
         return rebuild()
-    ctx = Context(10, quick=a.quick)
-    t0 = time.perf_counter()
-    result = run(ctx)
-    if not a.quick:
-        print(framework.save_result(CASE, result, time.perf_counter() - t0))
-    print(result.our_error, "|", result.verdict)
+    framework.run_standalone(CASE, run, a.quick)
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ from thermal_kernel.packing import read_packing
 from thermal_kernel.problem import build_problem
 from thermal_kernel.scene import load_scene
 from thermal_kernel.solvers.steady import solve_steady
+from validation.case4_slab import scene_text as slab_scene_text
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
     register_packing
 
@@ -63,30 +64,8 @@ SCENE_PATH = ROOT / "validation" / "case7_scene.toml"        # named in messages
 
 
 def scene_text(packing: str, ct: float = 0.806) -> str:
-    return f"""
-packing = "{packing}"
-law = "haddad"
-[law_params]
-ct = {ct!r}
-[material]
-conductivity = {LAMBDA}
-density = {RHO}
-heat_capacity = {CAP}
-[initial]
-temperature = {T1}
-[[boundary]]
-kind = "temperature"
-name = "cold"
-on = "xmin"
-value = {T1}
-[[boundary]]
-kind = "temperature"
-name = "hot"
-on = "xmax"
-value = {T2}
-[solver]
-method = "steady"
-"""
+    """Case 4's slab scene (the cube between two held x faces, 002 Tab. 1 material)."""
+    return slab_scene_text(packing, ct)
 
 
 def halo_cov(packing_path, ratios=RATIOS, max_eval=MAX_EVAL, seed=1):

@@ -399,12 +399,7 @@ def main(argv=None):
     if a.extend:
         return extend(a.extend, ("harmonic", "cut") if a.extend_cut else ("harmonic",))
     MAX_M = a.max_m
-    ctx = Context(8, quick=a.quick)
-    t0 = time.perf_counter()
-    result = run(ctx)
-    if not a.quick:
-        print(framework.save_result(CASE, result, time.perf_counter() - t0))
-    print(result.our_error, "|", result.verdict)
+    framework.run_standalone(CASE, run, a.quick)
 
 
 if __name__ == "__main__":

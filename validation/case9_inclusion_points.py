@@ -324,12 +324,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     a = ap.parse_args(argv)
-    ctx = Context(9, quick=a.quick)
-    t0 = time.perf_counter()
-    result = run(ctx)
-    if not a.quick:
-        print(framework.save_result(CASE, result, time.perf_counter() - t0))
-    print(result.our_error, "|", result.verdict)
+    framework.run_standalone(CASE, run, a.quick)
 
 
 if __name__ == "__main__":
