@@ -221,7 +221,6 @@ def main(argv=None) -> int:
                        cell_dirs=[Path(d) for d in args.cell_from])
         packing = read_packing(folder / "packing.h5")
         st = packing_stats(packing)
-        stats[case["label"]] = st
         row = dict(label=case["label"], path=case["path"], shape=case["shape"],
                    n_target=case["n"],
                    seed=case["seed"], cell_particles=case["cell"] or 0,
