@@ -499,14 +499,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("validate", help="run the cases of docs/validation.md (the papers' own "
                                         "cases) and rebuild it from the results (resumes)")
-    p.add_argument("cases", nargs="*", metavar="CASE",
-                   help="case numbers (default: every case with a module, in order)")
-    p.add_argument("--force", action="store_true",
-                   help="run cases that have a result already (default: skip them)")
-    p.add_argument("--quick", action="store_true",
-                   help="each case's smallest instance; nothing saved, documents untouched")
-    p.add_argument("--list", action="store_true", dest="list_only",
-                   help="list the cases and whether each has a result")
+    from validation.run import add_arguments as validate_arguments   # one home for its options
+    validate_arguments(p)
     p.set_defaults(func=_cmd_validate)
     return parser
 

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tdem_post.files import savefig_atomic
 from tdem_post.analytic import rod_mean_temperature, rod_temperature
 from tdem_post.profiles import binned_profile
 from thermal_kernel.calibrate import flux_test
@@ -175,7 +176,7 @@ def _plot(ctx, stem, draw, csv_header, csv_rows):
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     draw(ax)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     with open(path.with_suffix(".csv"), "w") as f:
         f.write(csv_header + "\n")

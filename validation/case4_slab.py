@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from tdem_post.files import savefig_atomic
+
 from .framework import (IMG, ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today, write_csv)
 
@@ -249,7 +251,7 @@ def _figures(ctx: Context, rows: list[dict]) -> dict:
         b.set_ylabel("(T_DEM − T_exact) / T_exact(°C)  (%)")
         b.legend()
         fig.tight_layout()
-        fig.savefig(png, dpi=120)
+        savefig_atomic(fig, png, dpi=120)
         plt.close(fig)
         write_csv(png.with_suffix(".csv"),
                   ["fourier", "time_s", "x_over_L", "T_dem_C", "T_exact_C", "error_K"],
@@ -278,7 +280,7 @@ def _figures(ctx: Context, rows: list[dict]) -> dict:
     ax.set_ylabel("max relative error (%)")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(png, dpi=120)
+    savefig_atomic(fig, png, dpi=120)
     plt.close(fig)
     write_csv(png.with_suffix(".csv"),
               ["family", "name", "n_particles", "ct_held", "ct_domain", "max_err_over_T_celsius",

@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tdem_post.files import savefig_atomic
 from tdem_post.analytic import sphere_centre_temperature, sphere_temperature
 from thermal_kernel.calibrate import cross_section, flux_test
 from thermal_kernel.network import assemble
@@ -370,7 +371,7 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
     ax[1].set_ylabel("centre T_DEM - T_exact (C)")
     ax[1].legend(fontsize=6)
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
 
     # --- figure 2: the profile at t = 10 s (Fig. 8), shells of the main run
@@ -401,7 +402,7 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
     ax.set_title(f"{main['n_particles']:,} spheres", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
 
     # --- figure 3: convergence with N (our bulk C_t)
@@ -428,7 +429,7 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
     with open(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
@@ -460,7 +461,7 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
     with open(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)

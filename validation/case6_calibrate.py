@@ -21,6 +21,8 @@ from collections import defaultdict
 
 import numpy as np
 
+from tdem_post.files import savefig_atomic
+
 from .framework import (IMG, ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today, write_csv)
 
@@ -179,7 +181,7 @@ def _figure(ctx: Context, rows: list[dict]) -> tuple[str, str]:
     ax.set_ylabel("C_t (mean over the axes)")
     ax.legend(fontsize=6)
     fig.tight_layout()
-    fig.savefig(png, dpi=120)
+    savefig_atomic(fig, png, dpi=120)
     plt.close(fig)
     write_csv(png.with_suffix(".csv"), CSV_FIELDS,
               [(r["name"], r["n_particles"], r["shape"], axis, a["ct_domain"], a["ct_held"],

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from tdem_post.files import savefig_atomic
 from tdem_post.flux import contact_moments, halo_flux
 from thermal_kernel.calibrate import cross_section
 from thermal_kernel.network import assemble
@@ -180,7 +181,7 @@ def _report(ctx, recs) -> CaseResult:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
     with open(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
@@ -211,7 +212,7 @@ def _report(ctx, recs) -> CaseResult:
     ax.set_title(f"{main['n_particles']:,} spheres", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
     with open(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
@@ -244,7 +245,7 @@ def _report(ctx, recs) -> CaseResult:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
     return _summary(recs, main, slopes)
 

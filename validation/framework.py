@@ -26,6 +26,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from tdem_post.files import write_text_atomic
+
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "validation" / "out"            # large outputs (gitignored)
 RESULTS = ROOT / "validation" / "results"    # small JSON per case (committed)
@@ -172,10 +174,7 @@ def save_result(info: CaseInfo, result: CaseResult, seconds: float) -> Path:
     path = RESULTS / f"case{info.number}.json"
     record = dict(info=dataclasses.asdict(info), result=dataclasses.asdict(result),
                   run_seconds=seconds, finished=time.strftime("%Y-%m-%d %H:%M:%S"))
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(record, indent=1, default=float))
-    os.replace(tmp, path)
-    return path
+    return write_text_atomic(path, json.dumps(record, indent=1, default=float))
 
 
 # ---------------------------------------------------------------- helpers for the cases
@@ -199,19 +198,19 @@ def previous_numbers(number: int) -> dict:
     return dict(record["result"].get("numbers", {})) if record else {}
 
 
-def write_csv(path: Path, header: list[str], rows) -> Path:
-    """A small CSV (the numbers of a figure or a table), written atomically."""
+def write_csv(path: Path, header: list[str], rows, lineterminator: str = "\r\n") -> Path:
+    """A small CSV (the numbers of a figure or a table), written atomically (the csv module's
+    line ends unless told)."""
     import csv
+    import io
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    with open(tmp, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        for r in rows:
-            w.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in r])
-    os.replace(tmp, path)
-    return path
+    text = io.StringIO(newline="")
+    w = csv.writer(text, lineterminator=lineterminator)
+    w.writerow(header)
+    for r in rows:
+        w.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in r])
+    return write_text_atomic(path, text.getvalue())
 
 
 def today() -> str:

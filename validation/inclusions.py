@@ -31,6 +31,7 @@ from thermal_kernel.problem import build_problem
 from thermal_kernel.scene import Boundary, Material, SolverConfig, load_scene
 from thermal_kernel.solvers.steady import solve_steady
 
+from validation import framework
 from validation.framework import ROOT
 
 # The matrix of 002 sec. 4 (lambda 33 W/m/K; rho and c do not matter at steady state), law
@@ -215,12 +216,10 @@ def fit_order(n, err):
 
 
 def write_csv(path, header, rows):
-    path = Path(path).with_suffix(".csv")
-    with open(path, "w") as f:
-        f.write(",".join(header) + "\n")
-        for r in rows:
-            f.write(",".join(v if isinstance(v, str) else f"{v:.10g}" for v in r) + "\n")
-    return path
+    """The numbers of a figure beside it (same stem, .csv), every number to 10 digits."""
+    return framework.write_csv(Path(path).with_suffix(".csv"), list(header),
+                               [[v if isinstance(v, str) else f"{v:.10g}" for v in r]
+                                for r in rows], lineterminator="\n")
 
 
 # ---------------------------------------------------------------- periodic homogenisation
