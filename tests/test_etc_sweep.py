@@ -26,7 +26,8 @@ from thermal_kernel.laws import LAWS
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
 from thermal_kernel.problem import build_problem
-from thermal_kernel.scene import Boundary, SolverConfig, load_scene
+from thermal_kernel.boundaries import TemperatureBoundary
+from thermal_kernel.scene import SolverConfig, load_scene
 from thermal_kernel.solvers.steady import solve_steady
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -71,8 +72,8 @@ def test_first_order_in_the_contrast_is_the_dissipation_share(setup):
              - composite_conductivity(scene, packing, phase, 1 - eps)) / (2 * eps * k_m)
     # the homogeneous flux test's contact dissipation
     test = dataclasses.replace(scene, boundaries=(
-        Boundary(kind="temperature", name="hot", on="xmin", value=1.0),
-        Boundary(kind="temperature", name="cold", on="xmax", value=0.0)),
+        TemperatureBoundary(name="hot", on="xmin", value=1.0),
+        TemperatureBoundary(name="cold", on="xmax", value=0.0)),
         solver=SolverConfig(method="steady"))
     problem, _ = build_problem(test, packing)
     t = solve_steady(assemble(problem), np.full(packing.n_particles, 0.5)).temperature_k[-1]

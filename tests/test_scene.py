@@ -1,5 +1,6 @@
 """Scene files: a good one parses into the documented values; each mistake is a one-line error
 naming the file and the key."""
+import dataclasses
 import math
 
 import pytest
@@ -140,18 +141,17 @@ def test_bad_scene(tmp_path, case):
 
 @pytest.mark.parametrize("shape", ["sphere", "box", "cylinder"])
 def test_source_time_intervals_match_the_sampled_region(shape):
-    """problem.source_time_intervals (the exact times a centre spends in a moving source, used
+    """boundaries.source_time_intervals (the exact times a centre spends in a moving source, used
     to refuse a source that never reaches a particle) against MovingSource.inside sampled on a
     fine time grid: every sampled inside-time lies in the interval, and every interval longer
     than two samples holds a sampled inside-time."""
     import numpy as np
-    from thermal_kernel.problem import MovingSource, source_time_intervals
-    from thermal_kernel.scene import Boundary
+    from thermal_kernel.boundaries import MovingSource, SourceBoundary, source_time_intervals
     rng = np.random.default_rng(3)
     position = rng.uniform(-1.0, 1.0, (4000, 3))
-    b = Boundary(kind="source", name="s", value=1.0, shape=shape, centre_m=(-0.8, 0.1, -0.2),
-                 radius_m=0.3, depth_m=0.4, axis=(0.3, 0.2, 1.0), half_size_m=(0.2, 0.3, 0.25),
-                 velocity_m_s=(0.5, -0.1, 0.2))
+    b = SourceBoundary(name="s", value=1.0, shape=shape, centre_m=(-0.8, 0.1, -0.2),
+                       radius_m=0.3, depth_m=0.4, axis=(0.3, 0.2, 1.0),
+                       half_size_m=(0.2, 0.3, 0.25), velocity_m_s=(0.5, -0.1, 0.2))
     t0, t1 = 0.2, 3.0
     first, last = source_time_intervals(b, position, t0, t1)
     times = np.linspace(t0, t1, 1401)
@@ -167,6 +167,6 @@ def test_source_time_intervals_match_the_sampled_region(shape):
     long = (last - first) > 2 * step
     assert np.all(hit[long])
     # a source that is still touches only the centres inside it, at every time
-    still = Boundary(**{**b.__dict__, "velocity_m_s": (0.0, 0.0, 0.0)})
+    still = dataclasses.replace(b, velocity_m_s=(0.0, 0.0, 0.0))
     f, l_ = source_time_intervals(still, position, t0, t1)
     np.testing.assert_array_equal(f <= l_, MovingSource(still, position, np.ones(4000)).inside(1.0))

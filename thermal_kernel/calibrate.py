@@ -22,10 +22,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .boundaries import TemperatureBoundary
 from .network import assemble
 from .packing import Packing, PackingError
 from .problem import boundary_particles, build_problem
-from .scene import Boundary, Scene, SceneError, SolverConfig
+from .scene import Scene, SceneError, SolverConfig
 from .solvers.steady import solve_steady
 
 AXES = "xyz"
@@ -128,8 +129,8 @@ def flux_test(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.
     faces = (f"{axis}min", f"{axis}max")
     test = dataclasses.replace(
         scene,
-        boundaries=(Boundary(kind="temperature", name="hot", on=faces[0], value=t_hot),
-                    Boundary(kind="temperature", name="cold", on=faces[1], value=t_cold)),
+        boundaries=(TemperatureBoundary(name="hot", on=faces[0], value=t_hot),
+                    TemperatureBoundary(name="cold", on=faces[1], value=t_cold)),
         solver=SolverConfig(method="steady"))
     problem, info = build_problem(test, packing)
     net = assemble(problem)

@@ -17,8 +17,6 @@ class SceneError(ValueError):
     """A bad scene file; ``str(e)`` is one line naming the file and the key."""
 
 
-BOUNDARY_KINDS = ("temperature", "flux", "wall_temperature", "source")
-SOURCE_SHAPES = ("cylinder", "sphere", "box")
 METHODS = ("explicit", "implicit", "steady")
 # implicit time schemes (thermal_kernel/solvers/implicit.py); "auto": theta = 0.5 -> the default
 # second-order scheme "rannacher" (Crank-Nicolson with backward-Euler start-up), else "theta"
@@ -30,25 +28,6 @@ class Material:
     conductivity: float      # W/m/K
     density: float           # kg/m^3
     heat_capacity: float     # J/kg/K
-
-
-@dataclass(frozen=True)
-class Boundary:
-    kind: str                # temperature | flux | wall_temperature | source
-    name: str                # label in outputs (default: kind:on)
-    on: str = ""             # wall name or domain face (xmin..zmax); unused for sources
-    value: float = math.nan  # K (temperature, wall_temperature), W/m^2 (flux), W/m^3 (source)
-    wall_conductivity: float = math.nan  # W/m/K of the wall (wall_temperature); NaN = particle's
-    # source geometry (000, Table 4: a cylinder of radius 4 mm, depth 2 mm moving at 3.3 mm/s)
-    shape: str = "cylinder"
-    centre_m: tuple = (0.0, 0.0, 0.0)      # position at t = 0
-    radius_m: float = math.nan
-    depth_m: float = math.inf              # cylinder length along its axis (centred on centre_m)
-    axis: tuple = (0.0, 0.0, 1.0)
-    half_size_m: tuple = (0.0, 0.0, 0.0)   # box
-    velocity_m_s: tuple = (0.0, 0.0, 0.0)
-    start_time: float = 0.0
-    stop_time: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -76,7 +55,7 @@ class Scene:
     young_pa: float                        # real modulus for force-based laws (NaN = packing's)
     poisson: float
     initial_temperature: float
-    boundaries: tuple
+    boundaries: tuple                      # thermal_kernel.boundaries kinds, scene order
     solver: SolverConfig
     output: Path
     text: str = field(default="", repr=False)   # the scene file as read (stored in outputs)
@@ -256,12 +235,13 @@ def load_scene(path, known_laws=None, out_dir=None, text=None) -> Scene:
     initial_temperature = init.number("temperature", positive=True)
     init.done()
 
+    from .boundaries import parse_boundary     # each kind parses its own table
     raw_boundaries = top.table.pop("boundary", [])
     if not isinstance(raw_boundaries, list):
         top.fail("boundary", "expected [[boundary]] entries (an array of tables)")
     boundaries = []
     for k, raw in enumerate(raw_boundaries):
-        boundaries.append(_boundary(_Table(path, f"boundary[{k}]", raw)))
+        boundaries.append(parse_boundary(_Table(path, f"boundary[{k}]", raw)))
     names = [b.name for b in boundaries]
     if len(set(names)) != len(names):
         top.fail("boundary", f"two boundaries share the name {sorted(n for n in names if names.count(n) > 1)[0]!r}"
@@ -373,43 +353,3 @@ def _scheme(sol: _Table, method: str, theta: float, theta_given: bool):
     if startup is not None and scheme == "theta":
         sol.fail("startup_steps", "only for scheme = \"rannacher\" or \"tr-bdf2\"")
     return scheme, startup
-
-
-def _boundary(t: _Table) -> Boundary:
-    kind = t.string("kind", choices=BOUNDARY_KINDS)
-    if kind == "source":
-        shape = t.string("shape", default="cylinder", choices=SOURCE_SHAPES)
-        b = Boundary(
-            kind=kind, name=t.string("name", default=f"source:{shape}"),
-            value=t.number("value"), shape=shape,
-            centre_m=t.vector("centre_m", (0.0, 0.0, 0.0)),
-            radius_m=t.number("radius_m", positive=True) if shape != "box" else math.nan,
-            depth_m=t.number("depth_m", default=math.inf, positive=True)
-            if t.has("depth_m") else math.inf,
-            axis=t.vector("axis", (0.0, 0.0, 1.0)),
-            half_size_m=t.vector("half_size_m", (0.0, 0.0, 0.0)) if shape == "box"
-            else (0.0, 0.0, 0.0),
-            velocity_m_s=t.vector("velocity_m_s", (0.0, 0.0, 0.0)),
-            start_time=t.number("start_time", default=0.0, minimum=0.0),
-            stop_time=t.number("stop_time", default=math.inf) if t.has("stop_time")
-            else math.inf)
-        if b.stop_time <= b.start_time:
-            t.fail("stop_time", f"expected a time after start_time = {b.start_time:g} s, got "
-                                f"{b.stop_time:g} s (the source would never be on)")
-        if shape == "box" and min(b.half_size_m) <= 0:
-            t.fail("half_size_m", "expected three numbers > 0 for a box source")
-        if sum(a * a for a in b.axis) == 0:
-            t.fail("axis", "expected a non-zero vector")
-    else:
-        on = t.string("on")
-        value = t.number("value")
-        if kind in ("temperature", "wall_temperature") and value <= 0:
-            t.fail("value", f"expected a temperature > 0 K, got {value!r}")
-        b = Boundary(kind=kind, name=t.string("name", default=f"{kind}:{on}"), on=on,
-                     value=value,
-                     wall_conductivity=t.number("wall_conductivity", positive=True)
-                     if t.has("wall_conductivity") else math.nan)
-        if kind != "wall_temperature" and not math.isnan(b.wall_conductivity):
-            t.fail("wall_conductivity", "only for kind = \"wall_temperature\"")
-    t.done()
-    return b

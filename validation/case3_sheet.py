@@ -14,7 +14,7 @@ from one 2,000-sphere periodic cell per seed (validation/packings_000.py) and sc
 50 x 30 x 2 mm; law haddad with C_t calibrated in the plane of each sheet (steady flux tests along
 x and y, held-plane length, mean of the two); the source as tdem runs it (`kind = "source"`: a
 sphere whose centre is inside receives q x the continuum volume it represents,
-thermal_kernel.problem.MovingSource). A check-point's DEM temperature is the mean over the
+thermal_kernel.boundaries.MovingSource). A check-point's DEM temperature is the mean over the
 conducting spheres whose centre lies within 1 mm of it in the plane (the nearest one if none);
 the reference there is the continuum interpolated at the same centres and averaged alike, so the
 comparison is not blurred by the probe's size.
@@ -393,7 +393,7 @@ cell per seed (`validation/packings_000.py`, the material of cases 4 and 6: Gaus
 ~3.5). Law `haddad` with C_t calibrated in the plane of each sheet (flux tests along x and y,
 held-plane length, mean: C_t {min(cts):.3f}–{max(cts):.3f}); the source is tdem's `kind = "source"`
 (a sphere whose centre is inside receives q × the continuum volume it represents,
-C_i/(ρc); `thermal_kernel/problem.py` `MovingSource`, its energy ledger tested in
+C_i/(ρc); `thermal_kernel/boundaries/source.py` `MovingSource`, its energy ledger tested in
 `tests/test_solvers.py` and against this continuum in `tests/test_validation_case2_3.py`).
 Implicit run (Rannacher CN, dt 0.01 s; at dt 0.005 s the probes move by at most
 {100 * max(dt_err.values()):.3f} % of the rise). A check-point's DEM temperature: the mean over

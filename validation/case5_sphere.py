@@ -9,7 +9,7 @@ C_t 0.806 / 0.834 (its cube calibration at the same N), the centre temperature a
 Ours: balls carved from copies of one relaxed 10,000-sphere periodic cell (`tiled`, the
 framework's sphere_1e5 and a 1e6 / smaller ones registered here); the carved surface is a cut
 surface whose "wall contacts" (the spheres within 1.1 r of it) are held at T_s by a
-`temperature` boundary on "surface" (thermal_kernel/problem.py). The analytical sphere is the
+`temperature` boundary on "surface" (thermal_kernel/boundaries/temperature.py). The analytical sphere is the
 *held shell*: radius R_h = mean distance of the held spheres' centres from the carving centre
 (the analogue of case 4's held planes). Not rescaled to D = 10 cm: the output time is the
 paper's Fourier number Fo = alpha 10 s / (5 cm)^2 = 0.3045 with our R_h (and Fig. 7's times
@@ -149,14 +149,14 @@ def interior_ct(box_path, ct_arb=0.806):
     2-5 % more than Q/A)."""
     import dataclasses
     from tdem_post.flux import contact_moments
-    from thermal_kernel.scene import Boundary
+    from thermal_kernel.boundaries import TemperatureBoundary
     from thermal_kernel.solvers.steady import solve_steady
     box_path = str(Path(box_path).resolve())
     packing = read_packing(box_path)
     scene = load_scene(SCENE_PATH, text=scene_text(box_path, ct_arb, surface=None))
     scene = dataclasses.replace(scene, boundaries=(
-        Boundary(kind="temperature", name="hot", on="xmin", value=1.0),
-        Boundary(kind="temperature", name="cold", on="xmax", value=0.0)))
+        TemperatureBoundary(name="hot", on="xmin", value=1.0),
+        TemperatureBoundary(name="cold", on="xmax", value=0.0)))
     t0 = time.perf_counter()
     problem, _ = build_problem(scene, packing)
     net = assemble(problem)
@@ -529,7 +529,7 @@ T_0 = 20 °C whose surface is held at T_s = 200 °C from t = 0; law haddad; forw
 paper's scheme) at 0.9 × the exact positivity bound. Packings: balls carved from copies of the
 relaxed 10,000-sphere periodic cell (`tiled`, docs/packings.md), N = {n_fmt}. The carved surface
 is a cut surface: the spheres within 1.1 r of it (its "wall contacts", wall `surface`) are held
-by a `temperature` boundary (`thermal_kernel/problem.py`). The analytical sphere is the **held
+by a `temperature` boundary (`thermal_kernel/boundaries/temperature.py`). The analytical sphere is the **held
 shell**, R_h = mean distance of the held spheres' centres from the carving centre (the analogue
 of case 4's held planes; R_carve − R_h in the table). **Not rescaled** to
 D = 10 cm: the outputs are at the paper's Fourier numbers (Fo = α t / R² = {FO_END:.4f} at

@@ -25,10 +25,11 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from thermal_kernel.boundaries import TemperatureBoundary
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import Packing, read_packing
 from thermal_kernel.problem import build_problem
-from thermal_kernel.scene import Boundary, Material, SolverConfig, load_scene
+from thermal_kernel.scene import Material, SolverConfig, load_scene
 from thermal_kernel.solvers.steady import solve_steady
 
 from validation import framework
@@ -157,10 +158,10 @@ def flux_test(scene, packing: Packing, phase, contrast: float, *, factor=None,
     inclusion = Material(conductivity=contrast * matrix.conductivity, density=matrix.density,
                          heat_capacity=matrix.heat_capacity)
     sc = dataclasses.replace(scene, materials={0: matrix, 1: inclusion},
-                             boundaries=(Boundary(kind="temperature", name="hot",
-                                                  on=f"{name}max", value=T_HOT),
-                                         Boundary(kind="temperature", name="cold",
-                                                  on=f"{name}min", value=T_COLD)),
+                             boundaries=(TemperatureBoundary(name="hot", on=f"{name}max",
+                                                             value=T_HOT),
+                                         TemperatureBoundary(name="cold", on=f"{name}min",
+                                                             value=T_COLD)),
                              solver=SolverConfig(method="steady"))
     pk = dataclasses.replace(packing, phase=np.asarray(phase, np.int32))
     problem, _ = build_problem(sc, pk)
