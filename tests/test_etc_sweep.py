@@ -22,11 +22,11 @@ import pytest
 from tdem.cli import main
 from tdem_post.etc_sweep import (composite_conductivity, dispersion_phase,
                                  single_inclusion_phase)
+from thermal_kernel.boundaries import TemperatureBoundary
 from thermal_kernel.laws import LAWS
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
 from thermal_kernel.problem import build_problem
-from thermal_kernel.boundaries import TemperatureBoundary
 from thermal_kernel.scene import SolverConfig, load_scene
 from thermal_kernel.solvers.steady import solve_steady
 

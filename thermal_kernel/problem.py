@@ -11,9 +11,7 @@ import math
 import numpy as np
 
 from .boundaries import BuildContext, Rows
-# FACES and boundary_particles live in thermal_kernel.boundaries.base; imported from here by
-# tdem_post, calibrate and validation
-from .boundaries.base import FACES, boundary_particles  # noqa: F401
+from .boundaries.base import FACES, boundary_particles  # noqa: F401 (tdem_post imports them here)
 from .laws import get_law
 from .laws.base import ContactInput, ParticleInput
 from .network import ThermalProblem

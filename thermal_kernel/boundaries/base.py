@@ -10,8 +10,9 @@ under construction (:class:`Rows`). The solvers only ever see the rows (plain ar
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
