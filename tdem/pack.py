@@ -39,43 +39,32 @@ def read_pack_table(scene_path: Path) -> tuple[str, dict]:
         params = yade.resolve_params(generator, table)
     except ValueError as e:
         raise UserError(f"{scene_path}: pack.{e}") from None
-    if generator == "dense":
-        _check_tiling(scene_path, params)
+    if generator == "dense" and params["cell_packing"]:
+        _check_cell_packing(scene_path, params)
     return generator, params
 
 
-def _check_tiling(scene_path: Path, params: dict) -> None:
-    """The tiled path's cross-field checks, before YADE starts (the YADE script repeats them)."""
-    if params.get("method", "direct") != "tiled":      # (a schema without the tiled path)
-        if params.get("cell_packing"):
-            raise UserError(f"{scene_path}: pack.cell_packing: only used with method = "
-                            "\"tiled\"")
-        return
-    if params["shape"] == "periodic":
-        raise UserError(f"{scene_path}: pack.method: \"tiled\" carves a box, cylinder or sphere "
-                        "out of copies of a periodic cell; for a periodic domain use "
-                        "method = \"direct\"")
-    if not params["cell_packing"] and params["n_particles"] < params["cell_particles"]:
-        raise UserError(f"{scene_path}: pack.cell_particles: expected at most n_particles "
-                        f"({params['n_particles']}) for method = \"tiled\", got "
-                        f"{params['cell_particles']}")
-    if params["cell_packing"]:
-        cell = Path(params["cell_packing"])
-        if not cell.is_absolute():
-            cell = (Path(scene_path).resolve().parent / cell).resolve()
-            params["cell_packing"] = str(cell)
-        try:
-            packing = read_packing(cell)
-        except Exception as e:      # noqa: BLE001 - the reader's own one-line message
-            raise UserError(f"{scene_path}: pack.cell_packing: {e}") from None
-        if not all(packing.periodic):
-            raise UserError(f"{scene_path}: pack.cell_packing: {cell}: expected a periodic cell "
-                            "(a packing made with shape = \"periodic\"), got one with walls")
-        for key in ("young_pa", "poisson", "confining_pressure_pa", "gap_tolerance"):
-            have = packing.attrs.get(key)
-            if have is None or not math.isclose(float(have), float(params[key]), rel_tol=1e-12):
-                raise UserError(f"{scene_path}: pack.{key}: {params[key]!r} here, {have!r} in "
-                                f"the cell {cell} (cell_packing): they must agree")
+def _check_cell_packing(scene_path: Path, params: dict) -> None:
+    """The cell_packing file of the tiled path, before YADE starts (the YADE script reads it
+    again): a periodic cell made with the same material, pressure and neighbour criterion. The
+    path is made absolute (relative to the scene). The other cross-field checks are the
+    generator's own (yade_scripts/dense_params.check, run by resolve_params)."""
+    cell = Path(params["cell_packing"])
+    if not cell.is_absolute():
+        cell = (Path(scene_path).resolve().parent / cell).resolve()
+        params["cell_packing"] = str(cell)
+    try:
+        packing = read_packing(cell)
+    except Exception as e:      # noqa: BLE001 - the reader's own one-line message
+        raise UserError(f"{scene_path}: pack.cell_packing: {e}") from None
+    if not all(packing.periodic):
+        raise UserError(f"{scene_path}: pack.cell_packing: {cell}: expected a periodic cell "
+                        "(a packing made with shape = \"periodic\"), got one with walls")
+    for key in ("young_pa", "poisson", "confining_pressure_pa", "gap_tolerance"):
+        have = packing.attrs.get(key)
+        if have is None or not math.isclose(float(have), float(params[key]), rel_tol=1e-12):
+            raise UserError(f"{scene_path}: pack.{key}: {params[key]!r} here, {have!r} in "
+                            f"the cell {cell} (cell_packing): they must agree")
 
 
 def default_out_dir(scene_path: Path) -> Path:

@@ -1,6 +1,8 @@
 """Running the YADE generators (``yade_scripts/``) from tdem: environment, progress, errors."""
 from __future__ import annotations
 
+import importlib
+import importlib.util
 import json
 import os
 import shutil
@@ -41,25 +43,32 @@ def yade_executable() -> str:
     return exe
 
 
+_PACKAGE = "tdem_yade_scripts"      # the name yade_scripts/ is loaded under on this side
+
+
+def scripts_module(name: str):
+    """A pure module of ``yade_scripts/`` (``params``, ``placement``, ``dense_geometry``, ...),
+    imported from YADE_SCRIPTS as a submodule of the package ``tdem_yade_scripts`` (the folder
+    is not installed with tdem; its modules import each other relatively)."""
+    if _PACKAGE not in sys.modules:
+        spec = importlib.util.spec_from_file_location(
+            _PACKAGE, YADE_SCRIPTS / "__init__.py", submodule_search_locations=[str(YADE_SCRIPTS)])
+        package = importlib.util.module_from_spec(spec)
+        sys.modules[_PACKAGE] = package
+        spec.loader.exec_module(package)
+    return importlib.import_module(f"{_PACKAGE}.{name}")
+
+
 def load_schema(generator: str) -> dict:
     """The parameter schema of a generator, read from ``yade_scripts/<generator>_params.py``."""
-    params = _load_params_module()
-    return params.load_schema(generator)
-
-
-def _load_params_module():
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("tdem_yade_params",
-                                                  YADE_SCRIPTS / "params.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return scripts_module("params").load_schema(generator)
 
 
 def resolve_params(generator: str, table: dict) -> dict:
-    """Defaults filled in and every key checked; raises ValueError('key: ...')."""
-    params = _load_params_module()
-    return params.resolve(params.load_schema(generator), table)
+    """Defaults filled in, every key checked, then the generator's cross-field checks (the
+    ones its YADE script runs): raises ValueError('key: ...') before YADE starts."""
+    params = scripts_module("params")
+    return params.resolve_and_check(generator, table)
 
 
 def run_generator(generator: str, params: dict, out_dir: Path, *, threads: int = 1,

@@ -18,7 +18,10 @@ particles' volume), which is what the network sees.
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -39,11 +42,25 @@ def single_inclusion_phase(packing: Packing, volume_fraction: float) -> np.ndarr
     return inside.astype(np.int32)
 
 
+def _placement():
+    """yade_scripts/placement.py, the one random sequential addition of tdem (numpy only; the
+    YADE generators use it too), loaded by path: yade_scripts/ is not an installed package."""
+    name = "tdem_yade_scripts_placement"
+    if name not in sys.modules:
+        path = Path(__file__).resolve().parent.parent / "yade_scripts" / "placement.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        sys.modules[name] = module
+    return sys.modules[name]
+
+
 def dispersion_phase(packing: Packing, volume_fraction: float, diameter_m: float, seed: int = 0,
                      max_attempts: int = 200_000) -> np.ndarray:
     """Phase 1 for the particles whose centre lies in one of a random set of non-overlapping
     spheres of ``diameter_m``, wholly inside the box, of total volume ``volume_fraction`` of it
-    (seeded random sequential addition; it jams near 0.3 for d = L/6)."""
+    (seeded random sequential addition, yade_scripts/placement.py: candidates uniform in the box
+    shrunk by r, at most ``max_attempts`` in all; it jams near 0.3 for d = L/6)."""
     lo, hi = packing.domain_lo, packing.domain_hi
     r = 0.5 * diameter_m
     if np.any(hi - lo <= diameter_m):
@@ -51,17 +68,19 @@ def dispersion_phase(packing: Packing, volume_fraction: float, diameter_m: float
                          "the box")
     count = int(round(volume_fraction * float(np.prod(hi - lo)) / (4.0 / 3.0 * math.pi * r ** 3)))
     rng = np.random.default_rng(seed)
-    centres = np.zeros((0, 3))
     attempts = 0
-    while len(centres) < count:
-        attempts += 1
-        if attempts > max_attempts:
-            raise SceneError(f"{packing.path}: fractions: only {len(centres)} of {count} inclusions of "
-                             f"diameter {diameter_m:g} m fit (volume fraction "
-                             f"{volume_fraction:g} is beyond random sequential addition)")
-        c = rng.uniform(lo + r, hi - r)
-        if len(centres) == 0 or np.min(np.linalg.norm(centres - c, axis=1)) >= 2 * r:
-            centres = np.vstack([centres, c])
+
+    def candidates(k, radius):
+        nonlocal attempts
+        while attempts < max_attempts:
+            attempts += 1
+            yield rng.uniform(lo + r, hi - r)
+
+    centres = _placement().random_sequential_addition([r] * count, candidates)
+    if len(centres) < count:
+        raise SceneError(f"{packing.path}: fractions: only {len(centres)} of {count} inclusions of "
+                         f"diameter {diameter_m:g} m fit (volume fraction "
+                         f"{volume_fraction:g} is beyond random sequential addition)")
     phase = np.zeros(packing.n_particles, np.int32)
     for c in centres:
         phase[np.linalg.norm(packing.position - c, axis=1) < r] = 1

@@ -1,10 +1,13 @@
 """Parameter schema of the compressed-bed generator (``yade_scripts/compressed_bed.py``).
 
-Imports nothing: ``yade_scripts/params.py`` loads it by path, inside YADE and in ``tdem pack``.
+``PARAMS`` is plain data; ``check(p)`` holds the cross-field checks. ``yade_scripts/params.py``
+runs both, inside YADE and in ``tdem pack`` (before YADE starts).
 Defaults are the pipe-model paper's bed (003, section 4.2 and Table 1): 7,500 spheres of radius
 2 mm in a cylinder of radius 30.5 mm, rho 2500 kg/m^3, E 5e10 Pa, nu 0.2, e 0.865, mu 0.3, g 9.81,
 compressed by a top plate to 0.28 ... 405 bar.
 """
+
+import math
 
 BAR = 1e5
 
@@ -100,3 +103,40 @@ PARAMS = {
                           help="if output_dir/settled.yade.gz exists and was made with the "
                                "same bed parameters, start from it instead of settling (-)"),
 }
+
+
+def check(p):
+    """Cross-field checks of resolved bed parameters: ValueError('key: expected ..., got ...')
+    for the first that fails."""
+    from .bed_geometry import wall_sim_modulus
+    checks = (
+        ("radius_spread", p["radius_spread"] < 0.5, "a value < 0.5"),
+        ("poisson", p["poisson"] < 0.5, "a value < 0.5"),
+        ("wall_poisson", p["wall_poisson"] < 0.5, "a value < 0.5"),
+        ("restitution", p["restitution"] <= 1.0, "a value in (0, 1]"),
+        ("damping", p["damping"] < 1.0, "a value in [0, 1)"),
+        ("settle_damping", p["settle_damping"] < 1.0, "a value in [0, 1)"),
+        ("timestep_safety", p["timestep_safety"] <= 1.0, "a value in (0, 1]"),
+        ("pressure_tolerance", p["pressure_tolerance"] < 0.5, "a value < 0.5"),
+        ("preload_fraction", p["preload_fraction"] <= 1.0, "a value in (0, 1]"),
+        ("cloud_solid_fraction", p["cloud_solid_fraction"] <= 0.35,
+         "a value <= 0.35 (random sequential addition jams near 0.38)"),
+        ("pressures_pa", len(p["pressures_pa"]) > 0, "at least one pressure"),
+        ("pressures_pa", all(b > a for a, b in zip(p["pressures_pa"], p["pressures_pa"][1:])),
+         "strictly increasing pressures"),
+        ("settle_young_pa", p["settle_young_pa"] <= p["young_pa"],
+         "a value <= young_pa (it is a softened modulus)"),
+        ("cylinder_radius_m",
+         p["cylinder_radius_m"] > 3.0 * p["particle_radius_m"] * (1 + p["radius_spread"]),
+         "a radius > 3 x the largest particle radius, particle_radius_m (1 + radius_spread)"),
+    )
+    for key, ok, what in checks:
+        if not ok:
+            raise ValueError(f"{key}: expected {what}, got {p[key]!r}")
+    if wall_sim_modulus(p["young_pa"], p["poisson"], p["wall_young_pa"],
+                        p["wall_poisson"]) is None:
+        limit = (p["young_pa"] / (1 - p["poisson"] ** 2) / (math.sqrt(2) - 1)
+                 * (1 - p["wall_poisson"] ** 2))
+        raise ValueError(f"wall_young_pa: expected a value < {limit:.4g} (YADE's wall contact "
+                         f"has radius r/2; a stiffer wall cannot be made Hertz with R* = r), "
+                         f"got {p['wall_young_pa']!r}")

@@ -66,30 +66,50 @@ depth is one step older); ``normal_force`` = kno * overlap^1.5 with YADE's Hertz
 (checked against 4/3 E* sqrt(R*) at the dump), i.e. the elastic force; the viscous part of the
 contact damping, zero at rest, is left out. Standard library + numpy + h5py + yade only.
 """
-import sys
+import json
+import math
 import os
+import sys
+import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(sys.argv[0])))
+import numpy as np
 
-import json  # noqa: E402
-import math  # noqa: E402
-import time  # noqa: E402
+if __name__ == "__main__":       # run by YADE (yade -x): the package yade_scripts is importable
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0]))))
 
-import numpy as np  # noqa: E402
+from yade_scripts import params as tdem_params  # noqa: E402
+from yade_scripts.bed_geometry import (  # noqa: E402
+    damping_ratio, dump_contacts, hertz_moduli, pressure_name, prism, random_cloud,
+    wall_sim_modulus)
+from yade_scripts.tdem_dump import write_packing  # noqa: E402
 
-import params as tdem_params  # noqa: E402
-from tdem_dump import write_packing  # noqa: E402
+# YADE's names, bound by import_yade() when the script runs: importing this file needs no YADE.
+yade = utils = O = Vector3 = Quaternion = None
+FrictMat = ForceResetter = InsertionSortCollider = Bo1_Sphere_Aabb = Bo1_Box_Aabb = None
+Bo1_Wall_Aabb = InteractionLoop = Ig2_Sphere_Sphere_ScGeom = Ig2_Box_Sphere_ScGeom = None
+Ig2_Wall_Sphere_ScGeom = Ip2_FrictMat_FrictMat_MindlinPhys = None
+Law2_ScGeom_MindlinPhys_Mindlin = NewtonIntegrator = GlobalStiffnessTimeStepper = None
+MatchMaker = None
 
-import yade  # noqa: E402
-from yade import utils  # noqa: E402
-from yade.wrapper import (  # noqa: E402
-    Omega, FrictMat, ForceResetter, InsertionSortCollider, Bo1_Sphere_Aabb, Bo1_Box_Aabb,
-    Bo1_Wall_Aabb, InteractionLoop, Ig2_Sphere_Sphere_ScGeom, Ig2_Box_Sphere_ScGeom,
-    Ig2_Wall_Sphere_ScGeom, Ip2_FrictMat_FrictMat_MindlinPhys, Law2_ScGeom_MindlinPhys_Mindlin,
-    NewtonIntegrator, GlobalStiffnessTimeStepper, MatchMaker)
-from yade.minieigenHP import Vector3, Quaternion  # noqa: E402
 
-O = Omega()
+def import_yade():
+    """Import YADE (only possible inside Debian's yade) and bind its names in this module."""
+    global yade, utils, O, Vector3, Quaternion, FrictMat, ForceResetter, \
+        InsertionSortCollider, Bo1_Sphere_Aabb, Bo1_Box_Aabb, Bo1_Wall_Aabb, InteractionLoop, \
+        Ig2_Sphere_Sphere_ScGeom, Ig2_Box_Sphere_ScGeom, Ig2_Wall_Sphere_ScGeom, \
+        Ip2_FrictMat_FrictMat_MindlinPhys, Law2_ScGeom_MindlinPhys_Mindlin, NewtonIntegrator, \
+        GlobalStiffnessTimeStepper, MatchMaker
+    import yade
+    from yade import utils
+    from yade.wrapper import (
+        Omega, FrictMat, ForceResetter, InsertionSortCollider, Bo1_Sphere_Aabb, Bo1_Box_Aabb,
+        Bo1_Wall_Aabb, InteractionLoop, Ig2_Sphere_Sphere_ScGeom, Ig2_Box_Sphere_ScGeom,
+        Ig2_Wall_Sphere_ScGeom, Ip2_FrictMat_FrictMat_MindlinPhys,
+        Law2_ScGeom_MindlinPhys_Mindlin, NewtonIntegrator, GlobalStiffnessTimeStepper,
+        MatchMaker)
+    from yade.minieigenHP import Vector3, Quaternion
+    O = Omega()
+
 
 GENERATOR = "yade_scripts/compressed_bed.py"
 # Parameters that define the settled bed; a saved one is reused only if all of them match.
@@ -125,28 +145,6 @@ def run_error(message):
 
 # ----------------------------------------------------------------------------- parameters
 
-def wall_sim_modulus(young, poisson, wall_young, wall_poisson):
-    """Young's modulus of the simulated wall material that makes YADE's wall contact (radius r/2)
-    equal to Hertz with R* = r and the real particle/wall E*; None if no finite modulus does."""
-    inv_real = (1.0 - poisson ** 2) / young + (1.0 - wall_poisson ** 2) / wall_young
-    rest = inv_real / math.sqrt(2.0) - (1.0 - poisson ** 2) / young
-    if rest <= 0.0:
-        return None
-    return (1.0 - wall_poisson ** 2) / rest
-
-
-def damping_ratio(restitution):
-    """Contact damping ratio (YADE's betan) that gives the normal restitution coefficient:
-    Tsuji's coefficient, which YADE uses for ``en``, written per critical damping
-    2 sqrt(m k_n) of the tangent Hertz stiffness: beta = sqrt(5/6) (-ln e) / sqrt(ln^2 e + pi^2).
-    Unlike ``en`` (a coefficient fixed when the contact is made), it follows the modulus when
-    the bed is re-stiffened."""
-    if restitution >= 1.0:
-        return 0.0
-    log_e = math.log(restitution)
-    return math.sqrt(5.0 / 6.0) * -log_e / math.sqrt(log_e ** 2 + math.pi ** 2)
-
-
 def read_params():
     if len(sys.argv) != 2:
         usage_error("usage: yade -n -j1 -x compressed_bed.py PARAMS.json")
@@ -158,105 +156,8 @@ def read_params():
         usage_error(f"{sys.argv[1]}: cannot read the parameter file ({e.strerror})")
     except ValueError as e:
         usage_error(f"{sys.argv[1]}: not valid JSON ({e})")
-    checks = (
-        ("radius_spread", p["radius_spread"] < 0.5, "a value < 0.5"),
-        ("poisson", p["poisson"] < 0.5, "a value < 0.5"),
-        ("wall_poisson", p["wall_poisson"] < 0.5, "a value < 0.5"),
-        ("restitution", p["restitution"] <= 1.0, "a value in (0, 1]"),
-        ("damping", p["damping"] < 1.0, "a value in [0, 1)"),
-        ("settle_damping", p["settle_damping"] < 1.0, "a value in [0, 1)"),
-        ("timestep_safety", p["timestep_safety"] <= 1.0, "a value in (0, 1]"),
-        ("pressure_tolerance", p["pressure_tolerance"] < 0.5, "a value < 0.5"),
-        ("preload_fraction", p["preload_fraction"] <= 1.0, "a value in (0, 1]"),
-        ("cloud_solid_fraction", p["cloud_solid_fraction"] <= 0.35,
-         "a value <= 0.35 (random sequential addition jams near 0.38)"),
-        ("pressures_pa", len(p["pressures_pa"]) > 0, "at least one pressure"),
-        ("pressures_pa", all(b > a for a, b in zip(p["pressures_pa"], p["pressures_pa"][1:])),
-         "strictly increasing pressures"),
-        ("settle_young_pa", p["settle_young_pa"] <= p["young_pa"],
-         "a value <= young_pa (it is a softened modulus)"),
-        ("cylinder_radius_m",
-         p["cylinder_radius_m"] > 3.0 * p["particle_radius_m"] * (1 + p["radius_spread"]),
-         "a radius > 3 particle diameters"),
-    )
-    for key, ok, what in checks:
-        if not ok:
-            usage_error(f"{key}: expected {what}, got {p[key]!r}")
-    if wall_sim_modulus(p["young_pa"], p["poisson"], p["wall_young_pa"],
-                        p["wall_poisson"]) is None:
-        limit = (p["young_pa"] / (1 - p["poisson"] ** 2) / (math.sqrt(2) - 1)
-                 * (1 - p["wall_poisson"] ** 2))
-        usage_error(f"wall_young_pa: expected a value < {limit:.4g} (YADE's wall contact has "
-                    f"radius r/2; a stiffer wall cannot be made Hertz with R* = r), "
-                    f"got {p['wall_young_pa']!r}")
+    # (the cross-field checks ran in read_params_json: bed_params.check, as in tdem pack)
     return p
-
-
-def pressure_name(p):
-    return f"packing_{p:.4g}Pa.h5"
-
-
-# ----------------------------------------------------------------------------- geometry
-
-def prism(radius, segments):
-    """Equal-area regular prism: (vertex radius, apothem, half side length)."""
-    phi = math.pi / segments
-    vertex = radius * math.sqrt(2.0 * math.pi / (segments * math.sin(2.0 * phi)))
-    return vertex, vertex * math.cos(phi), vertex * math.sin(phi)
-
-
-def random_cloud(n, r_mean, spread, inner_radius, solid_fraction, seed):
-    """Random sequential addition of n non-overlapping spheres in a cylinder of radius
-    inner_radius, from z = 0 upward, its height set by the solid fraction. Returns positions
-    (sorted by height) and radii; deterministic for a seed."""
-    rng = np.random.default_rng(seed)
-    radii = np.sort(r_mean * (1.0 + spread * rng.uniform(-1.0, 1.0, n)))[::-1]
-    volume = 4.0 / 3.0 * math.pi * float(np.sum(radii ** 3))
-    height = volume / (solid_fraction * math.pi * inner_radius ** 2)
-    r_max = float(radii[0])
-    cell = 2.0 * r_max
-    gap = 1e-3 * r_mean
-    grid = {}
-    pos = np.empty((n, 3))
-    batch = 64
-    for k in range(n):
-        rk = float(radii[k])
-        placed = False
-        tries = 0
-        while not placed:
-            u = rng.uniform(0.0, 1.0, (batch, 3))
-            for ur, ut, uz in u:
-                tries += 1
-                rho = (inner_radius - rk - gap) * math.sqrt(ur)
-                th = 2.0 * math.pi * ut
-                x, y, z = rho * math.cos(th), rho * math.sin(th), rk + gap + (height - 2 * rk) * uz
-                ci, cj, ck = int(math.floor(x / cell)), int(math.floor(y / cell)), int(z // cell)
-                ok = True
-                for di in (-1, 0, 1):
-                    for dj in (-1, 0, 1):
-                        for dk in (-1, 0, 1):
-                            for m in grid.get((ci + di, cj + dj, ck + dk), ()):
-                                d2 = ((x - pos[m, 0]) ** 2 + (y - pos[m, 1]) ** 2
-                                      + (z - pos[m, 2]) ** 2)
-                                if d2 < (rk + radii[m] + gap) ** 2:
-                                    ok = False
-                                    break
-                            if not ok:
-                                break
-                        if not ok:
-                            break
-                    if not ok:
-                        break
-                if ok:
-                    pos[k] = (x, y, z)
-                    grid.setdefault((ci, cj, ck), []).append(k)
-                    placed = True
-                    break
-            if not placed and tries > 20000:
-                height *= 1.05      # jammed: give the cloud a little more room
-                tries = 0
-    order = np.lexsort((pos[:, 1], pos[:, 0], pos[:, 2]))
-    return pos[order], radii[order], height
 
 
 # ----------------------------------------------------------------------------- the bed
@@ -645,79 +546,34 @@ class Bed:
 
     # --- output -----------------------------------------------------------------------------
     def dump(self, path, target, imax, unb):
+        """Measure the current state and write it to ``path`` (a packing file)."""
+        pos, contacts, walls, attrs, now = self.measure(target, imax, unb)
+        self.write(path, pos, contacts, walls, attrs, now, imax, unb)
+
+    def interaction_records(self):
+        """YADE's interactions as plain records for bed_geometry.dump_contacts: (id1, id2,
+        real, penetration depth, kno), the last two None when the interaction is not real."""
+        return [(i.id1, i.id2, i.isReal, i.geom.penetrationDepth if i.isReal else None,
+                 i.phys.kno if i.isReal else None) for i in O.interactions.all()]
+
+    def measure(self, target, imax, unb):
+        """The state to dump: positions, contact arrays (bed_geometry.dump_contacts, with the
+        Hertz coefficients kno = 4/3 E* sqrt(R*) at the modulus in use: R* = r_i r_j/(r_i+r_j)
+        between spheres, R* = r against a wall, with the real particle/wall E*), walls and the
+        attributes, and the time they were measured at."""
         p = self.p
         n = self.n
         pos = self.positions()
         radii = self.radii
         height = self.plate_height()
-        # Hertz coefficients kno = 4/3 E* sqrt(R*) at the modulus in use: R* = r_i r_j/(r_i+r_j)
-        # between spheres, R* = r against a wall (with the real particle/wall E*).
-        soft = self.young_now / p["young_pa"]
-        e_pp = self.young_now / (2.0 * (1.0 - p["poisson"] ** 2))
-        e_pw = 1.0 / ((1.0 - p["poisson"] ** 2) / self.young_now
-                      + (1.0 - p["wall_poisson"] ** 2) / (p["wall_young_pa"] * soft))
-        pairs, overlaps, kno = [], [], []
-        w_particle, w_index, w_overlap, w_kno = [], [], [], []
-        yade_kno, hertz_kno = [], []
-        undetected = 0
-        # Overlaps are recomputed from the dumped positions (YADE's penetration depth is one
-        # step older) so that |branch| = r_i + r_j - overlap holds exactly; the cylinder boxes
-        # keep YADE's depth. A pair that overlaps but is not yet a real YADE contact (it would
-        # become one at the next step) gets the Hertz coefficient from the formula.
-        for i in O.interactions.all():
-            a, b = i.id1, i.id2
-            real = i.isReal
-            if a < n and b < n:
-                a, b = min(a, b), max(a, b)
-                depth = radii[a] + radii[b] - math.dist(pos[a], pos[b])
-                if depth <= 0.0:
-                    continue
-                coeff = 4.0 / 3.0 * e_pp * math.sqrt(radii[a] * radii[b] / (radii[a] + radii[b]))
-                pairs.append((a, b))
-                overlaps.append(depth)
-            else:
-                particle, wall = (a, b) if a < n else (b, a)
-                index = self.wall_index[wall]
-                if index == 0:
-                    depth = radii[particle] - pos[particle, 2]
-                elif index == 1:
-                    depth = radii[particle] - (height - pos[particle, 2])
-                elif real:
-                    depth = i.geom.penetrationDepth
-                else:
-                    continue
-                if depth <= 0.0:
-                    continue
-                coeff = 4.0 / 3.0 * e_pw * math.sqrt(radii[particle])
-                w_particle.append(particle)
-                w_index.append(index)
-                w_overlap.append(depth)
-            if real:
-                yade_kno.append(i.phys.kno)
-                hertz_kno.append(coeff)
-                coeff = i.phys.kno
-            else:
-                undetected += 1
-            if a < n and b < n:
-                kno.append(coeff)
-            else:
-                w_kno.append(coeff)
-        mismatch = (float(np.max(np.abs(np.array(yade_kno) / np.array(hertz_kno) - 1.0)))
-                    if yade_kno else 0.0)
-        if mismatch > 1e-9:
+        e_pp, e_pw = hertz_moduli(self.young_now, p["young_pa"], p["poisson"],
+                                  p["wall_young_pa"], p["wall_poisson"])
+        contacts = dump_contacts(self.interaction_records(), pos, radii, self.wall_index,
+                                 height, e_pp, e_pw)
+        if contacts["kno_mismatch"] > 1e-9:
             run_error(f"internal: YADE's Hertz coefficients differ from 4/3 E* sqrt(R*) by "
-                      f"{mismatch:.3g} (relative)")
-        pairs = np.array(pairs, dtype=np.int64).reshape(-1, 2)
-        overlaps = np.array(overlaps)
-        forces = np.array(kno) * overlaps ** 1.5
-        branch = pos[pairs[:, 1]] - pos[pairs[:, 0]]
-        r_i, r_j = radii[pairs[:, 0]], radii[pairs[:, 1]]
-        contact_radius = np.sqrt(r_i * r_j / (r_i + r_j) * overlaps)
-        w_particle = np.array(w_particle, dtype=np.int64)
-        w_index = np.array(w_index, dtype=np.int32)
-        w_overlap = np.array(w_overlap)
-        w_force = np.array(w_kno) * w_overlap ** 1.5
-        w_contact_radius = np.sqrt(radii[w_particle] * w_overlap)
+                      f"{contacts['kno_mismatch']:.3g} (relative)")
+        pairs = contacts["pairs"]
         plate_force = self.plate_pressure() * self.area
         volume = 4.0 / 3.0 * math.pi * float(np.sum(radii ** 3))
         speeds = [O.bodies[k].state.vel.norm() for k in range(n)]
@@ -779,29 +635,40 @@ class Bed:
             wall_seconds=now - self.t_start,
             stage_wall_seconds=now - self.wall_at_last_dump,
             yade_version=str(yade.config.version),
-            contacts_not_yet_detected=undetected,
+            contacts_not_yet_detected=contacts["undetected"],
             contact_law="Hertz-Mindlin (Law2_ScGeom_MindlinPhys_Mindlin), Tsuji damping from "
                         "restitution; wall contacts Hertz with R* = r",
         )
-        write_packing(path, pos, radii, np.zeros(n, np.int32), pairs, overlaps, forces, branch,
-                      walls, w_particle, w_index, w_overlap, w_force,
-                      (-rc, -rc, 0.0), (rc, rc, height), (False, False, False), attrs,
-                      contact_radius=contact_radius, wall_contact_radius=w_contact_radius,
-                      yade_id=np.arange(n))
+        return pos, contacts, walls, attrs, now
+
+    def write(self, path, pos, contacts, walls, attrs, now, imax, unb):
+        """Write a measured state (write_packing) and log it; the next stage's counters start
+        here."""
+        n = self.n
+        rc = self.p["cylinder_radius_m"]
+        height = attrs["bed_height_m"]
+        c = contacts
+        write_packing(path, pos, self.radii, np.zeros(n, np.int32), c["pairs"], c["overlaps"],
+                      c["forces"], c["branch"], walls, c["w_particle"], c["w_index"],
+                      c["w_overlap"], c["w_force"], (-rc, -rc, 0.0), (rc, rc, height),
+                      (False, False, False), attrs, contact_radius=c["contact_radius"],
+                      wall_contact_radius=c["w_contact_radius"], yade_id=np.arange(n))
         self.steps_at_last_dump = O.iter
         self.wall_at_last_dump = now
         self.soft_imax = 0.0
-        plate_sum = float(np.sum(w_force[w_index == 1])) / self.area if len(w_force) else 0.0
+        w_force, forces = c["w_force"], c["forces"]
+        plate_sum = float(np.sum(w_force[c["w_index"] == 1])) / self.area if len(w_force) else 0.0
         self.log(f"wrote {path}: N {n}, phi {attrs['solid_fraction']:.4f}, "
-                 f"Z {attrs['mean_coordination']:.3f}, contacts {len(pairs)} "
+                 f"Z {attrs['mean_coordination']:.3f}, contacts {len(c['pairs'])} "
                  f"(mean force {forces.mean() if len(forces) else 0:.4g} N), wall contacts "
-                 f"{len(w_particle)}, p {attrs['pressure_pa']:.5g} Pa (from dumped plate contacts "
+                 f"{len(c['w_particle'])}, p {attrs['pressure_pa']:.5g} Pa (from dumped plate contacts "
                  f"{plate_sum:.5g}), unbalanced {unb:.2e}, I max {imax:.2e}, plate displacement "
                  f"{attrs['plate_displacement_m'] * 1e3:.4f} mm, E used {self.young_now:.4g} Pa, "
                  f"{attrs['stage_wall_seconds']:.1f} s for this stage")
 
 
 def main():
+    import_yade()
     p = read_params()
     out = os.path.abspath(p["output_dir"])
     os.makedirs(out, exist_ok=True)
@@ -834,4 +701,5 @@ def main():
     bed.log(f"done: {len(p['pressures_pa'])} packing(s) in {time.time() - bed.t_start:.1f} s")
 
 
-main()
+if __name__ == "__main__":
+    main()

@@ -26,22 +26,41 @@ import os
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(sys.argv[0])))
+import numpy as np
 
-import numpy as np  # noqa: E402
-from yade import O, geom, utils  # noqa: E402
-from yade.wrapper import (FrictMat, ForceResetter, InsertionSortCollider,  # noqa: E402
-                          Bo1_Sphere_Aabb, Bo1_Wall_Aabb, Bo1_Facet_Aabb, InteractionLoop,
-                          Ig2_Sphere_Sphere_ScGeom, Ig2_Wall_Sphere_ScGeom,
-                          Ig2_Facet_Sphere_ScGeom, Ip2_FrictMat_FrictMat_MindlinPhys,
-                          Law2_ScGeom_MindlinPhys_Mindlin, NewtonIntegrator, Sphere,
-                          GlobalStiffnessTimeStepper)
-from yade.minieigenHP import Matrix3  # noqa: E402
+if __name__ == "__main__":       # run by YADE (yade -x): the package yade_scripts is importable
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0]))))
 
-import params as P  # noqa: E402
-from neighbours import neighbour_pairs  # noqa: E402
-from tiling import carve, repetitions, tile  # noqa: E402
-from tdem_dump import write_packing  # noqa: E402
+from yade_scripts import params as P  # noqa: E402
+from yade_scripts.dense_geometry import (  # noqa: E402
+    CLOUD_SOLID_FRACTION, FREE_GROWTH_SOLID_FRACTION, WALL_YOUNG_FACTOR, CloudError, Container,
+    assign_phases, make_cloud, relaxed_contacts, relaxed_params, relaxed_wall_contacts,
+    solid_fractions, stiffness_stages, tile_cell)
+from yade_scripts.tdem_dump import write_packing  # noqa: E402
+
+# YADE's names, bound by import_yade() when the script runs: importing this file needs no YADE.
+O = geom = utils = Matrix3 = None
+FrictMat = ForceResetter = InsertionSortCollider = Bo1_Sphere_Aabb = Bo1_Wall_Aabb = None
+Bo1_Facet_Aabb = InteractionLoop = Ig2_Sphere_Sphere_ScGeom = Ig2_Wall_Sphere_ScGeom = None
+Ig2_Facet_Sphere_ScGeom = Ip2_FrictMat_FrictMat_MindlinPhys = None
+Law2_ScGeom_MindlinPhys_Mindlin = NewtonIntegrator = Sphere = GlobalStiffnessTimeStepper = None
+
+
+def import_yade():
+    """Import YADE (only possible inside Debian's yade) and bind its names in this module."""
+    global O, geom, utils, Matrix3, FrictMat, ForceResetter, InsertionSortCollider, \
+        Bo1_Sphere_Aabb, Bo1_Wall_Aabb, Bo1_Facet_Aabb, InteractionLoop, \
+        Ig2_Sphere_Sphere_ScGeom, Ig2_Wall_Sphere_ScGeom, Ig2_Facet_Sphere_ScGeom, \
+        Ip2_FrictMat_FrictMat_MindlinPhys, Law2_ScGeom_MindlinPhys_Mindlin, NewtonIntegrator, \
+        Sphere, GlobalStiffnessTimeStepper
+    from yade import O, geom, utils
+    from yade.wrapper import (FrictMat, ForceResetter, InsertionSortCollider,
+                              Bo1_Sphere_Aabb, Bo1_Wall_Aabb, Bo1_Facet_Aabb, InteractionLoop,
+                              Ig2_Sphere_Sphere_ScGeom, Ig2_Wall_Sphere_ScGeom,
+                              Ig2_Facet_Sphere_ScGeom, Ip2_FrictMat_FrictMat_MindlinPhys,
+                              Law2_ScGeom_MindlinPhys_Mindlin, NewtonIntegrator, Sphere,
+                              GlobalStiffnessTimeStepper)
+    from yade.minieigenHP import Matrix3
 
 
 def fail(message, code=2):
@@ -51,206 +70,6 @@ def fail(message, code=2):
 
 def log(message):
     print(message, flush=True)
-
-
-def draw_radii(p):
-    """Seeded radii: uniform in mean (1 +- spread), or a normal of sigma/mean truncated at
-    +- radius_truncation_sigmas (and above 0.1 mean) by rejection."""
-    rng = np.random.default_rng(p["seed"])
-    rm, n = p["radius_mean_m"], p["n_particles"]
-    if p["radius_distribution"] == "uniform":
-        return rm * (1 + p["radius_spread"] * (2 * rng.random(n) - 1))
-    s = p["radius_sigma_over_mean"]
-    lo = max(0.1, 1 - p["radius_truncation_sigmas"] * s)
-    hi = 1 + p["radius_truncation_sigmas"] * s
-    out = np.empty(0)
-    while out.size < n:
-        x = 1 + s * rng.standard_normal(2 * n)
-        out = np.concatenate([out, x[(x >= lo) & (x <= hi)]])
-    return rm * out[:n]
-
-
-class Container:
-    """The domain the packing fills: a periodic cell, a box, a cylinder along z or a sphere.
-    Sized so that the requested spheres fill it at the expected final solid fraction."""
-
-    def __init__(self, shape, volume, aspect):
-        self.shape = shape
-        a = np.asarray(aspect, dtype=float)
-        if shape in ("box", "periodic"):
-            self.size = (volume / a.prod()) ** (1.0 / 3.0) * a
-            self.radius = float("nan")
-        elif shape == "cylinder":
-            # aspect z/x is length/diameter: volume = pi R^2 * (2 R * ratio)
-            ratio = a[2] / a[0]
-            self.radius = (volume / (2.0 * math.pi * ratio)) ** (1.0 / 3.0)
-            self.size = np.array([2 * self.radius, 2 * self.radius, 2 * self.radius * ratio])
-        else:
-            self.radius = (3.0 * volume / (4.0 * math.pi)) ** (1.0 / 3.0)
-            self.size = np.full(3, 2 * self.radius)
-        self.centre = self.size / 2
-        self.volume = volume
-
-    def inside(self, c, r):
-        """True where a sphere of radius r centred at c lies wholly inside (walled shapes)."""
-        if self.shape == "periodic":
-            return np.ones(len(np.atleast_2d(c)), bool)
-        c = np.atleast_2d(c)
-        r = np.broadcast_to(r, len(c))
-        if self.shape == "box":
-            return np.all((c - r[:, None] >= 0) & (c + r[:, None] <= self.size), axis=1)
-        if self.shape == "cylinder":
-            rad = np.hypot(c[:, 0] - self.centre[0], c[:, 1] - self.centre[1])
-            return (rad + r <= self.radius) & (c[:, 2] - r >= 0) & (c[:, 2] + r <= self.size[2])
-        return np.linalg.norm(c - self.centre, axis=1) + r <= self.radius
-
-    def inside_scalar(self):
-        """inside() for one sphere as plain floats: f(x, y, z, r) -> bool (the cloud's hot loop)."""
-        sx, sy, sz = (float(v) for v in self.size)
-        cx, cy, cz = (float(v) for v in self.centre)
-        rad = float(self.radius)
-        if self.shape == "periodic":
-            return lambda x, y, z, r: True
-        if self.shape == "box":
-            return lambda x, y, z, r: (x - r >= 0 and y - r >= 0 and z - r >= 0 and
-                                       x + r <= sx and y + r <= sy and z + r <= sz)
-        if self.shape == "cylinder":
-            return lambda x, y, z, r: (math.hypot(x - cx, y - cy) + r <= rad and z - r >= 0
-                                       and z + r <= sz)
-        return lambda x, y, z, r: math.sqrt((x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2) + r <= rad
-
-    def walls(self):
-        walls = []
-        if self.shape in ("box", "cylinder"):
-            axes = "xyz" if self.shape == "box" else "z"
-            for name in axes:
-                axis = "xyz".index(name)
-                for sign, suffix in ((+1.0, "min"), (-1.0, "max")):
-                    point = self.centre.copy() if self.shape == "cylinder" else np.zeros(3)
-                    point[axis] = 0.0 if sign > 0 else self.size[axis]
-                    normal = np.zeros(3)
-                    normal[axis] = sign
-                    walls.append(dict(name=name + suffix, kind="plane", point=point,
-                                      normal=normal, radius=float("nan")))
-        if self.shape == "cylinder":
-            walls.append(dict(name="cylinder", kind="cylinder",
-                              point=np.array([self.centre[0], self.centre[1], 0.0]),
-                              normal=np.array([0.0, 0.0, 1.0]), radius=self.radius))
-        if self.shape == "sphere":
-            walls.append(dict(name="surface", kind="sphere", point=self.centre.copy(),
-                              normal=np.array([0.0, 0.0, 1.0]), radius=self.radius))
-        return walls
-
-    def distance_to_wall(self, wall, position):
-        """Distance from each centre to a wall, positive inside the domain."""
-        if wall["kind"] == "plane":
-            return (position - wall["point"]) @ wall["normal"]
-        if wall["kind"] == "cylinder":
-            return wall["radius"] - np.hypot(position[:, 0] - wall["point"][0],
-                                             position[:, 1] - wall["point"][1])
-        return wall["radius"] - np.linalg.norm(position - wall["point"], axis=1)
-
-
-EXPECTED_SOLID_FRACTION = {"periodic": 0.64, "box": 0.60, "cylinder": 0.60, "sphere": 0.60}
-CLOUD_SOLID_FRACTION = 0.25
-FREE_GROWTH_SOLID_FRACTION = 0.5
-
-
-def make_cloud(p):
-    """Seeded radii and a random sequential addition of them (largest first, shrunk so that
-    they fill the container at solid fraction 0.25): a loose, overlap-free start. The
-    container is sized for the final solid fraction expected for its shape; the radii grow
-    back during compression to whatever size the confining pressure gives."""
-    radii = np.sort(draw_radii(p))[::-1]
-    n = radii.size
-    if np.asarray(p["aspect"], dtype=float).shape != (3,):
-        fail("aspect: expected 3 numbers")
-    volume = np.sum(4.0 / 3.0 * np.pi * radii ** 3) / EXPECTED_SOLID_FRACTION[p["shape"]]
-    box = Container(p["shape"], volume, p["aspect"])
-    if 2.2 * radii[0] > box.size.min() / 2:
-        fail("n_particles: too few particles for this shape and aspect (the domain must be "
-             "wider than four diameters)")
-    shrink = (CLOUD_SOLID_FRACTION / EXPECTED_SOLID_FRACTION[p["shape"]]) ** (1.0 / 3.0)
-    small = radii * shrink
-    rng = np.random.default_rng(p["seed"] + 1)
-    periodic = p["shape"] == "periodic"
-    # A grid of cells at least one largest diameter wide: a candidate can only overlap spheres
-    # in its own and the 26 neighbouring cells, so each test is local. Plain Python floats per
-    # candidate (numpy calls on 3-vectors cost more than the arithmetic); the draws are the
-    # same stream as one rng.random(3) per try, so the accept/reject decisions, and the cloud,
-    # are those of the all-pairs test this replaced.
-    size = [float(x) for x in box.size]
-    ncell = [max(1, int(x // (2.0 * small[0]))) for x in size]
-    width = [x / m for x, m in zip(size, ncell)]
-    inside = box.inside_scalar()
-    grid = {}
-    xs, ys, zs, rs = [], [], [], []
-    offsets = [(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)]
-    buffer, used = [], 0
-    for k in range(n):
-        rk = float(small[k])
-        for _ in range(100000):
-            if used == len(buffer):
-                buffer, used = (rng.random((4096, 3)) * box.size).tolist(), 0
-            x, y, z = buffer[used]
-            used += 1
-            if not inside(x, y, z, rk):
-                continue
-            home = (min(int(x / width[0]), ncell[0] - 1), min(int(y / width[1]), ncell[1] - 1),
-                    min(int(z / width[2]), ncell[2] - 1))
-            near = set()
-            for off in offsets:
-                key = (home[0] + off[0], home[1] + off[1], home[2] + off[2])
-                if periodic:
-                    key = (key[0] % ncell[0], key[1] % ncell[1], key[2] % ncell[2])
-                near.update(grid.get(key, ()))
-            free = True
-            for q in near:
-                dx, dy, dz = xs[q] - x, ys[q] - y, zs[q] - z
-                if periodic:
-                    dx -= round(dx / size[0]) * size[0]
-                    dy -= round(dy / size[1]) * size[1]
-                    dz -= round(dz / size[2]) * size[2]
-                if dx * dx + dy * dy + dz * dz - (rs[q] + rk) ** 2 <= 0:
-                    free = False
-                    break
-            if not free:
-                continue
-            xs.append(x), ys.append(y), zs.append(z), rs.append(rk)
-            grid.setdefault(home, []).append(k)
-            break
-        else:
-            fail("n_particles: could not place the initial cloud", code=3)
-    centres = np.array([xs, ys, zs]).T
-    return centres, small, box, radii
-
-
-def stiffness_stages(p):
-    """Young's moduli of the compression stages: a softened start (overlaps ~1 % of the radius
-    at the confining stress) raised tenfold per stage to the real modulus. Softening is only
-    for speed (steps to jam scale with sqrt(E)); every stage re-relaxes under the same stress,
-    so the dumped network is the one of the real modulus (FINDINGS: softening changes the
-    network, not only the overlaps)."""
-    real = p["young_pa"]
-    soft = min(real, p["softening_factor"] * p["confining_pressure_pa"])
-    stages = [soft]
-    factor = p["stiffen_factor"]
-    while stages[-1] * factor < real:
-        stages.append(stages[-1] * factor)
-    if stages[-1] < real:
-        stages.append(real)
-    return stages
-
-
-# YADE's Hertz-Mindlin gives a sphere-wall contact R* = r/2 (Ig2_Wall_Sphere: the wall acts as a
-# sphere of the same radius) and a sphere-facet contact R* = 2r/3 (the facet acts as a sphere of
-# radius 2r), where a sphere on a rigid-shaped plane has R* = r. The walls get a modulus E_w such
-# that YADE's contact modulus E_w E / ((1 - nu^2)(E_w + E)) times sqrt(R*_yade) equals
-# E / (2 (1 - nu^2)) sqrt(r): E_w / (E_w + E) = c / 2 with c = sqrt(r / R*_yade), i.e.
-# E_w = E c / (2 - c). Every dumped wall contact then follows Hertz with R* = r and the
-# particle pair's E* = E / (2 (1 - nu^2)) (a wall of the particles' own material).
-WALL_YOUNG_FACTOR = {kind: c / (2.0 - c) for kind, c in
-                     (("plane", math.sqrt(2.0)), ("facet", math.sqrt(1.5)))}
 
 
 def build_scene(p, centres, radii, box, young):
@@ -415,43 +234,6 @@ def solid_fraction(box):
                if isinstance(b.shape, Sphere)) / box.volume
 
 
-def tile_cell(p, cell_box, position, radius, pair, branch, overlap, normal_force,
-              contact_radius):
-    """method = "tiled": copies of the relaxed periodic cell side by side, carved to the
-    requested shape (yade_scripts/tiling.py). The domain is sized for n_particles at the
-    cell's solid fraction; returns the carved arrays, its walls (cut surfaces) and the
-    attributes that describe the tiling."""
-    cell = cell_box.size
-    phi_cell = float(np.sum(4.0 / 3.0 * np.pi * radius ** 3) / cell_box.volume)
-    mean_volume = float(np.mean(4.0 / 3.0 * np.pi * radius ** 3))
-    box = Container(p["shape"], p["n_particles"] * mean_volume / phi_cell, p["aspect"])
-    reps = repetitions(cell, box.size)
-    position_t, source, pair_t, pair_source = tile(position, cell, pair, branch, reps)
-    keep = box.inside(position_t, np.zeros(len(position_t)))
-    new_index, rows, pair_c = carve(keep, pair_t)
-    rows_cell = pair_source[rows]
-    position = position_t[keep]
-    radius = radius[source[keep]]
-    walls = box.walls()
-    wall_particle, wall_index, wall_overlap = [], [], []
-    for w, wall in enumerate(walls):
-        dist = box.distance_to_wall(wall, position)
-        near = np.flatnonzero(dist < (1.0 + p["wall_gap_tolerance"]) * radius)
-        wall_particle.append(near)
-        wall_index.append(np.full(len(near), w, dtype=np.int32))
-        wall_overlap.append(radius[near] - dist[near])
-    wall_particle = np.concatenate(wall_particle).astype(np.int64)
-    info = {"cell_particles": int(len(source) // int(np.prod(reps))),
-            "cell_size_m": np.asarray(cell, dtype=float),
-            "periodicity_length_m": np.asarray(cell, dtype=float),
-            "tiles": int(np.prod(reps)), "tile_repetitions": np.asarray(reps, dtype=np.int64),
-            "cell_solid_fraction": phi_cell}
-    return (box, position, radius, pair_c, branch[rows_cell], overlap[rows_cell],
-            normal_force[rows_cell], contact_radius[rows_cell], walls, wall_particle,
-            np.concatenate(wall_index), np.concatenate(wall_overlap),
-            np.zeros(len(wall_particle)), info)
-
-
 STATE_KEYS = ("box", "position", "radius", "pair", "branch", "overlap", "normal_force",
               "contact_radius", "walls", "wall_particle", "wall_index", "wall_overlap",
               "wall_force", "periodic", "n", "sphere_ids", "unbalanced", "pressure",
@@ -512,9 +294,13 @@ def relax_cell_or_domain(p):
     """Cloud, compression in YADE and the contacts of the relaxed state, rebuilt from the
     final geometry (the domain itself, or the periodic cell of method = "tiled")."""
     # tiled: the YADE relaxation is that of a periodic cell of cell_particles spheres
-    p_relax = dict(p, shape="periodic", n_particles=p["cell_particles"]) \
-        if p["method"] == "tiled" else p
-    centres, radii0, box, radii_drawn = make_cloud(p_relax)
+    p_relax = relaxed_params(p)
+    try:
+        centres, radii0, box, radii_drawn = make_cloud(p_relax)
+    except CloudError as e:
+        fail(str(e), code=3)
+    except ValueError as e:         # (a parameter check; read_params ran it already)
+        fail(str(e))
     log(f"cloud: {len(radii0)} spheres in a {box.shape} domain {box.size[0]:.4g} x "
         f"{box.size[1]:.4g} x {box.size[2]:.4g} m (seed {p['seed']})")
     compress_seconds, sphere_ids, wall_of_body, collider = compress(p_relax, centres, radii0, box)
@@ -560,185 +346,99 @@ def relax_cell_or_domain(p):
     log(f"compressed in {compress_seconds:.1f} s: phi {solid_fraction(box):.4f}, mean stress "
         f"{pressure:.4g} Pa, unbalanced {unbalanced:.3g}")
 
-    pair, branch = neighbour_pairs(position, radius, p["gap_tolerance"],
-                                   box.size if periodic else None)
-    distance = np.linalg.norm(branch, axis=1)
-    overlap = radius[pair[:, 0]] + radius[pair[:, 1]] - distance
-    r_star = radius[pair[:, 0]] * radius[pair[:, 1]] / (radius[pair[:, 0]] + radius[pair[:, 1]])
-    normal_force = np.zeros(len(pair))
-    n_untracked = 0
-    for k, (a, b) in enumerate(pair):
-        if overlap[k] > 0:
-            f = force.get((int(a), int(b)))
-            if f is None:
-                n_untracked += 1      # touching by < round-off, not yet paired by YADE
-            else:
-                normal_force[k] = f
-    contact_radius = np.sqrt(np.clip(overlap, 0, None) * r_star)
-
-    # Wall contacts: every particle YADE has in contact with a wall (YADE's depth and force;
-    # the cylinder mantle and the spherical container are facet polygons with wall_segments
-    # sides), plus the near-wall particles within (1 + wall_gap_tolerance) r of the analytic
-    # wall surface (negative overlap, zero force).
-    wall_particle, wall_index, wall_overlap, wall_force = [], [], [], []
-    for w, wall in enumerate(walls):
-        dist = box.distance_to_wall(wall, position)
-        near = set(np.flatnonzero(dist < (1.0 + p["wall_gap_tolerance"]) * radius).tolist())
-        near |= {q for (q, ww) in wall_touch if ww == w}
-        for q in sorted(near):
-            wall_particle.append(q)
-            wall_index.append(w)
-            if (q, w) in wall_touch:
-                wall_overlap.append(wall_touch[(q, w)][0])
-                wall_force.append(wall_touch[(q, w)][1])
-            else:
-                wall_overlap.append(min(radius[q] - dist[q], 0.0))
-                wall_force.append(0.0)
-    wall_particle = np.array(wall_particle, dtype=np.int64)
-    wall_index = np.array(wall_index, dtype=np.int32)
-    wall_overlap = np.array(wall_overlap, dtype=float)
-    wall_force = np.array(wall_force, dtype=float)
-
+    pair, branch, overlap, normal_force, contact_radius, n_untracked = relaxed_contacts(
+        position, radius, p["gap_tolerance"], box.size if periodic else None, force)
+    wall_particle, wall_index, wall_overlap, wall_force = relaxed_wall_contacts(
+        box, walls, position, radius, p["wall_gap_tolerance"], wall_touch)
     return {k: v for k, v in locals().items() if k in STATE_KEYS}
 
 
-def main():
+def read_params():
+    """The run's parameters (params.json, or the batch table's params_json), resolved and
+    checked (dense_params.check, as in tdem pack); exit 2 with one line otherwise."""
     params_path = P.params_path_from_argv_or_batch(sys.argv, "dense_packing.py")
     if params_path is None:
         fail("usage: yade -n -x dense_packing.py params.json (or yade-batch TABLE "
              "dense_packing.py with a params_json column)")
     try:
-        p = P.read_params_json(params_path, "dense")
+        return P.read_params_json(params_path, "dense")
     except P.ParamError as e:
         fail(str(e))
     except (OSError, ValueError) as e:
         fail(f"{params_path}: {e}")
-    for k, inc in enumerate(p["inclusions"]):
-        if not isinstance(inc, dict) or set(inc) - {"centre", "radius", "phase"} \
-                or "centre" not in inc or "radius" not in inc:
-            fail(f"inclusions[{k}]: expected {{centre = [fx, fy, fz], radius = f, phase = id}}")
-    if p["method"] == "tiled":
-        if p["shape"] == "periodic":
-            fail("method: \"tiled\" carves a box, cylinder or sphere out of copies of a periodic "
-                 "cell; for a periodic domain use method = \"direct\"")
-        if p["n_particles"] < p["cell_particles"]:
-            fail(f"cell_particles: expected at most n_particles ({p['n_particles']}) for "
-                 f"method = \"tiled\", got {p['cell_particles']}")
-    t0 = time.time()
-    if p["method"] == "tiled" and p["cell_packing"]:
-        state = read_cell_packing(p)
-    else:
-        state = relax_cell_or_domain(p)
-    (box, position, radius, pair, branch, overlap, normal_force, contact_radius, walls,
-     wall_particle, wall_index, wall_overlap, wall_force, periodic, n, sphere_ids, unbalanced,
-     pressure, pressure_normal, compress_seconds, compress_steps, radii_drawn,
-     n_untracked) = (state[k] for k in STATE_KEYS)
 
-    cell_info = {}
-    if p["method"] == "tiled" and not p["cell_packing"]:
-        # the relaxed cell itself, for later runs (cell_packing = ".../cell.h5")
-        touching = overlap > 0
-        cell_attrs = {
-            "generator": "yade_scripts/dense_packing.py", "seed": int(p["seed"]),
-            "shape": "periodic", "domain_volume_m3": float(box.volume),
-            "solid_fraction": float(np.sum(4.0 / 3.0 * np.pi * radius ** 3) / box.volume),
-            "mean_coordination": float(2.0 * touching.sum() / n),
-            "mean_coordination_with_gaps": float(2.0 * len(pair) / n),
-            "pressure_pa": float(pressure), "confining_pressure_pa": p["confining_pressure_pa"],
-            "mean_stress_from_dumped_forces_pa": float(pressure_normal),
-            "young_pa": p["young_pa"], "young_pa_used": p["young_pa"], "poisson": p["poisson"],
-            "density": p["density"], "friction": p["friction"],
-            "unbalanced_force_ratio": float(unbalanced), "gap_tolerance": p["gap_tolerance"],
-            "radius_growth_factor": float(radius.mean() / radii_drawn.mean()),
-            "contacts_touching_without_yade_force": n_untracked,
-            "time_step": p["time_step"], "compression_seconds": compress_seconds,
-            "compression_steps": int(compress_steps), "method": "direct",
-            "radius_distribution": p["radius_distribution"]}
-        out_cell = os.path.join(p["output_dir"], "cell.h5")
-        write_packing(out_cell, position, radius, np.zeros(n, dtype=np.int32), pair, overlap,
-                      normal_force, branch, [], np.zeros(0, np.int64), np.zeros(0, np.int32),
-                      np.zeros(0), np.zeros(0), np.zeros(3), box.size.copy(), [True] * 3,
-                      cell_attrs, contact_radius=contact_radius, wall_contact_radius=np.zeros(0))
-        log(f"wrote {out_cell}: the relaxed periodic cell ({n} spheres; reuse it with "
-            f"cell_packing = \"{out_cell}\")")
-    if p["method"] == "tiled":
-        (box, position, radius, pair, branch, overlap, normal_force, contact_radius, walls,
-         wall_particle, wall_index, wall_overlap, wall_force, cell_info) = tile_cell(
-            p, box, position, radius, pair, branch, overlap, normal_force, contact_radius)
-        periodic = False
-        n = len(radius)
-        sphere_ids = None
-        log(f"tiled: {cell_info['tiles']} copies of the {cell_info['cell_particles']}-sphere "
-            f"cell carved to a {box.shape} {box.size[0]:.4g} x {box.size[1]:.4g} x "
-            f"{box.size[2]:.4g} m: {n} spheres, {len(pair)} neighbour pairs")
 
-    lo, hi = np.zeros(3), box.size.copy()
-    phase = np.zeros(n, dtype=np.int32)
-    extent = hi - lo
-    for inc in p["inclusions"]:
-        c = lo + np.asarray(inc["centre"], dtype=float) * extent
-        rr = float(inc["radius"]) * extent.min()
-        phase[np.linalg.norm(position - c, axis=1) <= rr] = int(inc.get("phase", 1))
-    n_dispersed = 0
-    if p["inclusion_volume_fraction"] > 0:
-        rng = np.random.default_rng(p["seed"] + 7919)
-        r_inc = p["inclusion_radius_over_mean"] * float(radius.mean())
-        target = p["inclusion_volume_fraction"] * box.volume
-        centres_inc = []
-        placed, tries = 0.0, 0
-        while placed < target and tries < 100000:
-            tries += 1
-            c = lo + rng.random(3) * extent
-            if not periodic and not box.inside(c, r_inc)[0]:
-                continue
-            d = np.asarray(centres_inc).reshape(-1, 3) - c
-            if periodic:
-                d -= np.round(d / box.size) * box.size
-            if len(centres_inc) and np.min(np.linalg.norm(d, axis=1)) < 2 * r_inc:
-                continue
-            centres_inc.append(c)
-            placed += 4.0 / 3.0 * math.pi * r_inc ** 3
-        for c in centres_inc:
-            d = position - c
-            if periodic:
-                d -= np.round(d / box.size) * box.size
-            phase[np.linalg.norm(d, axis=1) <= r_inc] = p["inclusion_phase"]
-        n_dispersed = len(centres_inc)
-
-    volume = 4.0 / 3.0 * np.pi * radius ** 3
-    touching = overlap > 0
-    phi = float(volume.sum() / box.volume)
-    # bulk solid fraction: the domain without a layer of two mean diameters along its walls,
-    # spheres counted wholly by centre (the wall layer is looser: its fraction is the
-    # difference to solid_fraction)
-    phi_bulk = phi
-    if not periodic:
-        layer = 4.0 * float(radius.mean())
-        if box.shape == "box":
-            inside = np.all(np.abs(position - box.centre) <= box.size / 2 - layer, axis=1)
-            inner_volume = float(np.prod(box.size - 2 * layer))
-        elif box.shape == "cylinder":
-            rad = np.hypot(position[:, 0] - box.centre[0], position[:, 1] - box.centre[1])
-            inside = (rad <= box.radius - layer) & \
-                (np.abs(position[:, 2] - box.centre[2]) <= box.size[2] / 2 - layer)
-            inner_volume = math.pi * (box.radius - layer) ** 2 * (box.size[2] - 2 * layer)
-        else:
-            inside = np.linalg.norm(position - box.centre, axis=1) <= box.radius - layer
-            inner_volume = 4.0 / 3.0 * math.pi * (box.radius - layer) ** 3
-        phi_bulk = float(volume[inside].sum() / inner_volume) if inner_volume > 0 else phi
-    attrs = {
+def write_cell(p, state):
+    """method = "tiled": the relaxed periodic cell itself, cell.h5, for later runs
+    (cell_packing = ".../cell.h5")."""
+    box, position, radius, pair, n = (state[k] for k in ("box", "position", "radius", "pair",
+                                                        "n"))
+    touching = state["overlap"] > 0
+    cell_attrs = {
         "generator": "yade_scripts/dense_packing.py", "seed": int(p["seed"]),
-        "shape": box.shape, "solid_fraction": phi, "solid_fraction_bulk": phi_bulk,
-        "domain_volume_m3": float(box.volume),
+        "shape": "periodic", "domain_volume_m3": float(box.volume),
+        "solid_fraction": float(np.sum(4.0 / 3.0 * np.pi * radius ** 3) / box.volume),
         "mean_coordination": float(2.0 * touching.sum() / n),
         "mean_coordination_with_gaps": float(2.0 * len(pair) / n),
-        "pressure_pa": float(pressure), "confining_pressure_pa": p["confining_pressure_pa"],
-        "mean_stress_from_dumped_forces_pa": float(pressure_normal),
+        "pressure_pa": float(state["pressure"]),
+        "confining_pressure_pa": p["confining_pressure_pa"],
+        "mean_stress_from_dumped_forces_pa": float(state["pressure_normal"]),
+        "young_pa": p["young_pa"], "young_pa_used": p["young_pa"], "poisson": p["poisson"],
+        "density": p["density"], "friction": p["friction"],
+        "unbalanced_force_ratio": float(state["unbalanced"]),
+        "gap_tolerance": p["gap_tolerance"],
+        "radius_growth_factor": float(radius.mean() / state["radii_drawn"].mean()),
+        "contacts_touching_without_yade_force": state["n_untracked"],
+        "time_step": p["time_step"], "compression_seconds": state["compress_seconds"],
+        "compression_steps": int(state["compress_steps"]), "method": "direct",
+        "radius_distribution": p["radius_distribution"]}
+    out_cell = os.path.join(p["output_dir"], "cell.h5")
+    write_packing(out_cell, position, radius, np.zeros(n, dtype=np.int32), pair,
+                  state["overlap"], state["normal_force"], state["branch"], [],
+                  np.zeros(0, np.int64), np.zeros(0, np.int32), np.zeros(0), np.zeros(0),
+                  np.zeros(3), box.size.copy(), [True] * 3, cell_attrs,
+                  contact_radius=state["contact_radius"], wall_contact_radius=np.zeros(0))
+    log(f"wrote {out_cell}: the relaxed periodic cell ({n} spheres; reuse it with "
+        f"cell_packing = \"{out_cell}\")")
+
+
+def tiled_state(p, state):
+    """method = "tiled": the relaxed cell copied side by side and carved to the domain
+    (dense_geometry.tile_cell); returns the state of the carved domain and the tiling's
+    attributes."""
+    (box, position, radius, pair, branch, overlap, normal_force, contact_radius, walls,
+     wall_particle, wall_index, wall_overlap, wall_force, cell_info) = tile_cell(
+        p, state["box"], state["position"], state["radius"], state["pair"], state["branch"],
+        state["overlap"], state["normal_force"], state["contact_radius"])
+    n = len(radius)
+    log(f"tiled: {cell_info['tiles']} copies of the {cell_info['cell_particles']}-sphere "
+        f"cell carved to a {box.shape} {box.size[0]:.4g} x {box.size[1]:.4g} x "
+        f"{box.size[2]:.4g} m: {n} spheres, {len(pair)} neighbour pairs")
+    return dict(state, box=box, position=position, radius=radius, pair=pair, branch=branch,
+                overlap=overlap, normal_force=normal_force, contact_radius=contact_radius,
+                walls=walls, wall_particle=wall_particle, wall_index=wall_index,
+                wall_overlap=wall_overlap, wall_force=wall_force, periodic=False, n=n,
+                sphere_ids=None), cell_info
+
+
+def domain_attrs(p, state, phi, phi_bulk, n_dispersed, cell_info, t0):
+    """The root attributes of packing.h5."""
+    n, pair = state["n"], state["pair"]
+    touching = state["overlap"] > 0
+    return {
+        "generator": "yade_scripts/dense_packing.py", "seed": int(p["seed"]),
+        "shape": state["box"].shape, "solid_fraction": phi, "solid_fraction_bulk": phi_bulk,
+        "domain_volume_m3": float(state["box"].volume),
+        "mean_coordination": float(2.0 * touching.sum() / n),
+        "mean_coordination_with_gaps": float(2.0 * len(pair) / n),
+        "pressure_pa": float(state["pressure"]),
+        "confining_pressure_pa": p["confining_pressure_pa"],
+        "mean_stress_from_dumped_forces_pa": float(state["pressure_normal"]),
         "young_pa": p["young_pa"], "young_pa_used": p["young_pa"],
         "young_pa_softened_start": stiffness_stages(p)[0], "poisson": p["poisson"],
         "density": p["density"], "density_scaling": p["density_scaling"],
         "friction": p["friction"], "compaction_friction": p["compaction_friction"],
-        "unbalanced_force_ratio": float(unbalanced),
+        "unbalanced_force_ratio": float(state["unbalanced"]),
         "neighbour_criterion": "centre distance < (1 + gap_tolerance)(r_i + r_j)",
         "gap_tolerance": p["gap_tolerance"], "wall_gap_tolerance": p["wall_gap_tolerance"],
         "wall_segments": p["wall_segments"],
@@ -749,20 +449,48 @@ def main():
         "of it, overlap = r - distance, no force (nothing was pressed against them)",
         "method": p["method"], "time_step": p["time_step"], "cell_packing": p["cell_packing"],
         "stiffen_factor": p["stiffen_factor"], **cell_info,
-        "contacts_touching_without_yade_force": n_untracked,
+        "contacts_touching_without_yade_force": state["n_untracked"],
         "radius_distribution": p["radius_distribution"],
         "radius_mean_requested_m": p["radius_mean_m"],
-        "radius_growth_factor": float(radius.mean() / radii_drawn.mean()),
+        "radius_growth_factor": float(state["radius"].mean() / state["radii_drawn"].mean()),
         "inclusions_dispersed": n_dispersed,
-        "compression_seconds": compress_seconds, "compression_steps": int(compress_steps),
+        "compression_seconds": state["compress_seconds"],
+        "compression_steps": int(state["compress_steps"]),
         "yade_version": yade_version(), "wall_seconds": time.time() - t0,
     }
+
+
+def main():
+    import_yade()
+    p = read_params()
+    t0 = time.time()
+    tiled = p["method"] == "tiled"
+    # build and relax (or read a relaxed cell)
+    if tiled and p["cell_packing"]:
+        state = read_cell_packing(p)
+    else:
+        state = relax_cell_or_domain(p)
+    cell_info = {}
+    if tiled:
+        if not p["cell_packing"]:
+            write_cell(p, state)
+        state, cell_info = tiled_state(p, state)
+    # measure
+    position, radius, box, periodic = (state[k] for k in ("position", "radius", "box",
+                                                           "periodic"))
+    phase, n_dispersed = assign_phases(p, position, radius, box, periodic)
+    phi, phi_bulk = solid_fractions(position, radius, box, periodic)
+    attrs = domain_attrs(p, state, phi, phi_bulk, n_dispersed, cell_info, t0)
+    # write
     out = os.path.join(p["output_dir"], "packing.h5")
-    write_packing(out, position, radius, phase, pair, overlap, normal_force, branch, walls,
-                  wall_particle, wall_index, wall_overlap, wall_force, lo, hi,
-                  [periodic] * 3, attrs, contact_radius=contact_radius,
-                  wall_contact_radius=np.zeros(len(wall_particle)), yade_id=sphere_ids)
-    log(f"wrote {out}: {n} particles, phi {phi:.4f} (bulk {phi_bulk:.4f}), "
+    write_packing(out, position, radius, phase, state["pair"], state["overlap"],
+                  state["normal_force"], state["branch"], state["walls"],
+                  state["wall_particle"], state["wall_index"], state["wall_overlap"],
+                  state["wall_force"], np.zeros(3), box.size.copy(), [periodic] * 3, attrs,
+                  contact_radius=state["contact_radius"],
+                  wall_contact_radius=np.zeros(len(state["wall_particle"])),
+                  yade_id=state["sphere_ids"])
+    log(f"wrote {out}: {state['n']} particles, phi {phi:.4f} (bulk {phi_bulk:.4f}), "
         f"Z {attrs['mean_coordination']:.3f} (with gaps "
         f"{attrs['mean_coordination_with_gaps']:.3f}), {time.time() - t0:.1f} s")
 
@@ -775,5 +503,6 @@ def yade_version():
         return "unknown"
 
 
-main()
-sys.exit(0)
+if __name__ == "__main__":
+    main()
+    sys.exit(0)

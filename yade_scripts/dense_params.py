@@ -1,5 +1,8 @@
-# Parameters of yade_scripts/dense_packing.py (checked by yade_scripts/params.py).
-# Imports nothing: loaded by file path on Debian's Python and on tdem's side.
+"""Parameters of yade_scripts/dense_packing.py (checked by yade_scripts/params.py).
+
+``PARAMS`` is plain data; ``check(p)`` holds the cross-field checks, run inside YADE and in
+``tdem pack`` (before YADE starts).
+"""
 PARAMS = {
     "shape": dict(kind="str", default="box", choices=["box", "periodic", "cylinder", "sphere"],
                   help="domain: box (6 plane walls), periodic cell, cylinder (beam along z), sphere"),
@@ -89,3 +92,27 @@ PARAMS = {
                         help="give up (exit 3) if compression takes longer, s"),
     "output_dir": dict(kind="str", default=".", help="folder for packing.h5 (set by tdem pack)"),
 }
+
+
+def check(p):
+    """Cross-field checks of resolved dense parameters: ValueError('key: ...') for the first
+    that fails. The domain check draws the seeded radii and sizes the domain exactly as the
+    generator does (dense_geometry.cloud_domain)."""
+    for k, inc in enumerate(p["inclusions"]):
+        if not isinstance(inc, dict) or set(inc) - {"centre", "radius", "phase"} \
+                or "centre" not in inc or "radius" not in inc:
+            raise ValueError(f"inclusions[{k}]: expected {{centre = [fx, fy, fz], radius = f, "
+                             "phase = id}")
+    tiled = p["method"] == "tiled"
+    if not tiled and p["cell_packing"]:
+        raise ValueError("cell_packing: only used with method = \"tiled\"")
+    if tiled and p["shape"] == "periodic":
+        raise ValueError("method: \"tiled\" carves a box, cylinder or sphere out of copies of a "
+                         "periodic cell; for a periodic domain use method = \"direct\"")
+    if tiled and not p["cell_packing"] and p["n_particles"] < p["cell_particles"]:
+        raise ValueError(f"cell_particles: expected at most n_particles ({p['n_particles']}) for "
+                         f"method = \"tiled\", got {p['cell_particles']}")
+    if not (tiled and p["cell_packing"]):       # YADE relaxes a cloud: can it be made?
+        from . import dense_geometry
+        dense_geometry.cloud_domain(dense_geometry.relaxed_params(p),
+                                    "cell_particles" if tiled else "n_particles")

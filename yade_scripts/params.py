@@ -1,19 +1,19 @@
 """Parameter schemas of the packing generators, shared by YADE and by ``tdem pack``.
 
-Each generator has one schema module (``dense_params.py``, ``bed_params.py``) that imports
-nothing and defines ``PARAMS = {name: dict(kind=..., default=..., help=..., choices=...,
-minimum=...)}``. ``tdem pack`` checks a scene's ``[pack]`` table against it (so a
-user gets a one-line error naming the scene file and key before YADE starts), resolves the
-defaults and hands the complete set to the YADE script as JSON; the script resolves it again with
-the same schema, so it can also be run by hand. Standard library only: this file is loaded by
-path on Debian's Python inside YADE.
+Each generator has one schema module (``dense_params.py``, ``bed_params.py``) that defines
+``PARAMS = {name: dict(kind=..., default=..., help=..., choices=..., minimum=...)}`` (plain data)
+and ``check(p)``, its cross-field checks on the resolved parameters (a combination of values,
+e.g. a softened modulus above the real one, or a domain too small for its spheres). ``tdem pack``
+resolves a scene's ``[pack]`` table against the schema and runs the checks (so a user gets a
+one-line error naming the scene file and key before YADE starts), then hands the complete set to
+the YADE script as JSON; the script resolves and checks it again with the same code, so it can
+also be run by hand. Standard library only here; the checks may use the generators' pure
+geometry modules (numpy, scipy), which both sides have.
 """
-import importlib.util
+import importlib
 import json
 import math
 import os
-
-_HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 class ParamError(ValueError):
@@ -89,20 +89,42 @@ def resolve(schema, table):
     return out
 
 
+def schema_module(generator):
+    """The schema module of a generator ('dense' or 'bed'): ``<generator>_params`` of this
+    package."""
+    return importlib.import_module(f"{__package__}.{generator}_params")
+
+
 def load_schema(generator):
-    """The PARAMS dict of a generator ('dense' or 'bed'), loaded by file path."""
-    path = os.path.join(_HERE, f"{generator}_params.py")
-    spec = importlib.util.spec_from_file_location(f"tdem_{generator}_params", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.PARAMS
+    """The PARAMS dict of a generator ('dense' or 'bed')."""
+    return schema_module(generator).PARAMS
+
+
+def check(generator, p):
+    """The generator's cross-field checks on resolved parameters ``p``; ParamError naming the
+    key."""
+    try:
+        schema_module(generator).check(p)
+    except ParamError:
+        raise
+    except ValueError as e:
+        raise ParamError(str(e)) from None
+
+
+def resolve_and_check(generator, table):
+    """Defaults filled in, every key checked, then the cross-field checks: what ``tdem pack``
+    and the YADE scripts run on a parameter table."""
+    p = resolve(load_schema(generator), table)
+    check(generator, p)
+    return p
 
 
 def read_params_json(path, generator):
-    """Used by the YADE scripts: read the JSON written by ``tdem pack`` (or by hand)."""
+    """Used by the YADE scripts: read the JSON written by ``tdem pack`` (or by hand), resolved
+    and checked."""
     with open(path) as f:
         table = json.load(f)
-    return resolve(load_schema(generator), table)
+    return resolve_and_check(generator, table)
 
 
 def params_path_from_argv_or_batch(argv, script):
