@@ -104,7 +104,8 @@ def _cmd_run(args):
         raise UserError(f"--checkpoint-every: expected a number of output times >= 0, got "
                         f"{args.checkpoint_every}")
     run_scene(scene, packing, quiet=args.quiet, threads=threads,
-              checkpoint_every=args.checkpoint_every, resume=args.resume)
+              checkpoint_every=args.checkpoint_every, resume=args.resume,
+              run_args={k: v for k, v in vars(args).items() if k != "func"})
 
 
 def _scene_and_packing(args):
@@ -178,7 +179,6 @@ def _cmd_post(args):
     thermal = path / "thermal.h5" if path.is_dir() else path
     if not thermal.exists():
         raise UserError(f"{thermal}: file not found (give a run folder or its thermal.h5)")
-    _check_thermal(thermal)
     s = post_run(thermal, n_bins=args.bins, halo_ratio=args.halo)
     pressure = (f", p = {s['pressure_pa']:.4g} Pa" if math.isfinite(s["pressure_pa"]) else "")
     print(f"tdem post: {thermal} ({s['law']}, {s['n_particles']} particles{pressure})")
@@ -206,22 +206,6 @@ def _cmd_post(args):
               f"({s['flux_interior_particles']} interior particles); mean axial q / (Q/A) "
               f"{s['flux_mean_over_q_per_area']:.3f}")
     print(f"  wrote {thermal.parent / 'post'}/ ({', '.join(s['files'])})")
-
-
-def _check_thermal(path):
-    """Refuse, in one line, a file that is not a run's output (a packing, not HDF5)."""
-    import h5py
-    try:
-        with h5py.File(path, "r") as f:
-            fmt = f.attrs.get("format", "")
-            ok = "time" in f and "temperature" in f
-    except OSError:
-        raise UserError(f"{path}: not an HDF5 file; expected a run's thermal.h5") from None
-    if not ok:
-        what = (" (a packing: run a scene on it with `tdem run`, then post the run)"
-                if fmt == "tdem-packing" else "")
-        raise UserError(f"{path}: format: expected a run's output (tdem-thermal, with datasets "
-                        f"time and temperature), got {fmt or 'no format'!r}{what}")
 
 
 def _floats(text, what):
@@ -334,10 +318,16 @@ def _output_file(args, suffix):
 
 
 def _cmd_export(args):
+    from thermal_kernel.output import read_run_packing, read_thermal
     from thermal_kernel.packing import read_packing
-    from .export import packing_to_vtk, read_temperatures
-    packing = read_packing(args.packing)
-    temps = read_temperatures(args.thermal, packing.n_particles) if args.thermal else None
+    from .export import packing_to_vtk
+    temps = None
+    if args.thermal:        # the run's temperatures, on the packing it was made on (its hash)
+        run = read_thermal(args.thermal)
+        packing = read_run_packing(run, args.packing)
+        temps = (run.times, run.temperature)
+    else:
+        packing = read_packing(args.packing)
     out = _output_file(args, ".vtu")
     packing_to_vtk(packing, out, temps)
     print(f"wrote {out} ({packing.n_particles} particles, {packing.n_contacts} contacts"
@@ -507,6 +497,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     from thermal_kernel.network import NetworkError
+    from thermal_kernel.output import ThermalFileError
     from thermal_kernel.packing import PackingError
     from thermal_kernel.scene import SceneError
     from .yade import YadeError
@@ -514,7 +505,8 @@ def main(argv=None) -> int:
     try:
         code = args.func(args)      # None, or an exit code (validate: 1 if a case failed)
         sys.stdout.flush()          # a closed pipe shows here, not at exit
-    except (UserError, PackingError, YadeError, SceneError, NetworkError) as e:
+    except (UserError, PackingError, YadeError, SceneError, NetworkError,
+            ThermalFileError) as e:
         print(f"tdem: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as e:

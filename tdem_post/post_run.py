@@ -2,7 +2,8 @@
 
     post_run(thermal_h5, n_bins=10) -> dict
 
-From ``thermal.h5`` (its scene and packing are named in its attributes):
+From ``thermal.h5`` alone (:func:`thermal_kernel.output.read_thermal`: the scene as it ran,
+stored in the file, and the packing it names, checked against the content hash it stored):
 - binned profiles along the axis joining the two temperature boundaries (partial volumes),
   between the mean centre planes of the two held sets of spheres (the slab length L);
 - gamma = k_eff / k_p fitted to all profiles against the slab solution (003 App. A), with its
@@ -25,15 +26,14 @@ import json
 import math
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from thermal_kernel.calibrate import cross_section
-from thermal_kernel.laws import LAWS
 from thermal_kernel.network import assemble
-from thermal_kernel.packing import packing_statistics, read_packing
+from thermal_kernel.output import read_run_packing, read_thermal
+from thermal_kernel.packing import packing_statistics
 from thermal_kernel.problem import FACES, boundary_particles, build_problem
-from thermal_kernel.scene import SceneError, load_scene
+from thermal_kernel.scene import SceneError
 from thermal_kernel.solvers.steady import solve_steady
 
 from .analytic import (slab_mean_temperature, slab_midplane_characteristic_time,
@@ -87,13 +87,10 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
             or not (math.isfinite(halo_ratio) and halo_ratio >= 0):
         raise SceneError(f"{thermal_h5}: --halo: expected a number >= 0 (the Halo radius over "
                          f"the particle radius; 0: no Halo), got {halo_ratio!r}")
-    with h5py.File(thermal_h5, "r") as f:
-        times = f["time"][()]
-        temperature = f["temperature"][()]
-        initial = f["initial_temperature"][()]
-        attrs = dict(f.attrs)
-    scene = load_scene(attrs["scene_path"], known_laws=LAWS)
-    packing = read_packing(attrs["packing"])
+    run = read_thermal(thermal_h5)          # the scene as it ran, from the run's output
+    packing = read_run_packing(run)         # refused if it changed since the run
+    scene = run.scene
+    times, temperature, initial = run.times, run.temperature, run.initial_temperature
     held = [b for b in scene.boundaries if b.kind == "temperature"]
     if len(held) != 2:
         raise SceneError(f"{thermal_h5}: scene: the profile fit needs exactly two temperature "
@@ -197,8 +194,8 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
     out_dir = thermal_h5.parent / "post"
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = {
-        "thermal": str(thermal_h5), "packing": str(packing.path), "law": attrs.get("law"),
-        "method": attrs.get("method"), "n_particles": int(packing.n_particles),
+        "thermal": str(thermal_h5), "packing": str(packing.path), "law": run.law,
+        "method": run.method, "n_particles": int(packing.n_particles),
         "pressure_pa": float(packing.attrs.get("pressure_pa", float("nan"))),
         "solid_fraction": phi, "mean_coordination": float(z_mean),
         "mean_normal_force_n": float(stats["mean_normal_force_n"]),
@@ -228,7 +225,7 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
             packing.branch, packing.normal_force, area * wall_gap)[axis, axis]),
         "length_m": length, "wall_gap_m": wall_gap,
         "n_bins": n_bins,
-        "run_wall_seconds": float(attrs.get("wall_seconds", float("nan"))),
+        "run_wall_seconds": run.wall_seconds,
         **flux_stats,
     }
     summary["files"] = ["summary.json"]
