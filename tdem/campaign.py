@@ -372,6 +372,7 @@ def results_table(rows: list):
 
 def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, seconds: float):
     from tdem_post.fits import PAPER_GAMMA, power_law
+    from tdem_post.post_run import MEAN_FIELD_LAWS
 
     table = results_table(rows)
     with replacing(out_dir / "results.csv") as tmp:
@@ -412,9 +413,10 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
              "time of the middle section (003 eq. 41) from the network, τ_slab = L² / (8 α) the "
              "slab's own with the fitted α.", "",
              "| " + ("seed | " if seeded else "") + "p (bar) | law | Z | φ | mean F_n (N) | γ | "
-             "95 % CI | γ_paper | γ_steady | γ_aff | ⟨n_z²⟩ | γ_mf bob | γ_mf argento | "
-             "γ_mf pipe | τ (s) | τ_slab (s) | flags |",
-             "|" + "---|" * (17 + seeded)]
+             "95 % CI | γ_paper | γ_steady | γ_aff | ⟨n_z²⟩ | "
+             + "".join(f"γ_mf {law} | " for law in MEAN_FIELD_LAWS) + "τ (s) | τ_slab (s) | "
+             "flags |",
+             "|" + "---|" * (14 + len(MEAN_FIELD_LAWS) + seeded)]
     for _, r in table.iterrows():
         lines.append(
             "| " + (f"{r.seed} | " if seeded else "")
@@ -422,9 +424,8 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
             f"{r.solid_fraction:.4f} | {r.mean_normal_force_n:.3g} | {r.gamma:.4g} | "
             f"{r.gamma_ci95_low:.4g}–{r.gamma_ci95_high:.4g} | {r.gamma_paper:.4g} | "
             f"{r.gamma_steady:.4g} | {r.gamma_affine:.4g} | {r.fabric_nz2:.4f} | "
-            f"{r.gamma_mean_field_bob:.4g} | {r.gamma_mean_field_argento:.4g} | "
-            f"{r.gamma_mean_field_pipe:.4g} | {r.tau_s:.4g} | {r.tau_slab_s:.4g} | "
-            f"{r['flags']} |")
+            + "".join(f"{r[f'gamma_mean_field_{law}']:.4g} | " for law in MEAN_FIELD_LAWS)
+            + f"{r.tau_s:.4g} | {r.tau_slab_s:.4g} | {r['flags']} |")
     suspect = [(r, [f for f in r["flags"].split(",") if f in SUSPECT_FLAGS])
                for _, r in table.iterrows()]
     suspect = [(r, f) for r, f in suspect if f]
