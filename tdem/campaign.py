@@ -313,18 +313,16 @@ def target_pressure(packing: Path, measured: float) -> float:
 
 
 def run_flags(thermal_path: Path, fallback: str | None = None) -> str:
-    """The ``flags`` attribute of a run's ``thermal.h5`` (comma-separated: the solver's flags and
-    the physics checks', ``max_principle`` / ``energy_ledger``; "" when the run is clean).
-    ``fallback`` (or "unknown") when the file or the attribute is missing."""
-    import h5py
+    """The ``flags`` of a run's ``thermal.h5`` (comma-separated: the solver's flags and the
+    physics checks', ``max_principle`` / ``energy_ledger``; "" when the run is clean), read by
+    :func:`~thermal_kernel.output.read_thermal`. ``fallback`` (or "unknown") when the file is
+    missing or not a complete run output."""
+    from thermal_kernel.output import ThermalFileError, read_thermal
+    from thermal_kernel.scene import SceneError
     try:
-        with h5py.File(thermal_path, "r") as f:
-            value = f.attrs.get("flags")
-    except (OSError, KeyError):
-        value = None
-    if value is None:
+        return read_thermal(thermal_path, data=False).flags
+    except (ThermalFileError, SceneError):
         return "unknown" if fallback is None else fallback
-    return value.decode() if isinstance(value, bytes) else str(value)
 
 
 def _fit(p_bar, y):
