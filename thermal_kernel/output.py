@@ -111,7 +111,7 @@ def scene_to_json(scene) -> str:
     """The resolved scene (every default filled in) as strict JSON, its text left out."""
     data = dataclasses.asdict(dataclasses.replace(scene, text=""))
     data.pop("text")
-    return json.dumps(_jsonable(data), sort_keys=True)
+    return json.dumps(_jsonable(data), sort_keys=True, default=str)   # a TOML date: its text
 
 
 def _field_value(kind: str, value, fail):

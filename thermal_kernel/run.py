@@ -157,6 +157,7 @@ def _check_step_count(scene, dt, what):
 
 
 def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume, run_args):
+    scene_json = scene_to_json(scene)       # before the solve: a run is never lost to it
     packing = read_packing(packing_path or scene.packing)
     packing_hash = packing_sha256(packing)
     problem, info = build_problem(scene, packing)
@@ -212,7 +213,7 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
         "n_conducting_contacts": int(net.n_active_contacts),
         "n_floating_clusters": net.clusters.n_floating, "n_rattlers": net.clusters.n_rattlers,
         "law_params": json.dumps(info["law_params"], sort_keys=True),
-        "scene_json": scene_to_json(scene),
+        "scene_json": scene_json,
         "run_args": json.dumps(dict(run_args or {}, threads=threads,
                                     checkpoint_every=checkpoint_every, resume=resume,
                                     packing=str(packing_path) if packing_path else None),
