@@ -7,7 +7,6 @@ convention stated. Checks:
   from the function and from `tdem post` (exit 2);
 - post states "held_centres" and calibrate / the ETC sweep "domain", with their own L."""
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest

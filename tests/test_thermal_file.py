@@ -5,12 +5,10 @@ every field; post-processing, export and the campaign read only the run's output
 Every check here is exact (same bits, or a refusal in one line): nothing is fitted."""
 import dataclasses
 import json
-import math
 import re
 from pathlib import Path
 
 import h5py
-import numpy as np
 import pytest
 
 from bed_scene import BED_THERMAL
@@ -19,7 +17,7 @@ from thermal_kernel.lattice import simple_cubic_packing
 from thermal_kernel.output import (ThermalFileError, read_run_packing, read_thermal,
                                    scene_from_json, scene_to_json)
 from thermal_kernel.packing import PackingError, write_packing
-from thermal_kernel.scene import SceneError, load_scene
+from thermal_kernel.scene import load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 PITCH, DELTA = 4e-3, 4e-6
