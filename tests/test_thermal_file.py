@@ -188,6 +188,10 @@ def test_a_version_1_file_is_read_from_its_stored_text(run, capsys):
     capsys.readouterr()
     after = json.loads((out / "post" / "summary.json").read_text())
     assert after == before
+    _set(thermal, scene="law = 1")                  # stored text that does not parse
+    with pytest.raises(ThermalFileError, match=re.escape(f"{thermal}: scene: the stored scene "
+                                                         "text no longer parses")):
+        read_thermal(thermal)
     _set(thermal, law_params="{'ct': inf}")         # a repr that is not a literal: refused
     with pytest.raises(ThermalFileError, match="law_params: .* run it again"):
         read_thermal(thermal)

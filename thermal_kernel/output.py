@@ -347,8 +347,11 @@ def read_thermal(path, *, data: bool = True) -> ThermalRun:
     if version >= 2:
         scene = dataclasses.replace(scene_from_json(scene_json, fail), text=scene_text)
     else:           # the stored text, parsed as it was then
-        from .scene import load_scene
-        scene = load_scene(scene_path, out_dir=path.parent, text=scene_text)
+        from .scene import SceneError, load_scene
+        try:
+            scene = load_scene(scene_path, out_dir=path.parent, text=scene_text)
+        except SceneError as e:
+            fail("scene", f"the stored scene text no longer parses ({e}){rerun}")
     if scene.law != law:
         fail("scene_json" if version >= 2 else "scene",
              f"the scene's law {scene.law!r} is not the run's law {law!r}")
