@@ -21,7 +21,9 @@ Steps, each kept so that an interrupted campaign resumes where it stopped:
 """
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
 import re
 import time
 import tomllib
@@ -83,37 +85,71 @@ def read_campaign(path: Path) -> tuple[dict, str]:
     return dict(laws=laws, n_bins=n_bins, seeds=seeds, packings=packings), text
 
 
-def _scene_text(campaign_text: str, packing: Path, law: str) -> str:
-    """The campaign file without its [pack] and [campaign] tables and top-level law, for one
-    packing and one law."""
-    out, skip = [], False
-    for line in campaign_text.splitlines():
-        header = re.match(r"^\s*\[\[?\s*([A-Za-z0-9_.]+)\s*\]\]?", line)
-        if header:
-            skip = header.group(1) in ("pack", "campaign")
-        elif not skip and re.match(r"^\s*law\s*=", line):
-            continue
-        if not skip:
-            out.append(line)
-    return f'packing = "{packing}"\nlaw = "{law}"\n' + "\n".join(out) + "\n"
+def _toml_key(key: str) -> str:
+    bare = key and all(c.isascii() and (c.isalnum() or c in "-_") for c in key)
+    return key if bare else json.dumps(key, ensure_ascii=False)
 
 
-def check_case_scenes(campaign_path: Path, conf: dict, text: str, out_dir: Path) -> None:
-    """Load the case scene of every law as the campaign will write it (the packing not built
-    yet), so that a typo in [solver], [material], [[boundary]] or [law_params] is one line
-    naming the campaign file and key before any packing is built (issue 16 sec. 3). What needs
-    the packing itself (walls named by a boundary, the explicit bound) is checked when a case
-    runs."""
+def _toml_value(value) -> str:
+    """One TOML value (inline: arrays, inline tables) of what tomllib read."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return ("nan" if value != value else repr(value) if math.isfinite(value)
+                else "inf" if value > 0 else "-inf")
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)     # a TOML basic string
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}"
+                               for k, v in value.items()) + "}"
+    return str(value)       # a TOML date or time: written as read
+
+
+def case_scenes(campaign_path: Path, conf: dict, text: str, out_dir: Path) -> dict:
+    """{law: the campaign's thermal scene for that law}, parsed and checked by
+    :func:`~thermal_kernel.scene.load_scene`: the campaign file's tables without [pack] and
+    [campaign], with ``law`` set (the law's [law_params] checked for it) and a placeholder
+    packing. The cases are variants of these (:func:`case_scene`, ``dataclasses.replace``):
+    no rewriting of the TOML text. Each scene's ``text`` is the campaign file as read, its
+    ``output`` relative to the case folder (thermal.h5, or [output] path)."""
     from thermal_kernel.laws import LAWS
-    from thermal_kernel.scene import SceneError, load_scene
-    placeholder = out_dir / "packings" / "packing.h5"
+    from thermal_kernel.scene import load_scene
+    data = {k: v for k, v in tomllib.loads(text).items() if k not in ("pack", "campaign", "law")}
+    placeholder = (out_dir / "packings" / "packing.h5").resolve()
+    scenes = {}
+    for law in conf["laws"]:
+        case = {"packing": str(placeholder), "law": law, **data}
+        toml = "\n".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in case.items()) + "\n"
+        scene = load_scene(campaign_path, known_laws=LAWS, out_dir=Path("."), text=toml)
+        scenes[law] = dataclasses.replace(scene, text=text)
+    return scenes
+
+
+def case_scene(base, packing: Path, case_dir: Path):
+    """The scene of one case: ``base`` (:func:`case_scenes`) on ``packing``, its output in
+    ``case_dir`` (where [output] path puts it, thermal.h5 by default)."""
+    output = base.output if base.output.is_absolute() else Path(case_dir) / base.output
+    return dataclasses.replace(base, packing=Path(packing).resolve(), pack=None, output=output)
+
+
+def check_case_scenes(campaign_path: Path, conf: dict, text: str, out_dir: Path) -> dict:
+    """The case scene of every law (:func:`case_scenes`), checked before any packing is built,
+    so that a typo in [solver], [material], [[boundary]] or [law_params] is one line naming
+    the campaign file and key (issue 16 sec. 3). What needs the packing itself (walls named by
+    a boundary, the explicit bound) is checked when a case runs."""
+    from thermal_kernel.scene import SceneError
+    scenes = {}
     for law in conf["laws"]:
         try:
-            load_scene(campaign_path, known_laws=LAWS, out_dir=out_dir / "cases" / law,
-                       text=_scene_text(text, placeholder.resolve(), law))
+            scenes.update(case_scenes(campaign_path, dict(conf, laws=[law]), text, out_dir))
         except SceneError as e:
             raise UserError(f"{e} (in the case scene for law {law!r}; checked before any "
                             "packing is built)") from None
+    return scenes
 
 
 def build_packings(campaign_path: Path, out_dir: Path, *, threads: int, quiet: bool,
@@ -191,7 +227,9 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
     if jobs < 1:
         raise UserError(f"--jobs: expected a number of YADE series at a time >= 1, got {jobs}")
     out_dir = Path(out_dir) if out_dir else default_out_dir(campaign_path)
-    check_case_scenes(campaign_path, conf, text, out_dir)     # before YADE builds anything
+    scenes = check_case_scenes(campaign_path, conf, text, out_dir)   # before YADE builds
+    run_args = dict(command="campaign", campaign=str(campaign_path), out=str(out_dir),
+                    threads=threads, repost=repost)
     out_dir.mkdir(parents=True, exist_ok=True)
     start = time.time()
     seeds = conf["seeds"]
@@ -209,7 +247,8 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
         for packing in packings:
             for law in conf["laws"]:
                 k += 1
-                summary = _run_case(text, conf, sdir, packing, law, repost, threads,
+                summary = _run_case(scenes[law], conf, sdir, packing, repost, threads,
+                                    run_args,
                                     label=f"[{k}/{n_cases}] "
                                           + (f"seed {seed} " if seed is not None else ""))
                 if seed is not None:
@@ -218,14 +257,13 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
     return write_report(out_dir, campaign_path, conf, rows, time.time() - start)
 
 
-def _run_case(text, conf, series_dir, packing, law, repost, threads, label):
+def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label):
     """One pressure x law case in ``series_dir/cases/<p>Pa_<law>/``: kept when its
-    ``post/summary.json`` exists (post-processed again with ``repost``), run otherwise."""
-    from thermal_kernel.laws import LAWS
+    ``post/summary.json`` exists (post-processed again, from its thermal.h5 alone, with
+    ``repost``), run otherwise: ``scene`` (the law's, :func:`case_scenes`) on ``packing``."""
     from thermal_kernel.run import run_scene
-    from thermal_kernel.scene import load_scene
     from tdem_post.post_run import post_run
-    name = f"{packing.stem.removeprefix('packing_')}_{law}"
+    name = f"{packing.stem.removeprefix('packing_')}_{scene.law}"
     case_dir = series_dir / "cases" / name
     summary_path = case_dir / "post" / "summary.json"
     thermal_path = case_dir / "thermal.h5"
@@ -247,11 +285,10 @@ def _run_case(text, conf, series_dir, packing, law, repost, threads, label):
               + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
     else:
         case_dir.mkdir(parents=True, exist_ok=True)
-        scene_path = case_dir / "scene.toml"
-        write_text_atomic(scene_path, _scene_text(text, packing.resolve(), law))
-        scene = load_scene(scene_path, known_laws=LAWS, out_dir=case_dir)
+        scene = case_scene(scene, packing, case_dir)
         t0 = time.time()
-        result = run_scene(scene, packing, quiet=True, threads=threads)
+        result = run_scene(scene, packing, quiet=True, threads=threads,
+                           run_args=dict(run_args, case=name))
         run_seconds = time.time() - t0
         summary = post_run(result.output, n_bins=conf["n_bins"])
         summary["case_wall_seconds"] = time.time() - t0
@@ -276,18 +313,16 @@ def target_pressure(packing: Path, measured: float) -> float:
 
 
 def run_flags(thermal_path: Path, fallback: str | None = None) -> str:
-    """The ``flags`` attribute of a run's ``thermal.h5`` (comma-separated: the solver's flags and
-    the physics checks', ``max_principle`` / ``energy_ledger``; "" when the run is clean).
-    ``fallback`` (or "unknown") when the file or the attribute is missing."""
-    import h5py
+    """The ``flags`` of a run's ``thermal.h5`` (comma-separated: the solver's flags and the
+    physics checks', ``max_principle`` / ``energy_ledger``; "" when the run is clean), read by
+    :func:`~thermal_kernel.output.read_thermal`. ``fallback`` (or "unknown") when the file is
+    missing or not a complete run output."""
+    from thermal_kernel.output import ThermalFileError, read_thermal
+    from thermal_kernel.scene import SceneError
     try:
-        with h5py.File(thermal_path, "r") as f:
-            value = f.attrs.get("flags")
-    except (OSError, KeyError):
-        value = None
-    if value is None:
+        return read_thermal(thermal_path, data=False).flags
+    except (ThermalFileError, SceneError):
         return "unknown" if fallback is None else fallback
-    return value.decode() if isinstance(value, bytes) else str(value)
 
 
 def _fit(p_bar, y):
@@ -335,6 +370,7 @@ def results_table(rows: list):
 
 def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, seconds: float):
     from tdem_post.fits import PAPER_GAMMA, power_law
+    from tdem_post.post_run import MEAN_FIELD_LAWS
 
     table = results_table(rows)
     with replacing(out_dir / "results.csv") as tmp:
@@ -375,9 +411,10 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
              "time of the middle section (003 eq. 41) from the network, τ_slab = L² / (8 α) the "
              "slab's own with the fitted α.", "",
              "| " + ("seed | " if seeded else "") + "p (bar) | law | Z | φ | mean F_n (N) | γ | "
-             "95 % CI | γ_paper | γ_steady | γ_aff | ⟨n_z²⟩ | γ_mf bob | γ_mf argento | "
-             "γ_mf pipe | τ (s) | τ_slab (s) | flags |",
-             "|" + "---|" * (17 + seeded)]
+             "95 % CI | γ_paper | γ_steady | γ_aff | ⟨n_z²⟩ | "
+             + "".join(f"γ_mf {law} | " for law in MEAN_FIELD_LAWS) + "τ (s) | τ_slab (s) | "
+             "flags |",
+             "|" + "---|" * (14 + len(MEAN_FIELD_LAWS) + seeded)]
     for _, r in table.iterrows():
         lines.append(
             "| " + (f"{r.seed} | " if seeded else "")
@@ -385,9 +422,8 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
             f"{r.solid_fraction:.4f} | {r.mean_normal_force_n:.3g} | {r.gamma:.4g} | "
             f"{r.gamma_ci95_low:.4g}–{r.gamma_ci95_high:.4g} | {r.gamma_paper:.4g} | "
             f"{r.gamma_steady:.4g} | {r.gamma_affine:.4g} | {r.fabric_nz2:.4f} | "
-            f"{r.gamma_mean_field_bob:.4g} | {r.gamma_mean_field_argento:.4g} | "
-            f"{r.gamma_mean_field_pipe:.4g} | {r.tau_s:.4g} | {r.tau_slab_s:.4g} | "
-            f"{r['flags']} |")
+            + "".join(f"{r[f'gamma_mean_field_{law}']:.4g} | " for law in MEAN_FIELD_LAWS)
+            + f"{r.tau_s:.4g} | {r.tau_slab_s:.4g} | {r['flags']} |")
     suspect = [(r, [f for f in r["flags"].split(",") if f in SUSPECT_FLAGS])
                for _, r in table.iterrows()]
     suspect = [(r, f) for r, f in suspect if f]

@@ -104,7 +104,8 @@ def _cmd_run(args):
         raise UserError(f"--checkpoint-every: expected a number of output times >= 0, got "
                         f"{args.checkpoint_every}")
     run_scene(scene, packing, quiet=args.quiet, threads=threads,
-              checkpoint_every=args.checkpoint_every, resume=args.resume)
+              checkpoint_every=args.checkpoint_every, resume=args.resume,
+              run_args={k: v for k, v in vars(args).items() if k != "func"})
 
 
 def _scene_and_packing(args):
@@ -173,55 +174,38 @@ def _cmd_campaign(args):
 
 
 def _cmd_post(args):
-    from tdem_post.post_run import post_run
+    from tdem_post.post_run import analyse, write_post
     path = Path(args.run)
     thermal = path / "thermal.h5" if path.is_dir() else path
     if not thermal.exists():
         raise UserError(f"{thermal}: file not found (give a run folder or its thermal.h5)")
-    _check_thermal(thermal)
-    s = post_run(thermal, n_bins=args.bins, halo_ratio=args.halo)
-    pressure = (f", p = {s['pressure_pa']:.4g} Pa" if math.isfinite(s["pressure_pa"]) else "")
-    print(f"tdem post: {thermal} ({s['law']}, {s['n_particles']} particles{pressure})")
-    if s["gamma"] is None:
+    r = analyse(thermal, n_bins=args.bins, halo_ratio=args.halo)
+    files = write_post(r)["files"]
+    pressure = f", p = {r.pressure_pa:.4g} Pa" if math.isfinite(r.pressure_pa) else ""
+    print(f"tdem post: {thermal} ({r.run.law}, {r.packing.n_particles} particles{pressure})")
+    if r.gamma is None:
         print("  gamma = k_eff/k_p  no profile fit: a steady run has no transient (the steady "
               "ETC below is the answer)")
     else:
-        print(f"  gamma = k_eff/k_p  {s['gamma']:.5g}   95 % CI [{s['gamma_ci95'][0]:.5g}, "
-              f"{s['gamma_ci95'][1]:.5g}], profile residual {s['gamma_residual_rms_k']:.3g} K")
-        print(f"  gamma_paper = g/phi {s['gamma_paper']:.5g}   (003's convention: alpha = "
+        fit = r.gamma.fit
+        print(f"  gamma = k_eff/k_p  {fit.gamma:.5g}   95 % CI [{fit.ci95[0]:.5g}, "
+              f"{fit.ci95[1]:.5g}], profile residual {fit.residual_rms_k:.3g} K")
+        print(f"  gamma_paper = g/phi {r.gamma.gamma_paper:.5g}   (003's convention: alpha = "
               "gamma kappa_p/(rho_p c_p))")
-    print(f"  gamma (steady ETC) {s['gamma_steady']:.5g}   heat in/out balance "
-          f"{s['steady_balance']:.1e}")
-    print(f"  gamma affine k_zz  {s['gamma_affine']:.5g}   (upper bound of the steady ETC; "
-          f"<n_z^2> {s['fabric_nz2']:.4f}, conductance-weighted "
-          f"{s['fabric_nz2_conductance']:.4f})")
-    print("  gamma mean field   " + ", ".join(f"{k} {v:.4g}" for k, v in
-                                              s["gamma_mean_field"].items()))
-    series = ("" if s["tau_series_s"] is None
-              else f" (from the time series: {s['tau_series_s']:.5g} s)")
-    print(f"  tau (middle)       {s['tau_s']:.5g} s{series}")
-    if "flux_cov_halo" in s:
-        print(f"  heat flux (steady) CoV of |q| {s['flux_cov_raw']:.3f} per particle, "
-              f"{s['flux_cov_halo']:.3f} with a halo of {s['flux_halo_ratio']:g} R "
-              f"({s['flux_interior_particles']} interior particles); mean axial q / (Q/A) "
-              f"{s['flux_mean_over_q_per_area']:.3f}")
-    print(f"  wrote {thermal.parent / 'post'}/ ({', '.join(s['files'])})")
-
-
-def _check_thermal(path):
-    """Refuse, in one line, a file that is not a run's output (a packing, not HDF5)."""
-    import h5py
-    try:
-        with h5py.File(path, "r") as f:
-            fmt = f.attrs.get("format", "")
-            ok = "time" in f and "temperature" in f
-    except OSError:
-        raise UserError(f"{path}: not an HDF5 file; expected a run's thermal.h5") from None
-    if not ok:
-        what = (" (a packing: run a scene on it with `tdem run`, then post the run)"
-                if fmt == "tdem-packing" else "")
-        raise UserError(f"{path}: format: expected a run's output (tdem-thermal, with datasets "
-                        f"time and temperature), got {fmt or 'no format'!r}{what}")
+    print(f"  gamma (steady ETC) {r.gamma_steady:.5g}   heat in/out balance "
+          f"{r.steady.balance:.1e}")
+    print(f"  gamma affine k_zz  {r.fabric.gamma_affine:.5g}   (upper bound of the steady ETC; "
+          f"<n_z^2> {r.fabric.nz2:.4f}, conductance-weighted {r.fabric.nz2_conductance:.4f})")
+    print("  gamma mean field   " + ", ".join(f"{k} {v:.4g}" for k, v in r.mean_field.items()))
+    series = ("" if r.tau.tau_series_s is None
+              else f" (from the time series: {r.tau.tau_series_s:.5g} s)")
+    print(f"  tau (middle)       {r.tau.tau_s:.5g} s{series}")
+    if r.flux.cov_halo is not None:
+        print(f"  heat flux (steady) CoV of |q| {r.flux.cov_raw:.3f} per particle, "
+              f"{r.flux.cov_halo:.3f} with a halo of {r.flux.halo_ratio:g} R "
+              f"({r.flux.interior_particles} interior particles); mean axial q / (Q/A) "
+              f"{r.flux.mean_over_q_per_area:.3f}")
+    print(f"  wrote {thermal.parent / 'post'}/ ({', '.join(files)})")
 
 
 def _floats(text, what):
@@ -334,10 +318,16 @@ def _output_file(args, suffix):
 
 
 def _cmd_export(args):
+    from thermal_kernel.output import read_run_packing, read_thermal
     from thermal_kernel.packing import read_packing
-    from .export import packing_to_vtk, read_temperatures
-    packing = read_packing(args.packing)
-    temps = read_temperatures(args.thermal, packing.n_particles) if args.thermal else None
+    from .export import packing_to_vtk
+    temps = None
+    if args.thermal:        # the run's temperatures, on the packing it was made on (its hash)
+        run = read_thermal(args.thermal)
+        packing = read_run_packing(run, args.packing)
+        temps = (run.times, run.temperature)
+    else:
+        packing = read_packing(args.packing)
     out = _output_file(args, ".vtu")
     packing_to_vtk(packing, out, temps)
     print(f"wrote {out} ({packing.n_particles} particles, {packing.n_contacts} contacts"
@@ -507,6 +497,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     from thermal_kernel.network import NetworkError
+    from thermal_kernel.output import ThermalFileError
     from thermal_kernel.packing import PackingError
     from thermal_kernel.scene import SceneError
     from .yade import YadeError
@@ -514,7 +505,8 @@ def main(argv=None) -> int:
     try:
         code = args.func(args)      # None, or an exit code (validate: 1 if a case failed)
         sys.stdout.flush()          # a closed pipe shows here, not at exit
-    except (UserError, PackingError, YadeError, SceneError, NetworkError) as e:
+    except (UserError, PackingError, YadeError, SceneError, NetworkError,
+            ThermalFileError) as e:
         print(f"tdem: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as e:

@@ -1,4 +1,7 @@
-"""``tdem export``: a packing (particles and contacts) to VTK for ParaView, through meshio."""
+"""``tdem export``: a packing (particles and contacts) to VTK for ParaView, through meshio.
+
+A run's temperatures come from :func:`thermal_kernel.output.read_thermal`, on the packing the
+run recorded (checked against its content hash: ``read_run_packing``)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,22 +10,6 @@ import numpy as np
 
 from thermal_kernel.atomic import replacing
 from thermal_kernel.packing import Packing
-
-
-def read_temperatures(thermal_path, n_particles):
-    """(times (K,), temperatures (K, N)) of a thermal.h5, checked against the packing."""
-    import h5py
-    from .errors import UserError
-    try:
-        with h5py.File(thermal_path, "r") as f:
-            times, temperature = f["time"][()], f["temperature"][()]
-    except (OSError, KeyError) as e:
-        raise UserError(f"{thermal_path}: time/temperature: expected a tdem thermal.h5 "
-                        f"({e})") from None
-    if temperature.ndim != 2 or temperature.shape != (times.shape[0], n_particles):
-        raise UserError(f"{thermal_path}: temperature: expected shape ({times.shape[0]}, "
-                        f"{n_particles}) for this packing, got {temperature.shape}")
-    return times, temperature
 
 
 def packing_to_vtk(packing: Packing, out_path: Path, temperatures=None) -> Path:

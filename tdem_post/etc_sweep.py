@@ -95,13 +95,14 @@ def phase_volume_fraction(packing: Packing, phase: np.ndarray) -> float:
 def composite_conductivity(scene: Scene, packing: Packing, phase: np.ndarray, contrast: float,
                            axis: str = "x") -> float:
     """k_eff (W/m/K) of ``packing`` with ``phase`` (0 matrix, 1 inclusions of conductivity
-    contrast x the matrix's) by the steady flux test along ``axis``."""
+    contrast x the matrix's) by the steady flux test along ``axis``
+    (:func:`thermal_kernel.effective.effective_conductivity`, length convention "domain")."""
     matrix = scene.material(0)
     inclusion = Material(conductivity=contrast * matrix.conductivity, density=matrix.density,
                          heat_capacity=matrix.heat_capacity)
     test_scene = dataclasses.replace(scene, materials={0: matrix, 1: inclusion})
     test_packing = dataclasses.replace(packing, phase=np.asarray(phase, np.int32))
-    return flux_test(test_scene, test_packing, axis).effective_w_mk
+    return flux_test(test_scene, test_packing, axis).effective.k_eff_w_mk
 
 
 def _estimates(contrast, fraction):

@@ -2,7 +2,8 @@
 
 003 fits gamma to profiles at t = 0.2-7 s (Fig. 6 and 8); on its own bed, with Table 1's
 material, L^2/alpha is 10^3-10^4 s, so those profiles only see the layers next to the walls.
-``window_fit(case_dir)`` runs a campaign case again (same scene, packing and law) with outputs at
+``window_fit(case_dir)`` runs a campaign case again (the scene stored in its thermal.h5, its
+packing and law) with outputs at
 the paper's times and post-processes it exactly as the campaign does (tdem_post.post_run): the
 fitted gamma on the paper's window beside the case's own (outputs 30-30,000 s).
 
@@ -23,12 +24,12 @@ PAPER_TIMES = (0.2, 0.5, 1.0, 2.0, 3.5, 5.0, 7.0)       # 003 Fig. 6b (Fig. 8: 0
 
 
 def window_fit(case_dir, times=PAPER_TIMES, dt: float | None = None, threads: int = 1) -> dict:
-    """The case of ``case_dir`` (its scene.toml and post/summary.json) run with outputs at
-    ``times`` (s; end time the last one; implicit, the case's scheme, ``dt`` = times[0]/10 by
-    default) and fitted like the case. Returns the two fits side by side."""
-    from thermal_kernel.laws import LAWS
+    """The case of ``case_dir`` (its thermal.h5: the scene as it ran and its packing, checked
+    against the stored content hash; and post/summary.json) run with outputs at ``times`` (s;
+    end time the last one; implicit, the case's scheme, ``dt`` = times[0]/10 by default) and
+    fitted like the case. Returns the two fits side by side."""
+    from thermal_kernel.output import read_run_packing, read_thermal
     from thermal_kernel.run import run_scene
-    from thermal_kernel.scene import load_scene
     from .files import write_text_atomic
     from .post_run import post_run
 
@@ -38,18 +39,18 @@ def window_fit(case_dir, times=PAPER_TIMES, dt: float | None = None, threads: in
         return json.loads(done.read_text())
     case = json.loads((case_dir / "post" / "summary.json").read_text())
     times = tuple(sorted(float(t) for t in times))
-    scene = load_scene(case_dir / "scene.toml", known_laws=LAWS, out_dir=case_dir / "window")
-    solver = dataclasses.replace(scene.solver, method="implicit", end_time=times[-1],
+    run = read_thermal(case_dir / "thermal.h5", data=False)
+    read_run_packing(run)               # refused in one line if it changed since the case ran
+    solver = dataclasses.replace(run.scene.solver, method="implicit", end_time=times[-1],
                                  output_times=times,
                                  dt=float(dt) if dt else times[0] / 10)
-    scene = dataclasses.replace(scene, solver=solver)
+    scene = dataclasses.replace(run.scene, solver=solver,
+                                output=case_dir / "window" / "thermal.h5")
     t0 = time.time()
-    result = run_scene(scene, Path(case["packing"]), quiet=True, threads=threads)
+    result = run_scene(scene, run.packing_path, quiet=True, threads=threads,
+                       run_args=dict(command="tdem_post.window", case=str(case_dir)))
     window = post_run(result.output, n_bins=case["n_bins"], plots=True)
-    import h5py
-    with h5py.File(result.output, "r") as f:
-        flags = f.attrs.get("flags", "unknown")
-    flags = flags.decode() if isinstance(flags, bytes) else str(flags)
+    flags = read_thermal(result.output, data=False).flags
     out = {
         "case": str(case_dir), "law": case["law"], "pressure_pa": case["pressure_pa"],
         "solid_fraction": case["solid_fraction"], "times_s": list(times), "dt_s": solver.dt,

@@ -329,7 +329,7 @@ def test_every_scene_in_runs_loads(tmp_path, path):
     ([campaign]: load_scene refuses it, it has no law of its own) loads its case scene of
     every law the way `tdem campaign` does before building anything. Every boundary is a
     registered kind."""
-    from tdem.campaign import _scene_text, check_case_scenes, read_campaign
+    from tdem.campaign import case_scenes, check_case_scenes, read_campaign
     data = tomllib.loads(path.read_text())
     if "campaign" not in data:
         scene = load_scene(path, out_dir=tmp_path)
@@ -342,10 +342,7 @@ def test_every_scene_in_runs_loads(tmp_path, path):
         if "packings" not in data["campaign"]:     # read_campaign also needs its packing files
             conf, text = read_campaign(path)
             check_case_scenes(path, conf, text, tmp_path)
-        text = path.read_text()
-        scenes = [load_scene(path, out_dir=tmp_path / law,
-                             text=_scene_text(text, tmp_path / "packing.h5", law))
-                  for law in laws]
+        scenes = list(case_scenes(path, {"laws": laws}, path.read_text(), tmp_path).values())
     for scene in scenes:
         assert scene.boundaries
         for b in scene.boundaries:

@@ -9,7 +9,8 @@ gives the calibrated value exactly, no iteration and no time marching.
 
 Test: the two faces normal to ``axis`` held at T_hot and T_cold (their particles: the wall
 contacts of a wall of that name, or the spheres reaching the domain face); lambda^e = Q L / (A dT)
-with L the domain length along the axis and A the cross-section (the box face, or pi R^2 for a
+(:func:`thermal_kernel.effective.effective_conductivity`, heat in = heat out checked) with L the
+domain length along the axis (its length convention "domain") and A the cross-section (the box face, or pi R^2 for a
 cylinder wall along the axis); any other cross-section (a sphere container, a cylinder across
 the axis) is refused in one line, not replaced by the bounding-box face. Heterogeneous packings: lambda is the conductivity of phase 0 (the
 matrix), which is what the calibration is for.
@@ -23,11 +24,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .boundaries import TemperatureBoundary
+from .effective import EffectiveConductivity, effective_conductivity
 from .network import assemble
 from .packing import Packing, PackingError
 from .problem import boundary_particles, build_problem
 from .scene import Scene, SceneError, SolverConfig
-from .solvers.steady import solve_steady
 
 AXES = "xyz"
 
@@ -109,6 +110,7 @@ class FluxTest:
     n_hot: int
     n_cold: int
     law_params: dict
+    effective: EffectiveConductivity     # the whole result (length convention "domain")
 
 
 def flux_test(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.0,
@@ -134,19 +136,21 @@ def flux_test(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.
         solver=SolverConfig(method="steady"))
     problem, info = build_problem(test, packing)
     net = assemble(problem)
-    result = solve_steady(net, np.full(packing.n_particles, 0.5 * (t_hot + t_cold)))
-    q_hot, q_cold = (float(q) for q in result.boundary_heat_flow_w[-1])
-    if not q_hot > 0:
+    effective = effective_conductivity(                                 # 002, eq. 8
+        net, "hot", "cold", t_in=t_hot, t_out=t_cold,
+        length_m=float(packing.domain_hi[k] - packing.domain_lo[k]),
+        area_m2=cross_section(packing, k), length_convention="domain",
+        initial_k=np.full(packing.n_particles, 0.5 * (t_hot + t_cold)),
+        where=scene.path)
+    if not effective.q_in_w > 0:
         raise SceneError(f"{scene.path}: boundary: no heat flows from {faces[0]} to {faces[1]} "
                          f"in {packing.path} (the two faces are not connected by contacts)")
-    length = float(packing.domain_hi[k] - packing.domain_lo[k])
-    area = cross_section(packing, k)
     return FluxTest(
-        effective_w_mk=q_hot * length / (area * (t_hot - t_cold)),      # 002, eq. 8
-        heat_flow_w=q_hot, balance=abs(q_hot + q_cold) / q_hot, length_m=length, area_m2=area,
+        effective_w_mk=effective.k_eff_w_mk, heat_flow_w=effective.q_in_w,
+        balance=effective.balance, length_m=effective.length_m, area_m2=effective.area_m2,
         n_hot=len(boundary_particles(test, packing, faces[0], "boundary[0]")),
         n_cold=len(boundary_particles(test, packing, faces[1], "boundary[1]")),
-        law_params=dict(info["law_params"]))
+        law_params=dict(info["law_params"]), effective=effective)
 
 
 def calibrate_ct(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.0,

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import sys
 import time
@@ -13,7 +14,7 @@ import numpy as np
 from .atomic import OutputBusyError, output_lock
 from .checkpoint import checkpoint_path, packing_sha256, read_checkpoint, write_checkpoint
 from .network import assemble
-from .output import write_thermal
+from .output import scene_to_json, write_thermal
 from .packing import read_packing
 from .problem import build_problem
 from .scene import Scene, SceneError
@@ -118,17 +119,23 @@ def _run_with_checkpoints(net, T0, scene, threads, progress, every, resumed, n_p
 
 def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = False,
               threads: int | None = None, checkpoint_every: int = 0,
-              resume: bool = False) -> RunSummary:
+              resume: bool = False, run_args: dict | None = None) -> RunSummary:
     """Run ``scene`` (its packing, or ``packing_path``) and write its output file.
 
     Transient runs can write a checkpoint every ``checkpoint_every`` output times (beside the
     output, ``<name>.checkpoint.h5``, removed when the run ends) and ``resume`` from it.
     The output is locked for the run (``<name>.lock``, :func:`~thermal_kernel.atomic.output_lock`):
-    a second run onto the same output is refused at once."""
+    a second run onto the same output is refused at once.
+
+    The output holds what is needed to post-process the run from it alone
+    (:func:`~thermal_kernel.output.read_thermal`): the scene as text and resolved (JSON, every
+    default filled in), the time step used, ``run_args`` (how the run was started: the CLI's
+    arguments, JSON) and the packing's path and content hash."""
     try:
         with output_lock(scene.output):
             return _run_scene(scene, packing_path, quiet=quiet, threads=threads,
-                              checkpoint_every=checkpoint_every, resume=resume)
+                              checkpoint_every=checkpoint_every, resume=resume,
+                              run_args=run_args)
     except OutputBusyError as e:
         raise SceneError(str(e)) from None
     except KeyboardInterrupt:
@@ -149,7 +156,8 @@ def _check_step_count(scene, dt, what):
                          "max_steps)")
 
 
-def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume):
+def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume, run_args):
+    scene_json = scene_to_json(scene)       # before the solve: a run is never lost to it
     packing = read_packing(packing_path or scene.packing)
     packing_hash = packing_sha256(packing)
     problem, info = build_problem(scene, packing)
@@ -204,7 +212,12 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume)
         "packing": str(packing.path), "n_particles": packing.n_particles,
         "n_conducting_contacts": int(net.n_active_contacts),
         "n_floating_clusters": net.clusters.n_floating, "n_rattlers": net.clusters.n_rattlers,
-        "law_params": repr(info["law_params"]),
+        "law_params": json.dumps(info["law_params"], sort_keys=True),
+        "scene_json": scene_json,
+        "run_args": json.dumps(dict(run_args or {}, threads=threads,
+                                    checkpoint_every=checkpoint_every, resume=resume,
+                                    packing=str(packing_path) if packing_path else None),
+                               sort_keys=True, default=str),
         "packing_sha256": packing_hash,
         # every run's physics checks (thermal_kernel.solvers.check_physics)
         "max_principle_checked": int(check.max_principle_checked),
