@@ -32,8 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
-from thermal_kernel.atomic import replacing
-from tdem_post.files import savefig_atomic, write_text_atomic
+from thermal_kernel.atomic import replacing, savefig_atomic, write_text_atomic
 
 PAPER_TAU = dict(a=1.945, b=0.1084, c=-1.332)       # 003 Fig. 10: tau = a p^b + c (p in bar)
 # flags of a run's thermal.h5 that make its numbers suspect (the others, e.g. rattlers or

@@ -42,6 +42,7 @@ from thermal_kernel.calibrate import cross_section
 from thermal_kernel.network import assemble
 from thermal_kernel.effective import EffectiveConductivity, effective_conductivity
 from thermal_kernel.output import ThermalRun, read_run_packing, read_thermal
+from thermal_kernel.atomic import savefig_atomic, write_text_atomic
 from thermal_kernel.packing import packing_statistics
 from thermal_kernel.problem import FACES, boundary_particles, build_problem
 from thermal_kernel.scene import SceneError
@@ -53,7 +54,6 @@ from .flux import coefficient_of_variation, particle_flux
 from .fits import (GammaFit, characteristic_time_network, characteristic_time_series,
                    fit_gamma)
 from .profiles import binned_profile, partial_volumes
-from .files import savefig_atomic, write_text_atomic
 
 # the laws of the mean-field estimates: post, the CLI and the campaign report all use this list
 MEAN_FIELD_LAWS = ("bob", "argento", "pipe")

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tdem_post.files import savefig_atomic
+from thermal_kernel.atomic import open_atomic, savefig_atomic, write_text_atomic
 
 from .framework import (IMG, ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today, write_csv)
@@ -315,7 +315,7 @@ def run(ctx: Context) -> CaseResult:
         summary, profile = slab_case(path, threads=ctx.threads)
         row = _row(key, summary, profile)
         rows.append(row)
-        (ctx.out / f"{key}.json").write_text(json.dumps(summary, indent=1))
+        write_text_atomic(ctx.out / f"{key}.json", json.dumps(summary, indent=1))
         ctx.progress(f"{key}: N {row['n_particles']}, max err {100 * row['max_err_over_T_celsius']:.3f} "
                      f"% of T(C), {100 * row['max_err_over_dT']:.3f} % of dT, {row['steps']} "
                      f"steps, {row['run_seconds']:.1f} s")
@@ -543,8 +543,8 @@ def main(argv=None):
     out.mkdir(parents=True, exist_ok=True)
     name = a.name or Path(a.packing).parent.name
     summary, rows = slab_case(a.packing, a.bins, a.threads)
-    (out / f"{name}.json").write_text(json.dumps(summary, indent=1))
-    with open(out / f"{name}_profiles.csv", "w") as f:
+    write_text_atomic(out / f"{name}.json", json.dumps(summary, indent=1))
+    with open_atomic(out / f"{name}_profiles.csv", "w") as f:
         f.write("fourier,time_s,x_over_L,T_dem_C,T_exact_C,error_K\n")
         for r in rows:
             f.write(",".join(f"{v:.10g}" for v in r) + "\n")
