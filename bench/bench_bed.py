@@ -36,7 +36,6 @@ import math
 import subprocess
 import sys
 import time
-import tomllib
 from pathlib import Path
 
 import h5py
@@ -47,6 +46,7 @@ sys.path.insert(0, str(ROOT))
 
 from tdem.yade import yade_environment, yade_executable  # noqa: E402
 from thermal_kernel.atomic import open_atomic, write_text_atomic  # noqa: E402
+from thermal_kernel.scene import read_toml  # noqa: E402
 
 OUT = ROOT / "runs" / "out" / "bench_bed"
 RESULTS = ROOT / "bench" / "results"
@@ -314,8 +314,7 @@ def main():
     seeds = [int(s) for s in args.seeds.split(",")]
     variants = [parse_variant(v) for v in (args.variant or DEFAULT_VARIANTS)]
     scene_path = ROOT / args.scene
-    with open(scene_path, "rb") as f:
-        table = dict(tomllib.load(f)["pack"])
+    table = dict(read_toml(scene_path)[0]["pack"])
     table.pop("generator", None)
     pressures = [float(p) for p in table["pressures_pa"]]
     rows = []

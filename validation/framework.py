@@ -159,8 +159,8 @@ def _build_packing(name: str, folder: Path, path: Path) -> Path:
 
 
 def _pack_value(scene: Path, key: str):
-    import tomllib
-    return tomllib.loads(scene.read_text()).get("pack", {}).get(key)
+    from thermal_kernel.scene import read_toml
+    return read_toml(scene)[0].get("pack", {}).get(key)
 
 
 def pack_seconds(name: str) -> float | None:
