@@ -242,7 +242,7 @@ def slab_of(scene, packing, where) -> Slab:
 def profiles_of(run: ThermalRun, packing, net, slab: Slab, n_bins: int) -> Profiles:
     """Partial-volume profiles of the conducting spheres in ``n_bins`` bins between the held
     planes, at every output time."""
-    conducting = np.asarray(net.degree_w_k > 0) | np.asarray(net.held)
+    conducting = np.asarray(net.conducting)
     z = packing.position[:, slab.axis] - slab.z0_m
     edges = np.linspace(0.0, slab.length_m, n_bins + 1)
     values = binned_profile(z, packing.radius, run.temperature, edges, weights=conducting)

@@ -164,6 +164,16 @@ class Network:
         return lap
 
     @cached_property
+    def conducting(self) -> np.ndarray:
+        """(N,) bool: a conducting contact (H > 0), or held: the particles that profiles
+        average (post, validation). The others -- free, no conducting contact -- are the
+        rattlers that post counts; unlike ``clusters.rattlers`` this counts a particle tied only
+        by an exchange row too."""
+        conducting = (self.degree_w_k > 0) | self.held
+        conducting.flags.writeable = False
+        return conducting
+
+    @cached_property
     def constant_rhs_w(self) -> np.ndarray:
         """b_p = sum g Tw + P_p (constant part of the right-hand side)."""
         return self.exchange_gt_w + self.power_w

@@ -117,7 +117,7 @@ def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: floa
                   np.concatenate([first.stored_energy_j, rest.stored_energy_j]),
                   first.steps + rest.steps)
 
-    conducting = np.asarray(net.degree_w_k > 0) | np.asarray(net.held)
+    conducting = np.asarray(net.conducting)
     z = packing.position[:, 2] - z0
     edges = np.linspace(0.0, length, n_bins + 1)
     prof = binned_profile(z, packing.radius, res.temperature_k, edges, weights=conducting)

@@ -129,7 +129,7 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
     result = run_explicit(net, np.full(packing.n_particles, T1), times, threads=threads)
     run_s = time.perf_counter() - r0
 
-    conducting = np.asarray(net.degree_w_k > 0) | np.asarray(net.held)
+    conducting = np.asarray(net.conducting)
     x = packing.position[:, 0] - x0
     edges = np.linspace(0.0, length, n_bins + 1)
     prof = binned_profile(x, packing.radius, result.temperature_k, edges, weights=conducting)
