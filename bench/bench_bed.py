@@ -36,7 +36,6 @@ import math
 import subprocess
 import sys
 import time
-import tomllib
 from pathlib import Path
 
 import h5py
@@ -46,6 +45,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from tdem.yade import yade_environment, yade_executable  # noqa: E402
+from thermal_kernel.atomic import open_atomic, write_text_atomic  # noqa: E402
+from thermal_kernel.scene import read_toml  # noqa: E402
 
 OUT = ROOT / "runs" / "out" / "bench_bed"
 RESULTS = ROOT / "bench" / "results"
@@ -100,14 +101,14 @@ def run_one(scripts, params, out_dir, force):
         return
     for f in out_dir.glob("*.h5"):
         f.unlink()
-    path.write_text(json.dumps(params, indent=1, sort_keys=True))
+    write_text_atomic(path, json.dumps(params, indent=1, sort_keys=True))
     cmd = [yade_executable(), "-n", "-j1", "-x", str(scripts / "compressed_bed.py"), str(path)]
     start = time.perf_counter()
     with open(out_dir / "yade.log", "w") as log:
         rc = subprocess.run(cmd, cwd=out_dir, env=yade_environment(), stdout=log,
                             stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL).returncode
     wall = time.perf_counter() - start
-    (out_dir / "process_wall_seconds.txt").write_text(f"{wall:.2f}\n")
+    write_text_atomic(out_dir / "process_wall_seconds.txt", f"{wall:.2f}\n")
     print(f"  {out_dir.relative_to(ROOT)}: exit {rc}, {wall:.1f} s", flush=True)
     if rc != 0:
         raise SystemExit(f"YADE failed, see {out_dir / 'yade.log'}")
@@ -161,7 +162,7 @@ def write_results(rows, variants, seeds, pressures, scene, stem):
     RESULTS.mkdir(parents=True, exist_ok=True)
     keys = ["variant", "seed", "stage", "target_pa", "stage_s", "steps", "phi", "z", "z_nr",
             "rattlers", "pressure_pa", "unbalanced", "inertial", "young_used", "young", "wall_s"]
-    with open(RESULTS / f"{stem}.csv", "w", newline="") as f:
+    with open_atomic(RESULTS / f"{stem}.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
         w.writeheader()
         for r in rows:
@@ -293,7 +294,7 @@ def write_results(rows, variants, seeds, pressures, scene, stem):
         old = md.read_text()
         if MARKER in old:
             head_text = old.split(MARKER)[0]
-    md.write_text(head_text + "\n".join(out) + "\n")
+    write_text_atomic(md, head_text + "\n".join(out) + "\n")
     print(f"wrote {RESULTS / (stem + '.csv')} and {md}")
 
 
@@ -313,8 +314,7 @@ def main():
     seeds = [int(s) for s in args.seeds.split(",")]
     variants = [parse_variant(v) for v in (args.variant or DEFAULT_VARIANTS)]
     scene_path = ROOT / args.scene
-    with open(scene_path, "rb") as f:
-        table = dict(tomllib.load(f)["pack"])
+    table = dict(read_toml(scene_path)[0]["pack"])
     table.pop("generator", None)
     pressures = [float(p) for p in table["pressures_pa"]]
     rows = []

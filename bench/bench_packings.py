@@ -29,7 +29,6 @@ import os
 import subprocess
 import sys
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +36,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from tdem_post.files import savefig_atomic, write_text_atomic  # noqa: E402
+from thermal_kernel.atomic import savefig_atomic, write_text_atomic  # noqa: E402
 from tdem_post.packing_compare import as_row, packing_stats, rdf_distance  # noqa: E402
 from thermal_kernel.packing import read_packing  # noqa: E402
 
@@ -132,7 +131,7 @@ def build(case: dict, reuse: bool, cell_dirs: list[Path]) -> dict:
     folder.mkdir(parents=True, exist_ok=True)
     scene = folder / "scene.toml"
     cell = reusable_cell(case, cell_dirs)
-    scene.write_text(scene_text(case, cell))
+    write_text_atomic(scene, scene_text(case, cell))
     cmd = [str(ROOT / ".venv" / "bin" / "tdem"), "pack", str(scene), "--out", str(folder),
            "--quiet"]
     # /usr/bin/time reports the peak RSS and CPU of the tdem pack process tree (YADE
@@ -145,7 +144,7 @@ def build(case: dict, reuse: bool, cell_dirs: list[Path]) -> dict:
     output, _ = proc.communicate()
     wall = time.perf_counter() - start
     status = proc.returncode
-    (folder / "tdem_pack.log").write_text(output)
+    write_text_atomic(folder / "tdem_pack.log", output)
     if status != 0:
         raise SystemExit(f"bench_packings: {case['label']} failed: {output.strip().splitlines()[-1]}")
     max_kb, user_s, sys_s = (float(x) for x in timing.read_text().split()[-3:])
@@ -171,7 +170,8 @@ def pipe_gamma(packing_path: Path, shape: str) -> tuple[float, float]:
     from thermal_kernel.calibrate import flux_test
     from thermal_kernel.scene import load_scene
     scene_path = packing_path.parent / "pipe_scene.toml"
-    scene_path.write_text(
+    write_text_atomic(
+        scene_path,
         'packing = "packing.h5"\nlaw = "pipe"\n[material]\nconductivity = 33.0\ndensity = 7800.0\n'
         'heat_capacity = 460.0\nyoung_pa = 2.1e11\npoisson = 0.3\n[initial]\n'
         'temperature = 0.5\n[solver]\nmethod = "steady"\n')

@@ -23,6 +23,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from thermal_kernel.atomic import write_text_atomic  # noqa: E402
 from thermal_kernel.network import assemble  # noqa: E402
 from thermal_kernel.packing import read_packing  # noqa: E402
 from thermal_kernel.problem import build_problem  # noqa: E402
@@ -56,7 +57,7 @@ def main():
     ap.add_argument("--out", default=str(ROOT / "bench/results/solvers_speed_error.md"))
     args = ap.parse_args()
     scene_path = Path("/tmp/bench_solvers_scene.toml")
-    scene_path.write_text(SCENE.format(packing=Path(args.packing).resolve(), law=args.law))
+    write_text_atomic(scene_path, SCENE.format(packing=Path(args.packing).resolve(), law=args.law))
     scene = load_scene(scene_path)
     packing = read_packing(args.packing)
     problem, _ = build_problem(scene, packing)
@@ -102,7 +103,7 @@ def main():
     out.parent.mkdir(parents=True, exist_ok=True)
     lines += [f"Figure: `{out.with_suffix('.png').name}`, data: `{out.with_suffix('.csv').name}`.",
               ""]
-    out.write_text("\n".join(lines))
+    write_text_atomic(out, "\n".join(lines))
     write_speed_error(rows, out.with_suffix(".csv"), out.with_suffix(".png"),
                       title=f"{Path(args.packing).name}, law {args.law}: speed against error "
                             "(labels: steps)")

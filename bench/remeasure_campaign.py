@@ -23,6 +23,7 @@ from pathlib import Path
 def run(args):
     import tdem.campaign as campaign
     from tdem.pack import read_pack_table
+    from thermal_kernel.atomic import write_text_atomic
 
     src = Path(args.campaign)
     out = Path(args.out)
@@ -33,7 +34,7 @@ def run(args):
         if n != 1:
             sys.exit(f"{src}: no [solver] table")
     scene = out / "campaign.toml"
-    scene.write_text(text)
+    write_text_atomic(scene, text)
     _, params = read_pack_table(scene)
     pdir = Path(args.packings)
     packings = [pdir / f"packing_{p:.4g}Pa.h5" for p in params["pressures_pa"]]

@@ -26,14 +26,13 @@ import json
 import math
 import re
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
 from .errors import UserError
-from thermal_kernel.atomic import replacing
-from tdem_post.files import savefig_atomic, write_text_atomic
+from thermal_kernel.atomic import replacing, savefig_atomic, write_text_atomic
+from thermal_kernel.scene import read_toml
 
 PAPER_TAU = dict(a=1.945, b=0.1084, c=-1.332)       # 003 Fig. 10: tau = a p^b + c (p in bar)
 # flags of a run's thermal.h5 that make its numbers suspect (the others, e.g. rattlers or
@@ -44,13 +43,7 @@ SUSPECT_FLAGS = ("max_principle", "energy_ledger", "dt_above_bound", "non_finite
 
 def read_campaign(path: Path) -> tuple[dict, str]:
     path = Path(path)
-    try:
-        text = path.read_text()
-        data = tomllib.loads(text)
-    except FileNotFoundError:
-        raise UserError(f"{path}: file not found") from None
-    except tomllib.TOMLDecodeError as e:
-        raise UserError(f"{path}: not valid TOML ({e})") from None
+    data, text = read_toml(path, error=UserError, what="a campaign TOML file")
     camp = data.get("campaign")
     if not isinstance(camp, dict):
         raise UserError(f"{path}: campaign: missing [campaign] table (laws = [...])")
@@ -118,7 +111,8 @@ def case_scenes(campaign_path: Path, conf: dict, text: str, out_dir: Path) -> di
     ``output`` relative to the case folder (thermal.h5, or [output] path)."""
     from thermal_kernel.laws import LAWS
     from thermal_kernel.scene import load_scene
-    data = {k: v for k, v in tomllib.loads(text).items() if k not in ("pack", "campaign", "law")}
+    data = {k: v for k, v in read_toml(campaign_path, text, error=UserError)[0].items()
+            if k not in ("pack", "campaign", "law")}
     placeholder = (out_dir / "packings" / "packing.h5").resolve()
     scenes = {}
     for law in conf["laws"]:

@@ -220,7 +220,7 @@ def _floats(text, what):
 
 def _cmd_etc(args):
     import csv
-    from thermal_kernel.atomic import replacing
+    from thermal_kernel.atomic import open_atomic
     from tdem_post.etc_sweep import etc_sweep, plot_etc
     from .pack import default_out_dir
     contrasts = _floats(args.contrasts, "--contrasts")
@@ -244,11 +244,10 @@ def _cmd_etc(args):
                           diameter_over_length=args.diameter_over_length, seed=args.seed,
                           axis=args.axis, progress=show)
     out.mkdir(parents=True, exist_ok=True)
-    with replacing(out / "etc.csv") as tmp:
-        with open(tmp, "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
+    with open_atomic(out / "etc.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
     plot_etc(rows, out / "etc.png", title=f"{Path(args.scene).name}: {packing.n_particles} "
              f"particles, law {scene.law}, k_m = {k_m:.4g} W/m/K in the flux test")
     print(f"  k_m (single phase) = {k_m:.6g} W/m/K; wrote {out}/etc.csv and etc.png")

@@ -26,7 +26,6 @@ format positions carry 6 digits and it reaches ~1 % of an overlap.
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -171,6 +170,7 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
     """Read the dumps, build the packing, write it (validated) to ``out``; return (packing,
     stats line items)."""
     from thermal_kernel import contact_check
+    from thermal_kernel.atomic import replacing
     from thermal_kernel.packing import Packing, PackingError, read_packing, write_packing
 
     for key, value, low, high in (("--young", young, 0, math.inf),
@@ -433,9 +433,8 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
         periodic=periodic, attrs=attrs, contact_radius=np.sqrt(r_star * delta),
         wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)), yade_id=None)
     # written under a temporary name, validated by the reader, then renamed: a packing the
-    # reader refuses is never left at `out`
-    tmp = out.with_name(f".{out.name}.importing.h5")
-    try:
+    # reader refuses is never left at `out` (nor its temporary file)
+    with replacing(out, keep_suffix=True) as tmp:
         write_packing(tmp, packing)
         try:
             read_packing(tmp)
@@ -443,9 +442,4 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
             raise UserError(str(e).replace(str(tmp), str(out))
                             + " (the LIGGGHTS dumps describe an impossible packing; nothing "
                               "written)") from None
-        os.replace(tmp, out)
-    finally:
-        for stale in (tmp, Path(str(tmp) + ".tmp")):
-            if stale.exists():
-                stale.unlink()
     return packing

@@ -4,10 +4,10 @@ from __future__ import annotations
 import json
 import math
 import time
-import tomllib
 from pathlib import Path
 
 from thermal_kernel.packing import format_statistics, packing_statistics, read_packing
+from thermal_kernel.scene import read_toml
 
 from . import yade
 from .errors import UserError
@@ -16,13 +16,7 @@ from .errors import UserError
 def read_pack_table(scene_path: Path) -> tuple[str, dict]:
     """Return (generator, resolved params) of a scene's [pack] table; UserError names file+key."""
     scene_path = Path(scene_path)
-    try:
-        with open(scene_path, "rb") as f:
-            scene = tomllib.load(f)
-    except FileNotFoundError:
-        raise UserError(f"{scene_path}: file not found") from None
-    except tomllib.TOMLDecodeError as e:
-        raise UserError(f"{scene_path}: not valid TOML ({e})") from None
+    scene, _ = read_toml(scene_path, error=UserError)
     table = scene.get("pack")
     if not isinstance(table, dict):
         raise UserError(f"{scene_path}: pack: missing [pack] table (a scene to build a packing "

@@ -12,6 +12,8 @@ import time
 from collections import deque
 from pathlib import Path
 
+from thermal_kernel.atomic import write_text_atomic
+
 YADE_SCRIPTS = Path(os.environ.get("TDEM_YADE_SCRIPTS",
                                    Path(__file__).resolve().parent.parent / "yade_scripts"))
 SCRIPTS = {"dense": "dense_packing.py", "bed": "compressed_bed.py"}
@@ -82,9 +84,7 @@ def run_generator(generator: str, params: dict, out_dir: Path, *, threads: int =
     out_dir.mkdir(parents=True, exist_ok=True)
     params = dict(params, output_dir=str(out_dir.resolve()))
     params_path = out_dir / "params.json"
-    tmp = params_path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(params, indent=1, sort_keys=True))
-    os.replace(tmp, params_path)
+    write_text_atomic(params_path, json.dumps(params, indent=1, sort_keys=True))
     script = YADE_SCRIPTS / SCRIPTS[generator]
     cmd = [yade_executable(), "-n", f"-j{threads}", "-x", str(script), str(params_path)]
     log_path = out_dir / "yade.log"
@@ -158,13 +158,11 @@ def run_batch(generator: str, params_list: list[dict], out_dirs: list[Path], *, 
         if any(c.isspace() for c in str(path)):
             raise YadeError(f"{path}: yade-batch tables split on blanks: use an output folder "
                             "without spaces")
-        tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(dict(params, output_dir=str(out_dir.resolve())), indent=1,
-                                  sort_keys=True))
-        os.replace(tmp, path)
+        write_text_atomic(path, json.dumps(dict(params, output_dir=str(out_dir.resolve())),
+                                           indent=1, sort_keys=True))
         lines.append(f"{out_dir.name} '{path}'")      # values are Python literals
     table = batch_dir / "batch.table"
-    table.write_text("\n".join(lines) + "\n")
+    write_text_atomic(table, "\n".join(lines) + "\n")
     script = YADE_SCRIPTS / SCRIPTS[generator]
     cmd = [yade_batch_executable(), "--jobs", str(jobs), "--job-threads", "1",
            "--log", str(batch_dir.resolve() / "@" / "yade.log"), str(table), str(script)]

@@ -30,7 +30,7 @@ from thermal_kernel.packing import Packing
 from thermal_kernel.scene import Material, Scene, SceneError
 
 from .etc import bruggeman, hashin_shtrikman, maxwell
-from .files import savefig_atomic
+from thermal_kernel.atomic import savefig_atomic
 
 
 def single_inclusion_phase(packing: Packing, volume_fraction: float) -> np.ndarray:

@@ -8,7 +8,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import curve_fit, least_squares
-from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import spsolve
 from scipy.stats import t as student_t
 
@@ -74,8 +73,7 @@ def characteristic_time_network(net, steady_k, initial_k, weights):
     held = np.asarray(net.held)
     # only clusters tied to a reservoir (a held particle or an exchange row) relax; rattlers and
     # floating clusters keep their own temperature and are left out (their e stays 0)
-    _, labels = connected_components(net.adjacency, directed=False)
-    tied = np.isin(labels, np.unique(labels[held | (np.asarray(net.exchange_g_w_k) > 0)]))
+    tied = net.clusters.tied_particle
     u = np.flatnonzero(tied & ~held)
     lap = (net.laplacian + sp.diags(net.exchange_g_w_k)).tocsr()
     e0 = np.asarray(steady_k, float) - np.asarray(initial_k, float)

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from thermal_kernel.atomic import replacing
+from thermal_kernel.atomic import savefig_atomic
 from thermal_kernel.packing import Packing
 
 
@@ -65,8 +65,7 @@ def plot_packing(packing: Packing, out_path, title: str | None = None) -> Path:
     fig.tight_layout()
     out_path = Path(out_path)
     try:
-        with replacing(out_path, keep_suffix=True) as tmp:
-            fig.savefig(tmp, dpi=120, format="png")
+        savefig_atomic(fig, out_path, dpi=120, format="png")
     finally:
         plt.close(fig)
     return out_path

@@ -44,7 +44,7 @@ def plot(campaign_out, out_png, *, law="pipe", diag_out=None,
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from .files import savefig_atomic
+    from thermal_kernel.atomic import savefig_atomic
     table = _load(campaign_out, law)
     g = table.groupby(_key(table))
     p = g["pressure_pa"].mean().to_numpy() / 1e5

@@ -42,6 +42,7 @@ from thermal_kernel.calibrate import cross_section
 from thermal_kernel.network import assemble
 from thermal_kernel.effective import EffectiveConductivity, effective_conductivity
 from thermal_kernel.output import ThermalRun, read_run_packing, read_thermal
+from thermal_kernel.atomic import savefig_atomic, write_text_atomic
 from thermal_kernel.packing import packing_statistics
 from thermal_kernel.problem import FACES, boundary_particles, build_problem
 from thermal_kernel.scene import SceneError
@@ -53,7 +54,6 @@ from .flux import coefficient_of_variation, particle_flux
 from .fits import (GammaFit, characteristic_time_network, characteristic_time_series,
                    fit_gamma)
 from .profiles import binned_profile, partial_volumes
-from .files import savefig_atomic, write_text_atomic
 
 # the laws of the mean-field estimates: post, the CLI and the campaign report all use this list
 MEAN_FIELD_LAWS = ("bob", "argento", "pipe")
@@ -242,7 +242,7 @@ def slab_of(scene, packing, where) -> Slab:
 def profiles_of(run: ThermalRun, packing, net, slab: Slab, n_bins: int) -> Profiles:
     """Partial-volume profiles of the conducting spheres in ``n_bins`` bins between the held
     planes, at every output time."""
-    conducting = np.asarray(net.degree_w_k > 0) | np.asarray(net.held)
+    conducting = np.asarray(net.conducting)
     z = packing.position[:, slab.axis] - slab.z0_m
     edges = np.linspace(0.0, slab.length_m, n_bins + 1)
     values = binned_profile(z, packing.radius, run.temperature, edges, weights=conducting)

@@ -5,14 +5,15 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
-from .files import savefig_atomic
+
+from thermal_kernel.atomic import open_atomic, savefig_atomic
 
 
 def write_speed_error(rows, csv_path, png_path, title=""):
     """rows: (solver, step label, steps, wall seconds, max error K). Writes the CSV and the
     log-log figure (error on x, wall time on y)."""
     csv_path, png_path = Path(csv_path), Path(png_path)
-    with open(csv_path, "w", newline="") as f:
+    with open_atomic(csv_path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["solver", "step", "steps", "wall_seconds", "max_error_k"])
         w.writerows(rows)

@@ -30,7 +30,7 @@ def window_fit(case_dir, times=PAPER_TIMES, dt: float | None = None, threads: in
     fitted like the case. Returns the two fits side by side."""
     from thermal_kernel.output import read_run_packing, read_thermal
     from thermal_kernel.run import run_scene
-    from .files import write_text_atomic
+    from thermal_kernel.atomic import write_text_atomic
     from .post_run import post_run
 
     case_dir = Path(case_dir)

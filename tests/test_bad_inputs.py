@@ -551,6 +551,37 @@ def test_disk_full_injected_at_the_writer(tmp_path, monkeypatch, capsys):
     assert _listing(out) is None
 
 
+def test_every_atomic_writer_keeps_the_old_file_on_failure(tmp_path):
+    """thermal_kernel.atomic, the one home of write-to-temporary-and-rename (text, a stream,
+    figures): a failure half-way leaves the previous file and no temporary; success replaces
+    it; a figure's temporary name keeps the suffix that tells matplotlib the format."""
+    import csv
+
+    from thermal_kernel.atomic import open_atomic, savefig_atomic, write_text_atomic
+    path = tmp_path / "t.csv"
+    write_text_atomic(path, "old\n")
+    with pytest.raises(KeyboardInterrupt):
+        with open_atomic(path, "w", newline="") as f:
+            csv.writer(f).writerow(["half", "written"])
+            raise KeyboardInterrupt
+    assert path.read_text() == "old\n" and sorted(tmp_path.iterdir()) == [path]
+    with open_atomic(path, "w", newline="") as f:
+        csv.writer(f).writerow(["a", "b"])
+    assert path.read_bytes() == b"a,b\r\n"
+
+    class Figure:
+        def savefig(self, name, **kwargs):
+            assert str(name).endswith(".tmp.png") and kwargs == {"dpi": 110}
+            with open(name, "wb") as f:
+                f.write(b"png")
+            raise OSError(28, "No space left on device")
+
+    with pytest.raises(OSError) as e:
+        savefig_atomic(Figure(), tmp_path / "f.png", dpi=110)
+    assert e.value.filename == str(tmp_path / "f.png")
+    assert sorted(tmp_path.iterdir()) == [path]
+
+
 def test_info_into_a_closed_pipe_exits_quietly():
     """`tdem info ... | head`: the reader has gone before tdem writes: no BrokenPipe traceback."""
     r, w = os.pipe()

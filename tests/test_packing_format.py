@@ -42,6 +42,18 @@ def test_round_trip_is_exact(lattice_file, tmp_path):
     assert not list(tmp_path.glob("*.tmp")), "temporary file left behind"
 
 
+def test_a_failed_write_leaves_no_file_and_no_temporary(lattice_file, tmp_path):
+    """The writer goes through thermal_kernel.atomic.replacing: a write that fails half-way
+    leaves the previous file as it was and no packing.h5.tmp (it was left before)."""
+    packing, path = lattice_file
+    before = path.read_bytes()
+    packing.wall_name = [1] * len(packing.wall_name)   # h5py refuses it, the file half written
+    with pytest.raises(TypeError):
+        write_packing(path, packing)
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["packing.h5"]
+
+
 def test_writer_puts_pairs_in_canonical_order(tmp_path):
     packing = simple_cubic_packing((2, 2, 2))
     # reverse the rows and flip i/j of each: the writer must restore i<j (and negate branch)

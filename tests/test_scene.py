@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from thermal_kernel.scene import SceneError, load_scene
+from thermal_kernel.scene import SceneError, load_scene, read_toml
 
 LAWS = ("haddad", "pipe")
 
@@ -170,3 +170,27 @@ def test_source_time_intervals_match_the_sampled_region(shape):
     still = dataclasses.replace(b, velocity_m_s=(0.0, 0.0, 0.0))
     f, l_ = source_time_intervals(still, position, t0, t1)
     np.testing.assert_array_equal(f <= l_, MovingSource(still, position, np.ones(4000)).inside(1.0))
+
+
+def test_read_toml_is_the_one_reader(tmp_path):
+    """One TOML reader (tdem pack, campaigns, scenes): each failure is one line of the caller's
+    error type, naming the file."""
+    class Mine(Exception):
+        pass
+
+    good = tmp_path / "good.toml"
+    good.write_text('a = 1\n[pack]\nb = "x"\n')
+    assert read_toml(good) == ({"a": 1, "pack": {"b": "x"}}, 'a = 1\n[pack]\nb = "x"\n')
+    assert read_toml(tmp_path / "not_yet.toml", text="c = 2\n")[0] == {"c": 2}
+    (tmp_path / "bad.toml").write_text("a = = 1\n")
+    (tmp_path / "bin.toml").write_bytes(b"\xffa = 1")
+    (tmp_path / "dir.toml").mkdir()
+    cases = {"missing.toml": "file not found", "bad.toml": "not valid TOML (",
+             "bin.toml": "not UTF-8 text (byte 0xff at offset 0); expected a campaign TOML file",
+             "dir.toml": "is a folder; expected a campaign TOML file"}
+    for name, words in cases.items():
+        with pytest.raises(Mine) as e:
+            read_toml(tmp_path / name, error=Mine, what="a campaign TOML file")
+        assert str(e.value).startswith(f"{tmp_path / name}: {words}") and "\n" not in str(e.value)
+    with pytest.raises(SceneError, match="line 1"):
+        read_toml(tmp_path / "bad.toml")

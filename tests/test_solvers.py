@@ -10,7 +10,7 @@ import pytest
 import scipy.linalg
 
 from thermal_kernel.lattice import simple_cubic_packing
-from thermal_kernel.network import NetworkError, assemble, make_problem
+from thermal_kernel.network import NetworkError, assemble, make_problem, tied_clusters
 from thermal_kernel.solvers import (UnstableTimeStepError, run_explicit, run_implicit,
                                     solve_steady)
 from thermal_kernel.solvers.explicit import explicit_step, explicit_step_reference
@@ -335,6 +335,24 @@ def floating_problem():
                                          prob.fixed_boundary),
                       boundary_names=prob.boundary_names)
     return p2, n0
+
+
+def test_tied_clusters_by_hand():
+    """Components 0-1-2 (a reservoir at 0), 3-4 and 5 alone, 6 alone but a reservoir: the one
+    function behind net.clusters (assembly, the steady solver, tau in tdem_post.fits)."""
+    import scipy.sparse as sp
+    i, j = np.array([0, 1, 3]), np.array([1, 2, 4])
+    adj = sp.coo_matrix((np.ones(3), (i, j)), shape=(7, 7)).tocsr()
+    adj = (adj + adj.T).tocsr()
+    reservoir = np.zeros(7, bool)
+    reservoir[[0, 6]] = True
+    c = tied_clusters(adj, reservoir)
+    assert c.n_components == 4
+    np.testing.assert_array_equal(c.tied_particle, [1, 1, 1, 0, 0, 0, 1])
+    assert c.n_floating == 1 and list(c.floating_sizes) == [2]
+    assert list(c.label[[3, 4]]) == [c.floating_clusters[0]] * 2
+    assert list(c.rattlers) == [5]
+    assert not c.tied.flags.writeable
 
 
 def test_floating_cluster_and_rattler_steady_and_transient():

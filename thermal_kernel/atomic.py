@@ -6,6 +6,14 @@ folder, Ctrl-C -- the temporary file is removed and the error propagates (the co
 an ``OSError`` into one line, exit status 2). HDF5 files are built in memory and written with
 plain file I/O: HDF5's own writer, on a full disk, prints a cascade of tracebacks and can crash
 the interpreter (segfault seen on a 40 KB tmpfs), while ``write`` just raises ``ENOSPC``.
+
+This is the one home of writing a file all or nothing (issue 17): text
+(:func:`write_text_atomic`), bytes (:func:`write_bytes_atomic`), a stream (:func:`open_atomic`,
+e.g. for ``csv``), an HDF5 file built in memory (:func:`write_h5_atomic`), a figure
+(:func:`savefig_atomic`), or any writer that takes a file name (:func:`replacing`). Only the
+YADE side (``yade_scripts/``) keeps its own, since it cannot import this package. At module
+level this file imports only the standard library: ``packing_h5.py`` loads it by file path
+inside YADE, on Debian's Python.
 """
 from __future__ import annotations
 
@@ -44,6 +52,33 @@ def write_bytes_atomic(path, data) -> Path:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
+    return path
+
+
+def write_text_atomic(path, text: str) -> Path:
+    """``text`` to ``path`` (``Path.write_text``: the locale's encoding, newlines as given)."""
+    path = Path(path)
+    with replacing(path) as tmp:
+        tmp.write_text(text)
+    return path
+
+
+@contextlib.contextmanager
+def open_atomic(path, mode: str = "w", **kwargs):
+    """``open(<temporary name>, mode, **kwargs)`` for the block (e.g. ``newline=""`` for
+    ``csv``); the file is closed, then renamed to ``path`` when the block succeeds, removed
+    when anything is raised."""
+    with replacing(path) as tmp:
+        with open(tmp, mode, **kwargs) as f:
+            yield f
+
+
+def savefig_atomic(fig, path, **kwargs) -> Path:
+    """``fig.savefig(path, **kwargs)`` all or nothing (a matplotlib figure; nothing imported
+    here). The temporary name keeps ``path``'s suffix, which tells matplotlib the format."""
+    path = Path(path)
+    with replacing(path, keep_suffix=True) as tmp:
+        fig.savefig(tmp, **kwargs)
     return path
 
 

@@ -87,12 +87,21 @@ def make_problem(capacity_j_k, pair, conductance_w_k, *, fixed=(), exchange=(), 
 @dataclass(frozen=True)
 class ClusterReport:
     """Connected components of the H > 0 graph that no Dirichlet particle and no exchange row
-    with g > 0 ties to a reservoir. Rattlers are such components of one particle."""
+    with g > 0 ties to a reservoir. Rattlers are such components of one particle. Made by
+    :func:`tied_clusters`, the one home of this logic (assembly, the steady solver and tau in
+    ``tdem_post.fits`` all read it)."""
     n_components: int
     label: np.ndarray               # (N,) int: component of each particle
     floating_clusters: np.ndarray   # component ids of untied components with >= 2 particles
     floating_sizes: np.ndarray      # their sizes
     rattlers: np.ndarray            # particles alone in an untied component
+    tied: np.ndarray                # (n_components,) bool: the component holds a reservoir
+
+    @property
+    def tied_particle(self) -> np.ndarray:
+        """(N,) bool: the particle's component is tied to a reservoir (held particles
+        included); the others (floating clusters, rattlers) keep their own temperature."""
+        return self.tied[self.label]
 
     @property
     def n_floating(self) -> int:
@@ -153,6 +162,16 @@ class Network:
         lap = sp.diags(self.degree_w_k, format="csr") - self.adjacency
         lap.sort_indices()
         return lap
+
+    @cached_property
+    def conducting(self) -> np.ndarray:
+        """(N,) bool: a conducting contact (H > 0), or held: the particles that profiles
+        average (post, validation). The others -- free, no conducting contact -- are the
+        rattlers that post counts; unlike ``clusters.rattlers`` this counts a particle tied only
+        by an exchange row too."""
+        conducting = (self.degree_w_k > 0) | self.held
+        conducting.flags.writeable = False
+        return conducting
 
     @cached_property
     def constant_rhs_w(self) -> np.ndarray:
@@ -320,6 +339,25 @@ def paper_critical_dt(d_min_m: float, diffusivity_m2_s: float, n_p: float, c_t: 
     return 2.0 * d_min_m ** 2 / (3.0 * diffusivity_m2_s * n_p * c_t)
 
 
+def tied_clusters(adjacency, reservoir) -> ClusterReport:
+    """The connected components of the graph ``adjacency`` (N x N, its nonzeros the conducting
+    contacts) and which of them are tied to a reservoir: a component is tied when it holds a
+    particle with ``reservoir`` True (a Dirichlet particle, or an exchange row with g > 0).
+    Untied components of >= 2 particles are floating clusters, of one particle rattlers."""
+    n_comp, label = connected_components(adjacency, directed=False)
+    tied = np.zeros(n_comp, dtype=bool)
+    tied[label[np.asarray(reservoir, dtype=bool)]] = True
+    sizes = np.bincount(label, minlength=n_comp)
+    untied = np.flatnonzero(~tied)
+    floating = untied[sizes[untied] >= 2]
+    rattler_comp = untied[sizes[untied] == 1]
+    rattlers = np.flatnonzero(np.isin(label, rattler_comp)) if rattler_comp.size else \
+        np.zeros(0, np.int64)
+    tied.flags.writeable = False
+    return ClusterReport(n_components=int(n_comp), label=label, floating_clusters=floating,
+                         floating_sizes=sizes[floating], rattlers=rattlers, tied=tied)
+
+
 def assemble(problem: ThermalProblem) -> Network:
     """Validate ``problem`` and build, once, everything the solvers need.
 
@@ -367,19 +405,7 @@ def assemble(problem: ThermalProblem) -> Network:
     gt_p = np.bincount(ep, weights=eg * v["exchange_t"], minlength=n).astype(np.float64)
     pw_p = np.bincount(v["power_particle"], weights=v["power"], minlength=n).astype(np.float64)
 
-    n_comp, label = connected_components(adjacency, directed=False)
-    tied = np.zeros(n_comp, dtype=bool)
-    tied[label[held]] = True
-    tied[label[g_p > 0]] = True
-    sizes = np.bincount(label, minlength=n_comp)
-    untied = np.flatnonzero(~tied)
-    floating = untied[sizes[untied] >= 2]
-    rattler_comp = untied[sizes[untied] == 1]
-    rattlers = np.flatnonzero(np.isin(label, rattler_comp)) if rattler_comp.size else \
-        np.zeros(0, np.int64)
-    clusters = ClusterReport(n_components=int(n_comp), label=label,
-                             floating_clusters=floating, floating_sizes=sizes[floating],
-                             rattlers=rattlers)
+    clusters = tied_clusters(adjacency, held | (g_p > 0))
 
     c = v["capacity"]
     denom = degree + g_p
@@ -406,7 +432,7 @@ def assemble(problem: ThermalProblem) -> Network:
     if clusters.n_rattlers:
         flags.append("rattlers")
     for a in (adjacency.data, adjacency.indices, adjacency.indptr, degree, held, held_t, g_p,
-              gt_p, pw_p, label):   # our own arrays only, never the caller's
+              gt_p, pw_p, clusters.label):   # our own arrays only, never the caller's
         a.flags.writeable = False
     return Network(problem=problem, adjacency=adjacency, degree_w_k=degree,
                    n_active_contacts=n_active, n_zero_contacts=m - n_active, held=held,

@@ -1,18 +1,31 @@
 """The one writer of the tdem packing format (``packing.h5``), shared by YADE and tdem.
 
-This file must import nothing but the standard library, numpy and h5py: the YADE generators load
-it by file path (``yade_scripts/tdem_dump.py``) and run it on Debian's own Python inside
-``yade -n -x``, where tdem's dependencies (numba, ...) are absent. ``thermal_kernel.packing``
-wraps it for the project side and holds the reader, which validates every file.
+This file must import nothing but the standard library, numpy, h5py and its sibling
+``atomic.py`` (standard library only): the YADE generators load it by file path
+(``yade_scripts/tdem_dump.py``) and run it on Debian's own Python inside ``yade -n -x``, where
+tdem's dependencies (numba, ...) are absent. ``thermal_kernel.packing`` wraps it for the project
+side and holds the reader, which validates every file.
 The format is specified in ``docs/packing-format.md``.
 
-The file is written to ``<path>.tmp`` and renamed, so a killed run never leaves a half-written
-``packing.h5``.
+The file is written to ``<path>.tmp`` and renamed (:func:`thermal_kernel.atomic.replacing`), so a
+killed run never leaves a half-written ``packing.h5``, and a failed write removes its temporary
+file. HDF5 writes the file itself (not built in memory): the bytes stay those of h5py's own file
+driver.
 """
 import os
 
 import h5py
 import numpy as np
+
+if __package__:
+    from .atomic import replacing
+else:       # loaded by file path inside YADE (yade_scripts/tdem_dump.py): the sibling file, alike
+    import importlib.util as _util
+    _spec = _util.spec_from_file_location(
+        "tdem_atomic", os.path.join(os.path.dirname(os.path.abspath(__file__)), "atomic.py"))
+    _atomic = _util.module_from_spec(_spec)
+    _spec.loader.exec_module(_atomic)
+    replacing = _atomic.replacing
 
 FORMAT = "tdem-packing"
 FORMAT_VERSION = 1
@@ -49,8 +62,7 @@ def write_packing(path, position, radius, phase, pair, overlap, normal_force, br
     if contact_radius is not None:
         contact_radius = np.asarray(contact_radius, dtype=np.float64)[order]
 
-    tmp = str(path) + ".tmp"
-    with h5py.File(tmp, "w") as f:
+    with replacing(path) as tmp, h5py.File(tmp, "w") as f:
         f.attrs["format"] = FORMAT
         f.attrs["format_version"] = FORMAT_VERSION
         for key, value in attrs.items():
@@ -95,4 +107,3 @@ def write_packing(path, position, radius, phase, pair, overlap, normal_force, br
         d.attrs["lo"] = np.asarray(domain_lo, dtype=np.float64).reshape(3)
         d.attrs["hi"] = np.asarray(domain_hi, dtype=np.float64).reshape(3)
         d.attrs["periodic"] = np.asarray(periodic, dtype=bool).reshape(3)
-    os.replace(tmp, str(path))

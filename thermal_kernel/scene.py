@@ -154,26 +154,37 @@ class _Table:
 
 # ----------------------------------------------------------------------------- parsing
 
+def read_toml(path, text=None, error=SceneError, what="a scene TOML file") -> tuple[dict, str]:
+    """Read and parse one TOML file: ``(table, text)``. The one TOML reader of the project
+    (scenes, ``tdem pack``'s [pack], campaigns, validation, benchmarks). ``text``: the file's
+    text, when it is not (yet) in ``path``. Every way this fails -- no such file, a folder, not
+    UTF-8, not valid TOML (line and column) -- is one ``error`` (the caller's one-line error
+    type) naming ``path`` and, where it helps, ``what`` was expected. Other OSErrors propagate
+    (the command line turns them into one line)."""
+    path = Path(path)
+    try:
+        if text is None:
+            text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise error(f"{path}: file not found") from None
+    except IsADirectoryError:
+        raise error(f"{path}: is a folder; expected {what}") from None
+    except UnicodeDecodeError as e:
+        raise error(f"{path}: not UTF-8 text (byte 0x{e.object[e.start]:02x} at offset "
+                    f"{e.start}); expected {what}") from None
+    try:
+        return tomllib.loads(text), text
+    except tomllib.TOMLDecodeError as e:
+        raise error(f"{path}: not valid TOML ({e})") from None
+
+
 def load_scene(path, known_laws=None, out_dir=None, text=None) -> Scene:
     """Parse and check a scene file. ``known_laws``: names accepted for ``law`` (default: the
     registry). ``out_dir``: folder for a relative ``[output] path`` (default
     ``<scene folder>/out/<scene name>/``). ``text``: the scene's text, when it is not (yet) in
     ``path`` (a campaign checks its cases before they exist; errors name ``path``)."""
     path = Path(path)
-    try:
-        if text is None:
-            text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SceneError(f"{path}: file not found") from None
-    except IsADirectoryError:
-        raise SceneError(f"{path}: is a folder; expected a scene TOML file") from None
-    except UnicodeDecodeError as e:
-        raise SceneError(f"{path}: not UTF-8 text (byte 0x{e.object[e.start]:02x} at offset "
-                         f"{e.start}); expected a scene TOML file") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise SceneError(f"{path}: not valid TOML ({e})") from None
+    data, text = read_toml(path, text)
     if known_laws is None:
         from .laws import LAWS
         known_laws = tuple(LAWS)

@@ -174,7 +174,7 @@ def _plots(ctx, runs, reals):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from tdem_post.files import savefig_atomic
+    from thermal_kernel.atomic import savefig_atomic
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
     f_line = np.linspace(0, 0.55, 200)
     low, high = hashin_shtrikman(1.0, CONTRAST, f_line)

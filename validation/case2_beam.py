@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tdem_post.files import savefig_atomic
+from thermal_kernel.atomic import open_atomic, savefig_atomic
 from tdem_post.analytic import rod_mean_temperature, rod_temperature
 from tdem_post.profiles import binned_profile
 from thermal_kernel.calibrate import flux_test
@@ -117,7 +117,7 @@ def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: floa
                   np.concatenate([first.stored_energy_j, rest.stored_energy_j]),
                   first.steps + rest.steps)
 
-    conducting = np.asarray(net.degree_w_k > 0) | np.asarray(net.held)
+    conducting = np.asarray(net.conducting)
     z = packing.position[:, 2] - z0
     edges = np.linspace(0.0, length, n_bins + 1)
     prof = binned_profile(z, packing.radius, res.temperature_k, edges, weights=conducting)
@@ -178,7 +178,7 @@ def _plot(ctx, stem, draw, csv_header, csv_rows):
     fig.tight_layout()
     savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
-    with open(path.with_suffix(".csv"), "w") as f:
+    with open_atomic(path.with_suffix(".csv"), "w") as f:
         f.write(csv_header + "\n")
         for r in csv_rows:
             f.write(",".join(f"{v:.8g}" if isinstance(v, float) else str(v) for v in r) + "\n")

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tdem_post.files import savefig_atomic
+from thermal_kernel.atomic import open_atomic, savefig_atomic, write_text_atomic
 
 from .framework import (IMG, ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today, write_csv)
@@ -129,7 +129,7 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
     result = run_explicit(net, np.full(packing.n_particles, T1), times, threads=threads)
     run_s = time.perf_counter() - r0
 
-    conducting = np.asarray(net.degree_w_k > 0) | np.asarray(net.held)
+    conducting = np.asarray(net.conducting)
     x = packing.position[:, 0] - x0
     edges = np.linspace(0.0, length, n_bins + 1)
     prof = binned_profile(x, packing.radius, result.temperature_k, edges, weights=conducting)
@@ -315,7 +315,7 @@ def run(ctx: Context) -> CaseResult:
         summary, profile = slab_case(path, threads=ctx.threads)
         row = _row(key, summary, profile)
         rows.append(row)
-        (ctx.out / f"{key}.json").write_text(json.dumps(summary, indent=1))
+        write_text_atomic(ctx.out / f"{key}.json", json.dumps(summary, indent=1))
         ctx.progress(f"{key}: N {row['n_particles']}, max err {100 * row['max_err_over_T_celsius']:.3f} "
                      f"% of T(C), {100 * row['max_err_over_dT']:.3f} % of dT, {row['steps']} "
                      f"steps, {row['run_seconds']:.1f} s")
@@ -543,8 +543,8 @@ def main(argv=None):
     out.mkdir(parents=True, exist_ok=True)
     name = a.name or Path(a.packing).parent.name
     summary, rows = slab_case(a.packing, a.bins, a.threads)
-    (out / f"{name}.json").write_text(json.dumps(summary, indent=1))
-    with open(out / f"{name}_profiles.csv", "w") as f:
+    write_text_atomic(out / f"{name}.json", json.dumps(summary, indent=1))
+    with open_atomic(out / f"{name}_profiles.csv", "w") as f:
         f.write("fourier,time_s,x_over_L,T_dem_C,T_exact_C,error_K\n")
         for r in rows:
             f.write(",".join(f"{v:.10g}" for v in r) + "\n")

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tdem_post.files import savefig_atomic
+from thermal_kernel.atomic import open_atomic, replacing, savefig_atomic, write_text_atomic
 from tdem_post.analytic import sphere_centre_temperature, sphere_temperature
 from thermal_kernel.calibrate import cross_section, flux_test
 from thermal_kernel.network import assemble
@@ -262,9 +262,10 @@ def _cached(path: Path, make):
     rec["version"] = VERSION
     if "_field" in rec:
         r, dem, exact = rec["_field"]
-        np.savez_compressed(npz, r=r, dem=dem, exact=exact)
-    path.write_text(json.dumps({k: v for k, v in rec.items() if not k.startswith("_")},
-                               indent=1, default=float))
+        with replacing(npz, keep_suffix=True) as tmp:     # (numpy adds .npz to other names)
+            np.savez_compressed(tmp, r=r, dem=dem, exact=exact)
+    write_text_atomic(path, json.dumps({k: v for k, v in rec.items() if not k.startswith("_")},
+                                       indent=1, default=float))
     return rec
 
 
@@ -346,7 +347,7 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
     tt = np.linspace(0.05, PAPER_T_END, 200)
     ax[0].plot(tt, [sphere_centre_temperature(t, PAPER_R, ALPHA, TS_C, T0_C) for t in tt],
                "k-", lw=1, label="eq. 19 (corrected)")
-    with open(png.with_suffix(".csv"), "w", newline="") as f:
+    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["n_particles", "ct_label", "ct", "paper_time_s", "T_centre_dem_C",
                     "T_centre_exact_C", "error_C"])
@@ -384,7 +385,7 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
     rs = np.linspace(0, 1, 200)
     ax.plot(rs, sphere_temperature(rs * PAPER_R, PAPER_T_END, PAPER_R, ALPHA, TS_C, T0_C), "k-",
             lw=1, label="eq. 18 (corrected)")
-    with open(png.with_suffix(".csv"), "w", newline="") as f:
+    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["n_particles", "ct_label", "r_over_R_shell_mid", "T_dem_C", "T_exact_C",
                     "particles"])
@@ -431,7 +432,7 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
     fig.tight_layout()
     savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
-    with open(png.with_suffix(".csv"), "w", newline="") as f:
+    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["n_particles", "ct_label", "ct", "r_held_m", "r_carve_m", "centre_error_C",
                     "centre_error_carve_radius_C", "max_abs_error_C", "rms_error_C",
@@ -463,7 +464,7 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
     fig.tight_layout()
     savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
-    with open(png.with_suffix(".csv"), "w", newline="") as f:
+    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["solver", "n_particles", "steps", "run_seconds", "centre_error_C",
                     "max_abs_error_C", "rms_error_C"])

@@ -21,7 +21,7 @@ from collections import defaultdict
 
 import numpy as np
 
-from tdem_post.files import savefig_atomic
+from thermal_kernel.atomic import savefig_atomic
 
 from .framework import (IMG, ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today, write_csv)

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from tdem_post.files import savefig_atomic
+from thermal_kernel.atomic import open_atomic, savefig_atomic, write_text_atomic
 from tdem_post.flux import contact_moments, halo_flux
 from thermal_kernel.calibrate import cross_section
 from thermal_kernel.network import assemble
@@ -128,7 +128,7 @@ def _cached(path: Path, make):
             return rec
     rec = make()
     rec["version"] = VERSION
-    path.write_text(json.dumps(rec, indent=1, default=float))
+    write_text_atomic(path, json.dumps(rec, indent=1, default=float))
     return rec
 
 
@@ -183,7 +183,7 @@ def _report(ctx, recs) -> CaseResult:
     fig.tight_layout()
     savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
-    with open(png.with_suffix(".csv"), "w", newline="") as f:
+    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["n_particles", "ratio", "n_inside", "n_eval", "cov_abs_pct", "cov_x_pct",
                     "mean_abs_over_QA", "mean_x_over_QA", "min_abs_over_QA", "max_abs_over_QA",
@@ -214,7 +214,7 @@ def _report(ctx, recs) -> CaseResult:
     fig.tight_layout()
     savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
-    with open(png.with_suffix(".csv"), "w", newline="") as f:
+    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["n_particles", "ratio", "mean_abs_over_QA", "mean_x_over_QA",
                     "min_abs_over_QA", "max_abs_over_QA"])
@@ -225,7 +225,7 @@ def _report(ctx, recs) -> CaseResult:
     # --- figure 3: speed against error: seconds per evaluated particle vs CoV
     png = ctx.figure("speed_error")
     fig, ax = plt.subplots(figsize=(6, 4.5))
-    with open(png.with_suffix(".csv"), "w", newline="") as f:
+    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["n_particles", "ratio", "cov_abs_pct", "microseconds_per_particle"])
         for rec in recs:

@@ -100,7 +100,7 @@ def _plots(ctx, runs):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from tdem_post.files import savefig_atomic
+    from thermal_kernel.atomic import savefig_atomic
     styles = {"faces": ("o", "C3", "faces held (paper's setup), vs Maxwell"),
               "periodic_harmonic": ("s", "C0", "periodic, harmonic interface (002 eq. 24), "
                                                "vs Rayleigh"),

@@ -220,7 +220,7 @@ def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from tdem_post.files import savefig_atomic
+    from thermal_kernel.atomic import savefig_atomic
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
     names = list(POINTS)
     x = np.arange(3)

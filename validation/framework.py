@@ -26,7 +26,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from tdem_post.files import write_text_atomic
+from thermal_kernel.atomic import write_text_atomic
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "validation" / "out"            # large outputs (gitignored)
@@ -143,24 +143,24 @@ def _build_packing(name: str, folder: Path, path: Path) -> Path:
             and overrides.get("cell_particles", 10_000) == 10_000:
         overrides.setdefault("cell_packing", str(CELL_1E5))
     scene = folder / "scene.toml"
-    scene.write_text(_scene_with(ROOT / scene_rel, overrides))
+    write_text_atomic(scene, _scene_with(ROOT / scene_rel, overrides))
     print(f"  packing {name}: tdem pack {scene.relative_to(ROOT)} ...", flush=True)
     t0 = time.perf_counter()
     tdem = Path(sys.executable).with_name("tdem")
     proc = subprocess.run([str(tdem), "pack", str(scene), "--out", str(folder), "--quiet"],
                           capture_output=True, text=True)
-    (folder / "tdem_pack.log").write_text(proc.stdout + proc.stderr)
+    write_text_atomic(folder / "tdem_pack.log", proc.stdout + proc.stderr)
     if proc.returncode != 0:
         last = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["?"]
         raise SystemExit(f"validation: packing {name} failed: {last[0]}")
-    (folder / "pack_seconds.json").write_text(json.dumps(
+    write_text_atomic(folder / "pack_seconds.json", json.dumps(
         {"wall_seconds": time.perf_counter() - t0}))
     return path
 
 
 def _pack_value(scene: Path, key: str):
-    import tomllib
-    return tomllib.loads(scene.read_text()).get("pack", {}).get(key)
+    from thermal_kernel.scene import read_toml
+    return read_toml(scene)[0].get("pack", {}).get(key)
 
 
 def pack_seconds(name: str) -> float | None:

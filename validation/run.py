@@ -35,6 +35,7 @@ import traceback
 from pathlib import Path
 
 from tdem.errors import UserError
+from thermal_kernel.atomic import write_text_atomic
 
 from . import framework
 from .framework import CaseInfo, Context, save_result
@@ -155,7 +156,7 @@ def run_cases(numbers: list[int], cases: dict, force: bool = False, quick: bool 
         except BaseException as e:              # SystemExit from a packing build included
             failed += 1
             log = ctx.out / "error.log"
-            log.write_text("".join(traceback.format_exception(e)))
+            write_text_atomic(log, "".join(traceback.format_exception(e)))
             print(f"{head}: FAILED: {type(e).__name__}: {_one_line(e)} (traceback: "
                   f"{log.relative_to(framework.ROOT) if log.is_relative_to(framework.ROOT) else log})",
                   flush=True)
@@ -345,9 +346,7 @@ def assemble(cases: dict | None = None) -> None:
             old = path.read_text()
             new = build(old, cases, records)
             if new != old:
-                tmp = path.with_suffix(path.suffix + ".tmp")
-                tmp.write_text(new)
-                tmp.replace(path)
+                write_text_atomic(path, new)
 
 
 if __name__ == "__main__":

@@ -70,11 +70,8 @@ def _solve_steady(problem, T0, *, method, tol, source_interval, maxiter) -> Ther
             b += sw
 
     label = net.clusters.label
-    untied = np.concatenate([net.clusters.floating_clusters,
-                             np.unique(label[net.clusters.rattlers])]).astype(np.int64)
-    is_untied_comp = np.zeros(net.clusters.n_components, dtype=bool)
-    is_untied_comp[untied] = True
-    in_untied = is_untied_comp[label]
+    untied = np.flatnonzero(~net.clusters.tied)         # floating clusters and rattlers
+    in_untied = ~net.clusters.tied_particle
     u = np.flatnonzero(~net.held & ~in_untied)
 
     T = np.where(net.held, held_t, 0.0)
