@@ -7,13 +7,18 @@ BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 APT_PACKAGES := yade python3-h5py python3-scipy python3-venv liggghts openmpi-bin
 
-.PHONY: demo test deps apt validate bench bench-packings clean
+.PHONY: demo test test-fast deps apt validate bench bench-packings clean
 
 demo: deps
 	$(BIN)/tdem demo
 
 test: deps
 	$(BIN)/python -m pytest -q
+
+# The day-to-day subset (~30 s): no YADE, no LIGGGHTS, none of the tests marked slow in
+# tests/conftest.py. `make test` runs them all.
+test-fast: deps
+	$(BIN)/python -m pytest -q -m "not yade and not liggghts and not slow"
 
 deps: apt $(VENV)/.installed
 
