@@ -7,13 +7,27 @@ BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 APT_PACKAGES := yade python3-h5py python3-scipy python3-venv liggghts openmpi-bin
 
-.PHONY: demo test deps apt validate bench bench-packings clean
+.PHONY: demo test test-fast coverage deps apt validate bench bench-packings clean
 
 demo: deps
 	$(BIN)/tdem demo
 
 test: deps
 	$(BIN)/python -m pytest -q
+
+# The day-to-day subset (~30 s): no YADE, no LIGGGHTS, none of the tests marked slow in
+# tests/conftest.py. `make test` runs them all.
+test-fast: deps
+	$(BIN)/python -m pytest -q -m "not yade and not liggghts and not slow"
+
+# Coverage of thermal_kernel, the jitted kernels included (they run as Python): docs/solvers.md.
+KERNEL_TESTS := tests/test_laws.py tests/test_solvers.py tests/test_max_principle.py \
+	tests/test_analytic.py tests/test_hard_cases.py tests/test_run_scenes.py tests/test_scene.py \
+	tests/test_packing_format.py tests/test_calibrate.py tests/test_checkpoint.py \
+	tests/test_threading_layer.py
+coverage: deps
+	NUMBA_DISABLE_JIT=1 $(BIN)/python -m pytest -q -m "not yade and not liggghts" \
+	    --cov=thermal_kernel --cov-report=term $(KERNEL_TESTS)
 
 deps: apt $(VENV)/.installed
 
@@ -57,4 +71,4 @@ validate: deps
 	$(BIN)/tdem validate
 
 clean:
-	rm -rf $(VENV) runs/out .pytest_cache
+	rm -rf $(VENV) runs/out .pytest_cache .coverage

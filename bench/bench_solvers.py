@@ -111,4 +111,6 @@ def main():
 
 
 if __name__ == "__main__":
+    from thermal_kernel.threading_layer import prefer_openmp
+    prefer_openmp()             # an entry point: OpenMP first, NUMBA_THREADING_LAYER* wins
     main()

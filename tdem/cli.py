@@ -7,6 +7,8 @@ import os
 import sys
 from pathlib import Path
 
+from thermal_kernel.threading_layer import prefer_openmp
+
 from .errors import UserError
 
 RUNS = Path(__file__).resolve().parent.parent / "runs"
@@ -501,6 +503,8 @@ def main(argv=None) -> int:
     from thermal_kernel.scene import SceneError
     from .yade import YadeError
     args = build_parser().parse_args(argv)
+    # before any parallel kernel is compiled; a NUMBA_THREADING_LAYER* setting of the user wins
+    prefer_openmp()
     try:
         code = args.func(args)      # None, or an exit code (validate: 1 if a case failed)
         sys.stdout.flush()          # a closed pipe shows here, not at exit

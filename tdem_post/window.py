@@ -89,4 +89,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
+    from thermal_kernel.threading_layer import prefer_openmp
+    prefer_openmp()             # an entry point: OpenMP first, NUMBA_THREADING_LAYER* wins
     raise SystemExit(main())

@@ -44,6 +44,7 @@ def test_case2_quick_beam_within_its_documented_error():
     assert "![case 2 profiles]" in r.section_md
 
 
+@pytest.mark.yade      # `tdem pack` (YADE) tiles its packing into validation/out when missing
 def test_case3_quick_sheet_within_its_documented_error():
     r = case3_sheet.run(Context(3, quick=True))
     n = r.numbers
@@ -64,6 +65,7 @@ def test_case3_quick_sheet_within_its_documented_error():
         rel=1e-6)
 
 
+@pytest.mark.yade      # `tdem pack` (YADE) tiles its packing into validation/out when missing
 def test_dem_moving_source_heats_as_much_as_the_continuum():
     """thermal_kernel's moving source (kind = "source") against tdem_post.continuum: the heat
     the disc puts into the sheet over the run, and where it is at the end (the energy-weighted

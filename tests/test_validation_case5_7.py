@@ -87,6 +87,7 @@ def test_the_printed_eq_18_19_fail_the_limits_the_corrected_ones_meet():
         pytest.approx(t_0, abs=1e-6)
 
 
+@pytest.mark.yade      # `tdem pack` (YADE) tiles its packing into validation/out when missing
 def test_case5_quick_sphere_within_its_documented_error():
     from validation import case5_sphere
     from validation.framework import Context
@@ -114,6 +115,7 @@ def test_case5_quick_sphere_within_its_documented_error():
     assert abs(res.numbers["speed"][-1]["centre_error_c"] - ours["centre_error_c"]) < 0.5
 
 
+@pytest.mark.yade      # `tdem pack` (YADE) tiles its packing into validation/out when missing
 def test_case7_quick_halo_cov_within_its_documented_bounds():
     from validation import case7_halo
     from validation.framework import Context

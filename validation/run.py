@@ -350,4 +350,6 @@ def assemble(cases: dict | None = None) -> None:
 
 
 if __name__ == "__main__":
+    from thermal_kernel.threading_layer import prefer_openmp
+    prefer_openmp()             # an entry point: OpenMP first, NUMBA_THREADING_LAYER* wins
     sys.exit(main())

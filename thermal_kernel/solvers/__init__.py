@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..network import Network, ThermalProblem, assemble
 
@@ -176,65 +177,26 @@ class Recorder:
             self.on_output(k, float(self.times[k]), T)
 
 
-def _openblas_handles():
-    """(set, get) function pairs of every OpenBLAS loaded in this process (numpy's and
-    scipy's wheels each bring their own), found through /proc/self/maps (Linux)."""
-    import ctypes
-    handles = []
-    try:
-        with open("/proc/self/maps") as f:
-            paths = {line.split()[-1] for line in f
-                     if "openblas" in line.lower() and ".so" in line}
-    except OSError:
-        return handles
-    for path in sorted(p for p in paths if p.startswith("/")):
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:
-            continue
-        for prefix in ("scipy_openblas", "openblas"):
-            for suffix in ("64_", "_64_", ""):
-                s = getattr(lib, f"{prefix}_set_num_threads{suffix}", None)
-                g = getattr(lib, f"{prefix}_get_num_threads{suffix}", None)
-                if s is not None and g is not None:
-                    s.argtypes = [ctypes.c_int]
-                    handles.append((s, g))
-                    break
-            else:
-                continue
-            break
-    return handles
-
-
 class blas_threads:
-    """Context manager: OpenBLAS uses ``n`` threads inside (restored after). The sparse solves
-    run with 1: on a shared 2-core machine (YADE busy on one core) OpenBLAS's second thread
-    made pyamg 20-70x slower (a 20,000-unknown AMG setup 3.5 s instead of 0.05 s; a CG solve
-    0.53 s instead of 0.022 s; see docs/solvers.md). threadpoolctl is used if installed."""
+    """Context manager: the BLAS libraries loaded in this process (numpy's and scipy's wheels
+    each bring their own OpenBLAS) use ``n`` threads inside, restored after (threadpoolctl);
+    ``n=None`` changes nothing. The sparse solves run with 1: on a shared 2-core machine (YADE
+    busy on one core) OpenBLAS's second thread made pyamg 20-70x slower (a 20,000-unknown AMG
+    setup 3.5 s instead of 0.05 s; a CG solve 0.53 s instead of 0.022 s; see docs/solvers.md)."""
 
     def __init__(self, n: int | None = 1):
         self.n = n
-        self._undo = []
+        self._ctl = None
 
     def __enter__(self):
-        if self.n is None:
-            return self
-        try:
-            from threadpoolctl import threadpool_limits
+        if self.n is not None:
             self._ctl = threadpool_limits(limits=self.n, user_api="blas")
-            self._undo.append(lambda: self._ctl.restore_original_limits())
-            return self
-        except ImportError:
-            pass
-        for s, g in _openblas_handles():
-            old = g()
-            s(self.n)
-            self._undo.append(lambda s=s, old=old: s(old))
         return self
 
     def __exit__(self, *exc):
-        while self._undo:
-            self._undo.pop()()
+        if self._ctl is not None:
+            self._ctl.restore_original_limits()
+            self._ctl = None
         return False
 
 

@@ -20,21 +20,14 @@ lambda_max(C^-1 (L + G)) lies in [max D/C, 2 max D/C], the stability (boundednes
 from __future__ import annotations
 
 import math
-import os
 import time
 
 import numba
 import numpy as np
 from numba import njit, prange
 
-# The OpenMP threading layer first (numba's default order puts TBB first): one step is one
-# parallel loop, and TBB's fork/join cost 130-500 us a step here against ~2 us for OpenMP, which
-# made 2 threads 10-25x slower than 1 below ~1e5 particles (measured: docs/solvers.md). Falls back
-# to TBB / workqueue where OpenMP is missing; a user's NUMBA_THREADING_LAYER* setting wins.
-if numba.config.THREADING_LAYER == "default" and not any(
-        k.startswith("NUMBA_THREADING_LAYER") for k in os.environ):
-    numba.config.THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]
-
+# The threading layer (OpenMP first: TBB's fork/join cost dominated a step, docs/solvers.md) is
+# chosen by the entry points, not here: thermal_kernel/threading_layer.py.
 from . import (Recorder, SolverState, ThermalResult, UnstableTimeStepError, as_network,
                check_times, instantaneous_source, interval_steps, start_state)
 
