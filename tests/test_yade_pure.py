@@ -314,3 +314,35 @@ def test_scripts_import_without_yade_and_do_not_run(script, monkeypatch):
     assert callable(module.main) and callable(module.import_yade)
     assert "yade" not in sys.modules
     assert module.O is None
+
+
+def test_facet_sag_is_the_cylinder_polygon_and_bounds_the_measured_sphere():
+    """The cylinder's sag is the regular polygon's, exactly; for the sphere the bound is above
+    the sag measured on YADE 2023.02a's geom.facetSphere (min distance of its facet planes from
+    the centre, radius 1: n = 16, 24, 48, 96 -> 0.0438, 0.0186, 0.00447, 0.00109) and within
+    30 % of it."""
+    from yade_scripts.dense_geometry import facet_sag
+    for n in (8, 16, 48, 96):
+        apothem = math.cos(math.pi / n)        # polygon of n sides inscribed in the unit circle
+        assert facet_sag("cylinder", 1.0, n) == pytest.approx(1.0 - apothem, rel=1e-12)
+    for n, measured in ((16, 0.0438051), (24, 0.0186466), (48, 0.00446732), (96, 0.00109355)):
+        assert measured < facet_sag("sphere", 1.0, n) < 1.3 * measured
+    assert facet_sag("box", 1.0, 48) == 0.0
+
+
+def test_a_coarse_facet_sphere_is_refused_and_a_fine_one_accepted():
+    """wall_segments must keep every cloud sphere's centre inside the facets: the check names
+    the smallest number that does, and that number passes."""
+    from yade_scripts import dense_geometry, dense_params
+    p = {k: v["default"] for k, v in dense_params.PARAMS.items()}
+    p.update(shape="sphere", n_particles=2000, wall_segments=16)
+    with pytest.raises(ValueError, match=r"^wall_segments: .* expected at least (\d+), got 16"):
+        dense_geometry.cloud_domain(p)
+    try:
+        dense_geometry.cloud_domain(p)
+    except ValueError as e:
+        need = int(str(e).split("expected at least ")[1].split(",")[0])
+    dense_geometry.cloud_domain(dict(p, wall_segments=need))          # accepted
+    with pytest.raises(ValueError):
+        dense_geometry.cloud_domain(dict(p, wall_segments=need - 2))
+    dense_geometry.cloud_domain(dict(p, wall_segments=48))            # the default: accepted

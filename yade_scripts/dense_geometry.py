@@ -10,7 +10,10 @@ import numpy as np
 
 from .neighbours import neighbour_pairs
 from .placement import equal_spheres_for_volume, random_sequential_addition
+from .dense_params import PARAMS as _PARAMS
 from .tiling import carve, repetitions, tile
+
+WALL_SEGMENTS_DEFAULT = _PARAMS["wall_segments"]["default"]
 
 CLOUD_BATCH = 4096             # candidates drawn at a time by the cloud (one stream for all)
 CLOUD_MAX_TRIES = 100000       # candidates of one sphere before the cloud gives up
@@ -119,6 +122,43 @@ class Container:
         return wall["radius"] - np.linalg.norm(position - wall["point"], axis=1)
 
 
+def facet_sag(shape, radius, segments):
+    """How far (m) the facet container of YADE (``geom.facetCylinder`` with ``segments`` sides,
+    ``geom.facetSphere`` with ``segments`` x ``segments // 2``) lies inside the analytic
+    cylinder or sphere of ``radius`` at most: its vertices are on the analytic surface, its flat
+    facets sag between them. Cylinder: R (1 - cos(pi / n)), exact. Sphere: R (1 - cos(1.6 pi /
+    n)), an upper bound of the sag measured on YADE 2023.02a's facetSphere (n = 16, 24, 48, 96:
+    0.0438, 0.0186, 0.00447, 0.00109 R; the bound gives 0.0489, 0.0219, 0.00548, 0.00137 R).
+    0 for a box or a periodic cell."""
+    if shape == "cylinder":
+        return radius * (1.0 - math.cos(math.pi / segments))
+    if shape == "sphere":
+        return radius * (1.0 - math.cos(1.6 * math.pi / segments))
+    return 0.0
+
+
+def check_facet_sag(p, radii, box):
+    """ValueError('wall_segments: ...') when a sphere of the initial cloud, placed inside the
+    analytic container, could have its centre beyond a facet: the contact would push it out
+    and it would leave the container (measured: with wall_segments = 16 a 2,000-sphere sphere
+    container lost one, which flew off and made YADE's collider run every step)."""
+    if box.shape not in ("cylinder", "sphere"):
+        return
+    shrink = (CLOUD_SOLID_FRACTION / EXPECTED_SOLID_FRACTION[box.shape]) ** (1.0 / 3.0)
+    smallest = float(radii.min()) * shrink
+    segments = p.get("wall_segments", WALL_SEGMENTS_DEFAULT)
+    sag = facet_sag(box.shape, box.radius, segments)
+    if sag < smallest:
+        return
+    need = segments
+    while facet_sag(box.shape, box.radius, need) >= smallest:
+        need += 2
+    raise ValueError(f"wall_segments: the {box.shape}'s facets sag {sag:.3g} m inside its radius "
+                     f"{box.radius:.4g} m, more than the smallest sphere of the initial cloud "
+                     f"({smallest:.3g} m), which could start outside them and leave the "
+                     f"container; expected at least {need}, got {segments}")
+
+
 EXPECTED_SOLID_FRACTION = {"periodic": 0.64, "box": 0.60, "cylinder": 0.60, "sphere": 0.60}
 CLOUD_SOLID_FRACTION = 0.25
 FREE_GROWTH_SOLID_FRACTION = 0.5
@@ -145,6 +185,7 @@ def cloud_domain(p, count_key="n_particles"):
     if 2.2 * radii[0] > box.size.min() / 2:
         raise ValueError(f"{count_key}: too few particles for this shape and aspect (the domain "
                          "must be wider than four diameters)")
+    check_facet_sag(p, radii, box)
     return radii, box
 
 

@@ -325,6 +325,15 @@ def relax_cell_or_domain(p):
     raw = np.array([[O.bodies[int(b)].state.pos[j] for j in range(3)] for b in sphere_ids])
     position = raw - np.floor(raw / box.size) * box.size if periodic else raw
     n = len(radius)
+    if not periodic:
+        # a sphere pushed through the walls would be written far outside the domain (the
+        # packing reader refuses that file): stop here, before anything is written
+        outside = np.flatnonzero(~box.inside(position, np.zeros(n)))
+        if outside.size:
+            k = int(outside[0])
+            fail(f"{outside.size} of {n} spheres left the {box.shape} container during the "
+                 f"compression (particle {k} at {np.round(position[k], 6).tolist()} m, domain "
+                 f"0 ... {np.round(box.size, 6).tolist()} m); nothing written", code=3)
     force = {}
     walls = box.walls()
     wall_touch = {}
