@@ -281,7 +281,7 @@ def _print_provenance(attrs):
 
 
 def _cmd_import_liggghts(args):
-    from thermal_kernel.contact_check import describe, is_mismatch
+    from thermal_kernel.contact_check import is_mismatch
     from thermal_kernel.packing import format_statistics, packing_statistics
     from .liggghts import import_liggghts
     packing = import_liggghts(args.atoms, args.pairs, args.walls_dump, args.output,

@@ -27,8 +27,8 @@ Functions take arrays and return arrays or small frozen results; nothing is glob
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
 
 import numpy as np
 import scipy.sparse as sp

@@ -56,7 +56,7 @@ def test_good_scene(tmp_path):
     assert scene.solver.output_times == (0.05, 0.1, 0.2)
     assert math.isnan(scene.solver.dt) and scene.solver.safety == 0.9
     assert scene.output == tmp_path / "out" / "scene" / "t.h5"
-    with pytest.raises(Exception):
+    with pytest.raises(dataclasses.FrozenInstanceError):
         scene.law = "pipe"   # frozen
 
 

@@ -267,7 +267,6 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
     grid_diff = [[float(np.max(np.abs(f[i] - ref[i])) / rise_pt[i]) for i in range(3)]
                  for f in fields[:-1]]
     cmp = {k: compare(d, times, ref, point_index) for k, d in dems.items()}
-    dt_cmp = compare(dt_check, times, ref, point_index)
     big = max(sizes)
     dt_err = {p: float(np.max(np.abs(dt_check["probe_t"][p] - dems[(big, seeds[0])]["probe_t"][p]))
                        / cmp[(big, seeds[0])][p]["rise"]) for p in names}

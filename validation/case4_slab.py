@@ -303,7 +303,7 @@ def run(ctx: Context) -> CaseResult:
                           section_md="", numbers=dict(rows=[row]))
     previous = {r["name"]: r for r in (previous_numbers(4).get("rows") or _legacy_rows())}
     rows = []
-    for key, label, family, name, default in INSTANCES:
+    for key, _label, _family, name, default in INSTANCES:
         path = DENSE_400 if name is None else optional_packing(name, default)
         if path is None:
             if key in previous:

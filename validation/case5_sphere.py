@@ -41,7 +41,7 @@ import numpy as np
 
 from thermal_kernel.atomic import open_atomic, replacing, savefig_atomic, write_text_atomic
 from tdem_post.analytic import sphere_centre_temperature, sphere_temperature
-from thermal_kernel.calibrate import cross_section, flux_test
+from thermal_kernel.calibrate import flux_test
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
 from thermal_kernel.problem import boundary_particles, build_problem
@@ -351,7 +351,7 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
         w = csv.writer(f)
         w.writerow(["n_particles", "ct_label", "ct", "paper_time_s", "T_centre_dem_C",
                     "T_centre_exact_C", "error_C"])
-        for k, r in enumerate(rows):
+        for r in rows:
             if (r["n_nominal"] < 100_000 and not ctx.quick) or "centre_dem_c" not in r:
                 continue            # the implicit 1e6 runs keep the final field only
             d = np.array(r["centre_dem_c"]) - np.array(r["centre_exact_c"])
@@ -492,7 +492,6 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
     best_cn = min(speed, key=lambda r: r["run_seconds"] if abs(r["centre_error_c"])
                   <= 1.1 * abs(main["centre_error_c"]) + 0.05 else math.inf)
     met = abs(main["centre_error_c"]) <= 1.0
-    img = "img/validation_case5_"
     n_fmt = ", ".join(f"{r['n_particles']:,}" for r in rows if r["label"] == PRIMARY)
     table = "\n".join(_fmt_row(r) for r in rows)
     cal_rows = "\n".join(

@@ -200,7 +200,7 @@ def run(ctx: Context) -> CaseResult:
                           section_md="", numbers=dict(rows=rows))
     previous = {r["name"]: r for r in (previous_numbers(6).get("rows") or _legacy_rows())}
     rows = []
-    for key, label, name, default in INSTANCES:
+    for key, _label, name, default in INSTANCES:
         path = optional_packing(name, default)
         if path is None:
             if key in previous:

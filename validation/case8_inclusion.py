@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from tdem_post.analytic import hashin_shtrikman, maxwell, rayleigh_cubic_array
-from thermal_kernel.packing import read_packing
 from validation import framework
 from validation import inclusions as I
 from validation.framework import CaseInfo, CaseResult, Context

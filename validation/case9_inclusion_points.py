@@ -268,7 +268,7 @@ def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s):
     for r in rs:
         t_rows.append(f"| tdem {r['n']:,} | " + " | ".join(
             f"{t:.3f} ({100 * e:.2f} %)" for t, e in zip(r["T"], r["err_T"])) + " |")
-    q_rows = [f"| FV reference (h → 0) | " + " | ".join(
+    q_rows = ["| FV reference (h → 0) | " + " | ".join(
         f"{v:.0f} ± {q0 * u:.0f}" for v, u in zip(ref_q, ref["q_unc"])) + " |",
         "| 002 FE / DE 150,000 / DE 500,000 | " + " | ".join(
             f"{a} / {b} / {c}" for a, b, c in zip(PAPER["FE"]["q"], PAPER["150,000 DE"]["q"],
