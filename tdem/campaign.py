@@ -506,7 +506,7 @@ def _seed_summary(table, fits, seeds):
              "", "| law | p nominal (bar) | p measured, mean (bar) | seeds | Z | φ | γ | γ_paper | "
              "γ_steady | γ_aff | ⟨n_z²⟩ | τ (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for _, r in stats.iterrows():
-        def pm(name, fmt=".4g"):
+        def pm(name, fmt=".4g", r=r):
             sd = r[f"{name}_std"]
             return f"{r[f'{name}_mean']:{fmt}} ± {sd:.2g}" if np.isfinite(sd) \
                 else f"{r[f'{name}_mean']:{fmt}}"

@@ -289,11 +289,13 @@ def run(ctx: Context) -> CaseResult:
         ctx.progress(f"N {n}: packings")
         sphere_path, box_path = ctx.packing(sphere_name), ctx.packing(box_name)
         ctx.progress(f"N {n}: C_t on the cube {box_name}")
-        cal = _cached(out / f"calib_bulk_{box_name}.json", lambda: interior_ct(box_path))
+        cal = _cached(out / f"calib_bulk_{box_name}.json",
+                      lambda box_path=box_path: interior_ct(box_path))
         variants = [(PRIMARY, cal["ct_bulk"])]
         if n <= 100_000:        # the whole-cube conventions (3 steady solves; minutes above)
             cal.update(_cached(out / f"calib_{box_name}.json",
-                               lambda: calibrate_box(box_path, axes="x" if ctx.quick else "xyz")))
+                               lambda box_path=box_path:
+                               calibrate_box(box_path, axes="x" if ctx.quick else "xyz")))
             variants += [("ours, held planes", cal["ct_held_mean"]),
                          ("ours, domain length", cal["ct_domain_mean"])]
         calib[n] = cal
@@ -307,9 +309,10 @@ def run(ctx: Context) -> CaseResult:
             tag = {"held": "held_planes", "domain": "domain_length"}.get(tag, tag)
             rec = _cached(out / f"run_{sphere_name}_{tag}"
                           f"{'_cn' + str(steps) if steps else ''}.json",
-                          lambda: sphere_run(sphere_path, ct, method=method, steps=steps,
-                                             threads=ctx.threads,
-                                             keep_field=(label == PRIMARY)))
+                          lambda sphere_path=sphere_path, ct=ct, method=method, steps=steps,
+                                 label=label:
+                          sphere_run(sphere_path, ct, method=method, steps=steps,
+                                     threads=ctx.threads, keep_field=(label == PRIMARY)))
             rec.update(label=label, n_nominal=n, sphere=sphere_name)
             rows.append(rec)
     # speed against error: Rannacher CN at the paper's 1e5 (quick: the small sphere)
@@ -319,8 +322,8 @@ def run(ctx: Context) -> CaseResult:
     for steps in (5, 10, 20, 40, 80) if not ctx.quick else (5, 20):
         ctx.progress(f"N {n_speed}: Rannacher CN, {steps} steps")
         rec = _cached(out / f"cn_{sphere_name}_{steps}.json",
-                      lambda: sphere_run(ctx.packing(sphere_name), ct_ours, method="rannacher",
-                                         steps=steps))
+                      lambda steps=steps: sphere_run(ctx.packing(sphere_name), ct_ours,
+                                                     method="rannacher", steps=steps))
         speed.append(rec)
     return _report(ctx, rows, calib, speed, n_speed)
 

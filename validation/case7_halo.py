@@ -139,7 +139,7 @@ def run(ctx: Context) -> CaseResult:
         ctx.progress(f"N {n}: packing {name}")
         path = ctx.packing(name)
         ctx.progress(f"N {n}: steady slab and Halo fluxes at {len(RATIOS)} ratios")
-        rec = _cached(ctx.out / f"halo_{name}.json", lambda: halo_cov(path))
+        rec = _cached(ctx.out / f"halo_{name}.json", lambda path=path: halo_cov(path))
         rec.update(name=name, n_nominal=n)
         recs.append(rec)
     return _report(ctx, recs)
