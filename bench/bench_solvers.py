@@ -98,8 +98,8 @@ def main():
     ]
     for solver, step, steps, sec, err in rows:
         lines.append(f"| {solver} | {step} | {steps} | {sec:.4f} | {err:.3g} |")
-    lines += ["", f"Steady solve: {steady_sec:.4f} s; max |T_steady - T(backward Euler, t = 1e7 s)| = "
-                  f"{steady_err:.2e} K.", ""]
+    lines += ["", f"Steady solve: {steady_sec:.4f} s; max |T_steady - T(backward Euler, "
+                  f"t = 1e7 s)| = {steady_err:.2e} K.", ""]
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     lines += [f"Figure: `{out.with_suffix('.png').name}`, data: `{out.with_suffix('.csv').name}`.",

@@ -417,7 +417,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "after seed, each one's cases run before the next is built)")
     p.set_defaults(func=_cmd_campaign)
 
-    p = sub.add_parser("post", help="post-process a run: profiles, gamma, tau, mean field, flux field")
+    p = sub.add_parser("post", help="post-process a run: profiles, gamma, tau, mean field, "
+                                    "flux field")
     p.add_argument("run", help="run folder (with thermal.h5) or a thermal.h5")
     p.add_argument("--bins", type=int, default=10, help="profile bins, default 10")
     p.add_argument("--halo", type=float, default=3.0,
