@@ -9,11 +9,11 @@ C_t 0.806 / 0.834 (its cube calibration at the same N), the centre temperature a
 Ours: balls carved from copies of one relaxed 10,000-sphere periodic cell (`tiled`, the
 framework's sphere_1e5 and a 1e6 / smaller ones registered here); the carved surface is a cut
 surface whose "wall contacts" (the spheres within 1.1 r of it) are held at T_s by a
-`temperature` boundary on "surface" (thermal_kernel/boundaries/temperature.py). The analytical sphere is the
-*held shell*: radius R_h = mean distance of the held spheres' centres from the carving centre
-(the analogue of case 4's held planes). Not rescaled to D = 10 cm: the output time is the
-paper's Fourier number Fo = alpha 10 s / (5 cm)^2 = 0.3045 with our R_h (and Fig. 7's times
-1 ... 10 s likewise).
+`temperature` boundary on "surface" (thermal_kernel/boundaries/temperature.py). The analytical
+sphere is the *held shell*: radius R_h = mean distance of the held spheres' centres from the
+carving centre (the analogue of case 4's held planes). Not rescaled to D = 10 cm: the output
+time is the paper's Fourier number Fo = alpha 10 s / (5 cm)^2 = 0.3045 with our R_h (and
+Fig. 7's times 1 ... 10 s likewise).
 
 C_t, compared: the paper's (0.806 at 1e5, 0.834 at 1e6) and ours from the cube carved from the
 same cell with the same N: the primary one is the *bulk* C_t, the cube's steady flux test read in
@@ -506,7 +506,8 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
         f"| {r['steps']} | {r['run_seconds']:.2f} | {r['centre_error_c']:+.3f} | "
         f"{r['max_abs_error_c']:.3f} |" for r in speed)
     paper_txt = (f"With the paper's C_t (0.806) on our 1e5 sphere the centre is off by "
-                 f"**{paper_1e5['centre_error_c']:+.2f} °C** (max {paper_1e5['max_abs_error_c']:.2f} °C): "
+                 f"**{paper_1e5['centre_error_c']:+.2f} °C** "
+                 f"(max {paper_1e5['max_abs_error_c']:.2f} °C): "
                  "our cut-cell packing conducts ~25 % more per contact at a given C_t "
                  "(case 6: our C_t is 0.63–0.65 where the paper's is 0.81–0.83), so the "
                  "paper's C_t heats the ball too fast. The C_t has to be calibrated on the "
@@ -525,14 +526,16 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
                   f"per C_t on one shared core; at 1e5, {BIG_STEPS} such steps are within "
                   f"0.01 °C of forward Euler, see the speed-against-error table; "
                   f"`TDEM_CASE5_1E6=explicit` runs forward Euler).") if big else
-                 "**The 1e6 ball was not run** (its packing or run failed; see validation/out/case5).")
+                 "**The 1e6 ball was not run** (its packing or run failed; see "
+                 "validation/out/case5).")
     section = f"""
 Setup (002 sec. 2.3): a ball of aluminium (ρ 2700 kg/m³, λ 185 W/m/K, c 900 J/kg/K) at
 T_0 = 20 °C whose surface is held at T_s = 200 °C from t = 0; law haddad; forward Euler (the
 paper's scheme) at 0.9 × the exact positivity bound. Packings: balls carved from copies of the
 relaxed 10,000-sphere periodic cell (`tiled`, docs/packings.md), N = {n_fmt}. The carved surface
 is a cut surface: the spheres within 1.1 r of it (its "wall contacts", wall `surface`) are held
-by a `temperature` boundary (`thermal_kernel/boundaries/temperature.py`). The analytical sphere is the **held
+by a `temperature` boundary (`thermal_kernel/boundaries/temperature.py`). The analytical sphere is \
+the **held
 shell**, R_h = mean distance of the held spheres' centres from the carving centre (the analogue
 of case 4's held planes; R_carve − R_h in the table). **Not rescaled** to
 D = 10 cm: the outputs are at the paper's Fourier numbers (Fo = α t / R² = {FO_END:.4f} at
@@ -574,12 +577,14 @@ than Q/A at 1e5, 4.6 % at 1e4) and so come out 2–6 % higher; they are run besi
 particles within 0.1 R_h of the centre; "max": max |T_p − T_exact(r_p)| over the free particles,
 the paper's Fig. 8c measure, with where it lies as r/R_h; thermal: 1 thread, shared machine):
 
-| N | C_t | value | R_h / R_carve (mm) | centre error | centre error vs R_carve | max error (r/R_h) | RMS | steps | thermal (s) |
+| N | C_t | value | R_h / R_carve (mm) | centre error | centre error vs R_carve | max error \
+(r/R_h) | RMS | steps | thermal (s) |
 |---|---|---|---|---|---|---|---|---|---|
 {table}
 
 At 1e5 with our C_t the centre error is **{main['centre_error_c']:+.3f} °C** against the paper's
-1.93 °C (max over the particles {main['max_abs_error_c']:.2f} °C, at r/R_h = {main['argmax_r_over_R']:.2f}):
+1.93 °C (max over the particles {main['max_abs_error_c']:.2f} °C, at r/R_h = \
+{main['argmax_r_over_R']:.2f}):
 the goal ≤ 1 °C is {'met' if met else 'not met'}.{big_txt} {paper_txt}
 The analytical radius matters: against the carving radius instead of the held shell the same
 field has the centre error of the column "vs R_carve" — the sphere's one free length is worth
