@@ -66,7 +66,8 @@ def parse_case(text: str) -> dict:
     if path not in PATHS:
         raise SystemExit(f"bench_packings: unknown path {path!r} (known: {', '.join(PATHS)})")
     if shape not in BASE_SCENES:
-        raise SystemExit(f"bench_packings: unknown shape {shape!r} (known: {', '.join(BASE_SCENES)})")
+        raise SystemExit(f"bench_packings: unknown shape {shape!r} "
+                         f"(known: {', '.join(BASE_SCENES)})")
     label = (f"{path}_{n}_s{seed}" + (f"_c{cell}" if cell else "")
              + ("" if shape == "box" else f"_{shape}"))
     return dict(path=path, n=n, seed=seed, cell=cell, shape=shape, label=label)
@@ -146,7 +147,8 @@ def build(case: dict, reuse: bool, cell_dirs: list[Path]) -> dict:
     status = proc.returncode
     write_text_atomic(folder / "tdem_pack.log", output)
     if status != 0:
-        raise SystemExit(f"bench_packings: {case['label']} failed: {output.strip().splitlines()[-1]}")
+        raise SystemExit(f"bench_packings: {case['label']} failed: "
+                         f"{output.strip().splitlines()[-1]}")
     max_kb, user_s, sys_s = (float(x) for x in timing.read_text().split()[-3:])
     record = dict(case, wall_seconds=wall, peak_rss_mb=max_kb / 1024.0,
                   cpu_seconds=user_s + sys_s,
@@ -284,8 +286,8 @@ def summary_markdown(table, stats) -> str:
     """Per (path, N): mean and spread over seeds, and the differences to the reference at the
     same N with the issue's tolerances."""
     cols = ["solid_fraction_bulk", "z_nonrattler", "z_with_gaps", "rattler_fraction",
-            "fabric_deviator", "gamma_pipe", "gamma_pipe_held", "wall_seconds", "cpu_seconds", "peak_rss_mb",
-            "compression_steps",
+            "fabric_deviator", "gamma_pipe", "gamma_pipe_held", "wall_seconds", "cpu_seconds",
+            "peak_rss_mb", "compression_steps",
             "n_particles"]
     groups = list(table.groupby(["shape", "n_target", "path", "cell_particles"], sort=True))
     out = ["| shape | N (target) | path | cell | seeds | N | wall (s) | CPU (s) | peak RSS (MB) | "

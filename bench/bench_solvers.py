@@ -70,12 +70,13 @@ def main():
     first = run_explicit(net, T0, TIMES, safety=0.9)
     dt_max = first.dt_max
     for safety in (0.9, 0.5, 0.2, 0.1, 0.05, 0.02):
-        sec, r = best_of(lambda: run_explicit(net, T0, TIMES, safety=safety))
+        sec, r = best_of(lambda safety=safety: run_explicit(net, T0, TIMES, safety=safety))
         rows.append(("explicit", f"safety {safety} (dt {r.dt:.3g} s)", r.steps, sec,
                      np.abs(r.temperature_k - ref).max()))
     for theta, name in ((1.0, "backward Euler"), (0.5, "Crank-Nicolson")):
         for dt in (0.1, 0.05, 0.02, 0.01, 0.005, 0.002):
-            sec, r = best_of(lambda: run_implicit(net, T0, TIMES, dt=dt, theta=theta))
+            sec, r = best_of(lambda dt=dt, theta=theta:
+                             run_implicit(net, T0, TIMES, dt=dt, theta=theta))
             rows.append((name, f"dt {dt:g} s", r.steps, sec, np.abs(r.temperature_k - ref).max()))
     long = run_implicit(net, T0, [1e7], dt=1e5, theta=1.0).temperature_k[-1]
     steady_sec, st = best_of(lambda: solve_steady(net, T0))
@@ -97,8 +98,8 @@ def main():
     ]
     for solver, step, steps, sec, err in rows:
         lines.append(f"| {solver} | {step} | {steps} | {sec:.4f} | {err:.3g} |")
-    lines += ["", f"Steady solve: {steady_sec:.4f} s; max |T_steady - T(backward Euler, t = 1e7 s)| = "
-                  f"{steady_err:.2e} K.", ""]
+    lines += ["", f"Steady solve: {steady_sec:.4f} s; max |T_steady - T(backward Euler, "
+                  f"t = 1e7 s)| = {steady_err:.2e} K.", ""]
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     lines += [f"Figure: `{out.with_suffix('.png').name}`, data: `{out.with_suffix('.csv').name}`.",

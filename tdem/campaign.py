@@ -17,7 +17,8 @@ Steps, each kept so that an interrupted campaign resumes where it stopped:
 3. ``results.csv`` (one row per case), ``gamma_p.png``/``tau_p.png`` (+ CSV) and ``report.md``
    with the power-law fits next to the paper's curves (003, Fig. 7 and 10) and the mean-field
    predictions; each case's ``flags`` (the attribute of its ``thermal.h5``: maximum principle,
-   energy ledger, solver flags) is a column of both, and flagged runs are listed. Every file is written to a temporary name and renamed.
+   energy ledger, solver flags) is a column of both, and flagged runs are listed. Every file is
+   written to a temporary name and renamed.
 """
 from __future__ import annotations
 
@@ -382,9 +383,10 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
     _plots(out_dir, table, fits, rows)
 
     first = table[table.seed == seeds[0]] if seeded else table
+    p_col = "pressure_target_pa" if seeded else "pressure_pa"
     lines = [f"# Pressure campaign: {campaign_path.name}", "",
              f"{table['n_particles'].iloc[0]} particles, pressures "
-             f"{', '.join(f'{p / 1e5:.3g}' for p in sorted(table['pressure_target_pa' if seeded else 'pressure_pa'].unique()))} bar"
+             f"{', '.join(f'{p / 1e5:.3g}' for p in sorted(table[p_col].unique()))} bar"
              + (" (nominal)" if seeded else "") + ", "
              f"laws {', '.join(conf['laws'])}"
              + (f", packing seeds {', '.join(str(s) for s in seeds)} (one YADE series each, "
@@ -444,7 +446,8 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
                 lines.append(f"- {law}: {what}(p) not fitted (fewer than 4 pressures)")
             else:
                 lines.append(f"- {law}: {what}(p) = {fit.a:.4g} (±{fit.stderr[0]:.2g}) "
-                             f"p^{fit.b:.4g} (±{fit.stderr[1]:.2g}) {'−' if fit.c < 0 else '+'} {abs(fit.c):.4g} "
+                             f"p^{fit.b:.4g} (±{fit.stderr[1]:.2g}) "
+                             f"{'−' if fit.c < 0 else '+'} {abs(fit.c):.4g} "
                              f"(±{fit.stderr[2]:.2g}), rms {fit.rms:.3g}")
         paper = power_law(p_bar, **PAPER_GAMMA)
         gamma = g["gamma"].to_numpy()
@@ -504,9 +507,10 @@ def _seed_summary(table, fits, seeds):
     stats = seed_statistics(table)
     lines = ["", f"## Over the {len(seeds)} packing seeds (mean ± sample standard deviation)",
              "", "| law | p nominal (bar) | p measured, mean (bar) | seeds | Z | φ | γ | γ_paper | "
-             "γ_steady | γ_aff | ⟨n_z²⟩ | τ (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "γ_steady | γ_aff | ⟨n_z²⟩ | τ (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for _, r in stats.iterrows():
-        def pm(name, fmt=".4g"):
+        def pm(name, fmt=".4g", r=r):
             sd = r[f"{name}_std"]
             return f"{r[f'{name}_mean']:{fmt}} ± {sd:.2g}" if np.isfinite(sd) \
                 else f"{r[f'{name}_mean']:{fmt}}"

@@ -281,7 +281,7 @@ def _print_provenance(attrs):
 
 
 def _cmd_import_liggghts(args):
-    from thermal_kernel.contact_check import describe, is_mismatch
+    from thermal_kernel.contact_check import is_mismatch
     from thermal_kernel.packing import format_statistics, packing_statistics
     from .liggghts import import_liggghts
     packing = import_liggghts(args.atoms, args.pairs, args.walls_dump, args.output,
@@ -417,7 +417,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "after seed, each one's cases run before the next is built)")
     p.set_defaults(func=_cmd_campaign)
 
-    p = sub.add_parser("post", help="post-process a run: profiles, gamma, tau, mean field, flux field")
+    p = sub.add_parser("post", help="post-process a run: profiles, gamma, tau, mean field, "
+                                    "flux field")
     p.add_argument("run", help="run folder (with thermal.h5) or a thermal.h5")
     p.add_argument("--bins", type=int, default=10, help="profile bins, default 10")
     p.add_argument("--halo", type=float, default=3.0,

@@ -29,8 +29,9 @@ def packing_to_vtk(packing: Packing, out_path: Path, temperatures=None) -> Path:
     nan_n = np.full(n, np.nan)
     cell_data = {"overlap_m": [nan_n], "normal_force_n": [nan_n]}
     # Contacts that cross a periodic boundary would draw across the cell: leave them out.
-    direct = np.linalg.norm(packing.position[packing.pair[:, 1]] - packing.position[packing.pair[:, 0]]
-                            - packing.branch, axis=1) < 1e-9 * max(1.0, float(packing.radius.max()))
+    direct = np.linalg.norm(packing.position[packing.pair[:, 1]]
+                            - packing.position[packing.pair[:, 0]] - packing.branch,
+                            axis=1) < 1e-9 * max(1.0, float(packing.radius.max()))
     if packing.n_contacts:
         cells.append(("line", packing.pair[direct]))
         cell_data["overlap_m"].append(packing.overlap[direct])

@@ -69,7 +69,7 @@ def read_dump(path, kind, timestep=None) -> Snapshot:
         end = starts[k + 1] if k + 1 < len(starts) else len(lines)
         snaps.append((start, end))
     steps = []
-    for start, end in snaps:
+    for start, _end in snaps:
         try:
             steps.append(int(lines[start + 1].split()[0]))
         except (IndexError, ValueError):
@@ -342,7 +342,7 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
     if w is None and wall_spec:              # contacts from the geometry, forces from Hertz
         e_star = contact_check.effective_modulus(young, poisson)
         rows_p, rows_w, rows_d = [], [], []
-        for k, (name, axis, side, _) in enumerate(wall_spec):
+        for k, (_name, axis, _side, _) in enumerate(wall_spec):
             dist = (position[:, axis] - wall_point[k][axis]) * wall_normal[k][axis]
             over = radius - dist
             hit = np.flatnonzero(over > 0)
@@ -364,7 +364,7 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
         if periodic[ax]:
             lo[ax], hi[ax] = lo_box[ax], hi_box[ax]
             continue
-        for k, (name, axis, side, _) in enumerate(wall_spec):
+        for k, (_name, axis, side, _) in enumerate(wall_spec):
             if axis == ax:
                 if side == "min":
                     lo[ax] = wall_point[k][ax]

@@ -93,8 +93,9 @@ def run_generator(generator: str, params: dict, out_dir: Path, *, threads: int =
                            lambda line: None if quiet or _is_banner(line) else "  yade | " + line)
     wall = time.perf_counter() - start
     if rc != 0:
-        errors = [l for l in tail if l.startswith("error:")]
-        last = errors[-1] if errors else next((l for l in reversed(tail) if l.strip()), "")
+        errors = [line for line in tail if line.startswith("error:")]
+        last = (errors[-1] if errors else
+                next((line for line in reversed(tail) if line.strip()), ""))
         raise YadeError(f"{script.name} failed (exit {rc}): {last.strip()} (full log: {log_path})")
     return wall
 
@@ -175,7 +176,7 @@ def run_batch(generator: str, params_list: list[dict], out_dirs: list[Path], *, 
     for out_dir in out_dirs:
         job_log = Path(out_dir) / "yade.log"
         text = job_log.read_text(errors="replace") if job_log.exists() else ""
-        errors = [l for l in text.splitlines() if l.startswith("error:")]
+        errors = [line for line in text.splitlines() if line.startswith("error:")]
         if errors or not (Path(out_dir) / "packing.h5").exists():
             failed.append(f"{Path(out_dir).name}: " + (errors[-1] if errors else
                                                        f"no packing.h5 (log: {job_log})"))

@@ -42,8 +42,10 @@ def _unit_step_slab(x, t, length, alpha, tol):
     while True:
         decay = np.exp(-(n * np.pi) ** 2 * fo)
         out -= 2.0 / (n * np.pi) * np.sin(n * np.pi * x / length) * decay
-        # remaining terms: sum_{m>n} 2/(m pi) e^{-m^2 pi^2 Fo} < 2/pi * e^{-(n+1)^2 pi^2 Fo}/(1-e^{-pi^2 Fo})
-        if 2.0 / np.pi * np.exp(-((n + 1) * np.pi) ** 2 * fo) / (1 - np.exp(-np.pi ** 2 * fo)) < tol:
+        # remaining terms: sum_{m>n} 2/(m pi) e^{-m^2 pi^2 Fo}
+        #                  < 2/pi * e^{-(n+1)^2 pi^2 Fo}/(1-e^{-pi^2 Fo})
+        if 2.0 / np.pi * np.exp(-((n + 1) * np.pi) ** 2 * fo) \
+                / (1 - np.exp(-np.pi ** 2 * fo)) < tol:
             return out
         n += 1
 
@@ -264,8 +266,9 @@ def rayleigh_cubic_array(k_m, k_i, f):
         T1 = (2 k_m + k_i) / (k_m - k_i),  T3 = (k_m - k_i) / (4 k_m / 3 + k_i)
 
     (dipole and octupole terms; at f = 0.155 the octupole term itself moves k by 0.1 %, and the
-    further terms of McKenzie et al. are of higher order in f). It is the exact ETC of a cube with one centred sphere, two
-    opposite faces held and the others adiabatic (the faces are symmetry planes of the array):
+    further terms of McKenzie et al. are of higher order in f). It is the exact ETC of a cube
+    with one centred sphere, two opposite faces held and the others adiabatic (the faces are
+    symmetry planes of the array):
     002 sec. 4's configuration, where it lies within 0.11 % of Maxwell (f = 4 pi / 81)."""
     k_m, k_i, f = (np.asarray(x, float) for x in (k_m, k_i, f))
     with np.errstate(divide="ignore", invalid="ignore"):

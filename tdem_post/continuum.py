@@ -27,8 +27,8 @@ Functions take arrays and return arrays or small frozen results; nothing is glob
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
 
 import numpy as np
 import scipy.sparse as sp
@@ -72,7 +72,7 @@ def make_grid(lo, hi, shape) -> Grid:
     shape = tuple(int(n) for n in shape)
     if len(lo) != 3 or len(hi) != 3 or len(shape) != 3:
         raise ValueError("make_grid: lo, hi and shape need three entries each")
-    if any(h <= l for l, h in zip(lo, hi)) or any(n < 1 for n in shape):
+    if any(b <= a for a, b in zip(lo, hi)) or any(n < 1 for n in shape):
         raise ValueError(f"make_grid: expected hi > lo and at least one cell per axis, got "
                          f"lo {lo}, hi {hi}, shape {shape}")
     return Grid(lo, hi, shape)

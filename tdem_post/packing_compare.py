@@ -110,8 +110,8 @@ def radial_distribution(position: np.ndarray, centres_mask: np.ndarray, density_
     for start in range(0, len(centres), 20000):
         idx = centres[start:start + 20000]
         lists = tree.query_ball_point(position[idx], r_max)
-        j = np.concatenate([np.asarray(l, dtype=np.int64) for l in lists])
-        i = np.repeat(idx, [len(l) for l in lists])
+        j = np.concatenate([np.asarray(nb, dtype=np.int64) for nb in lists])
+        i = np.repeat(idx, [len(nb) for nb in lists])
         r = np.linalg.norm(position[j] - position[i], axis=1)
         counts += np.histogram(r[j != i], edges)[0]
     shell = 4.0 / 3.0 * math.pi * (edges[1:] ** 3 - edges[:-1] ** 3)

@@ -59,7 +59,8 @@ def plot_packing(packing: Packing, out_path, title: str | None = None) -> Path:
     ax3.set_title(f"{n} particles")
     del sc
     p = packing.attrs.get("pressure_pa", float("nan"))
-    fig.suptitle(title or (f"{Path(packing.path).name}: phi = {packing.attrs['solid_fraction']:.3f}, "
+    fig.suptitle(title or (f"{Path(packing.path).name}: "
+                           f"phi = {packing.attrs['solid_fraction']:.3f}, "
                            f"Z = {2 * touching.sum() / n:.2f}"
                            + (f", p = {p / 1e5:.3g} bar" if np.isfinite(p) else "")))
     fig.tight_layout()

@@ -122,8 +122,9 @@ def test_characteristic_time_closed_form_equals_integral_of_the_series():
     tau = analytic.slab_characteristic_time(x, L, ALPHA, 500.0, 300.0, 400.0)
     for xi, tau_i in zip(x, tau):
         steady = analytic.slab_steady(xi, L, 500.0, 300.0)
-        f = lambda t: (steady - analytic.slab_temperature(xi, t, L, ALPHA, 500.0, 300.0, 400.0)) \
-            / (steady - 400.0)
+        def f(t, steady=steady, xi=xi):
+            return (steady - analytic.slab_temperature(xi, t, L, ALPHA, 500.0, 300.0, 400.0)) \
+                / (steady - 400.0)
         tmax = 60 * L ** 2 / ALPHA
         integral = quad(f, 0, tmax, limit=400, epsabs=1e-10, points=[L ** 2 / ALPHA])[0]
         assert integral == pytest.approx(tau_i, rel=1e-7)

@@ -18,7 +18,6 @@ import math
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import h5py
 import numpy as np

@@ -37,7 +37,7 @@ def campaign(tmp, packings, extra=""):
 
 
 def test_missing_file(tmp_path):
-    assert "campaign.packings[0]: " in campaign(tmp_path, '["nope.h5"]') 
+    assert "campaign.packings[0]: " in campaign(tmp_path, '["nope.h5"]')
 
 
 def test_nan_pressure_refused(tmp_path):

@@ -11,7 +11,6 @@ Measured on the quick instances (2026-12-01, the bounds below add a margin of ab
 - case 10: f 0.1 (41 inclusions), FV reference 1.2343 +- 0.0024 on 24/36/54 grids (1.2262 +- 0.0013
   on 36/54/81); 400 spheres 1.1940, -3.3 % from it.
 """
-import math
 
 import numpy as np
 import pytest
@@ -107,7 +106,7 @@ def test_case10_quick_realisation_and_error():
     assert np.all(centres >= r) and np.all(centres <= 1 - r)
     result = case10.run(Context(10, quick=True))
     n = result.numbers
-    for f, rl in n["realisations"].items():
+    for _f, rl in n["realisations"].items():
         low, high = hashin_shtrikman(1.0, case10.CONTRAST, rl["f"])
         assert low <= rl["ref"] <= high                  # the FV reference inside the bounds
         assert rl["ref"] == pytest.approx(1.2262, rel=0.01)   # the fine grids' value

@@ -3,7 +3,6 @@ like the case (issue 15). On the committed 300-sphere bed (no YADE): the window 
 case's scene with the new times, its fit is written to window.json and kept on a second call;
 the early window's gamma differs from the long window's (it sees the wall layers only)."""
 import json
-from pathlib import Path
 
 import pandas as pd
 

@@ -57,8 +57,10 @@ def load(path):
             "contacts/contact_radius", "wall_contacts/particle", "wall_contacts/wall",
             "wall_contacts/overlap", "wall_contacts/normal_force", "walls/point",
             "walls/normal", "walls/radius")}
-        data["walls/name"] = [x.decode() if isinstance(x, bytes) else x for x in f["walls/name"][()]]
-        data["walls/kind"] = [x.decode() if isinstance(x, bytes) else x for x in f["walls/kind"][()]]
+        data["walls/name"] = [x.decode() if isinstance(x, bytes) else x
+                              for x in f["walls/name"][()]]
+        data["walls/kind"] = [x.decode() if isinstance(x, bytes) else x
+                              for x in f["walls/kind"][()]]
         data["attrs"] = dict(f.attrs)
         data["domain"] = dict(f["domain"].attrs)
     return data

@@ -161,8 +161,8 @@ method = "steady"
 def test_seeds_through_yade_batch_are_the_single_runs(tmp_path):
     """tdem pack --seeds runs one yade-batch table (two jobs at a time); each job's packing is
     bit for bit the packing of a plain tdem pack with that seed."""
-    tdem = str(Path(ROOT / ".venv" / "bin" / "tdem")) if (ROOT / ".venv" / "bin" / "tdem").exists() \
-        else "tdem"
+    tdem = str(Path(ROOT / ".venv" / "bin" / "tdem")) \
+        if (ROOT / ".venv" / "bin" / "tdem").exists() else "tdem"
     scene = tmp_path / "tiny.toml"
     scene.write_text(TINY_SCENE.format(seed=1))
     batch = subprocess.run([tdem, "pack", str(scene), "--seeds", "3,4", "--out",

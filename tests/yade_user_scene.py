@@ -18,8 +18,8 @@ from yade.wrapper import (Omega, FrictMat, ForceResetter, InsertionSortCollider,
                           Ig2_Wall_Sphere_ScGeom, Ig2_Box_Sphere_ScGeom,
                           Ip2_FrictMat_FrictMat_FrictPhys, Law2_ScGeom_FrictPhys_CundallStrack,
                           Ip2_FrictMat_FrictMat_MindlinPhys, Law2_ScGeom_MindlinPhys_Mindlin,
-                          NewtonIntegrator, PeriTriaxController, GlobalStiffnessTimeStepper)
-from yade.minieigenHP import Vector3, Matrix3
+                          NewtonIntegrator, PeriTriaxController)
+from yade.minieigenHP import Matrix3
 
 sys.path.insert(0, os.environ["TDEM_YADE_PATH"])     # the folder `tdem yade-path` prints
 import tdem_yade  # noqa: E402

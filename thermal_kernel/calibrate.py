@@ -10,10 +10,11 @@ gives the calibrated value exactly, no iteration and no time marching.
 Test: the two faces normal to ``axis`` held at T_hot and T_cold (their particles: the wall
 contacts of a wall of that name, or the spheres reaching the domain face); lambda^e = Q L / (A dT)
 (:func:`thermal_kernel.effective.effective_conductivity`, heat in = heat out checked) with L the
-domain length along the axis (its length convention "domain") and A the cross-section (the box face, or pi R^2 for a
-cylinder wall along the axis); any other cross-section (a sphere container, a cylinder across
-the axis) is refused in one line, not replaced by the bounding-box face. Heterogeneous packings: lambda is the conductivity of phase 0 (the
-matrix), which is what the calibration is for.
+domain length along the axis (its length convention "domain") and A the cross-section (the box
+face, or pi R^2 for a cylinder wall along the axis); any other cross-section (a sphere container,
+a cylinder across the axis) is refused in one line, not replaced by the bounding-box face.
+Heterogeneous packings: lambda is the conductivity of phase 0 (the matrix), which is what the
+calibration is for.
 """
 from __future__ import annotations
 

@@ -46,7 +46,7 @@ def simple_cubic_packing(shape=(4, 4, 4), spacing_m=1e-3, radius_m=None, young_p
     lo = np.zeros(3)
     hi = np.array(shape, dtype=float) * spacing_m
     wall_point, wall_normal, wall_particle, wall_index = [], [], [], []
-    for w, (name, axis, side) in enumerate(_FACES):
+    for w, (_name, axis, side) in enumerate(_FACES):
         point = np.zeros(3)
         point[axis] = lo[axis] if side < 0 else hi[axis]
         normal = np.zeros(3)

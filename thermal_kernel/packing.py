@@ -304,7 +304,8 @@ def _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_p
         if too_deep.any():
             c = int(np.flatnonzero(too_deep)[0])
             _fail(path, "wall_contacts/overlap",
-                  f"row {c} (particle {int(wall_particle[c])}) has overlap {wall_overlap[c]:.6g} m, "
+                  f"row {c} (particle {int(wall_particle[c])}) has overlap "
+                  f"{wall_overlap[c]:.6g} m, "
                   f"larger than its radius {r[c]:.6g} m; expected overlap <= the radius (the "
                   "centre on the wall's side)")
 

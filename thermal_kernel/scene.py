@@ -255,7 +255,8 @@ def load_scene(path, known_laws=None, out_dir=None, text=None) -> Scene:
         boundaries.append(parse_boundary(_Table(path, f"boundary[{k}]", raw)))
     names = [b.name for b in boundaries]
     if len(set(names)) != len(names):
-        top.fail("boundary", f"two boundaries share the name {sorted(n for n in names if names.count(n) > 1)[0]!r}"
+        dup = sorted(n for n in names if names.count(n) > 1)[0]
+        top.fail("boundary", f"two boundaries share the name {dup!r}"
                              " (give each a distinct name = \"...\")")
 
     sol = top.sub("solver", required=True)

@@ -266,17 +266,20 @@ def _section(runs, reals, grids, order):
                    f"{x['bruggeman']:.4f} | {x['hs_low']:.4f} – {x['hs_high']:.4f} |"
                    for x in big["rows"])
     jam = next((reals[f]["jam"] for f in fs if reals[f]["jam"] is not None), None)
-    jam_text = (f"RSA (seed {SEED}) jams at f = {jam:.3f} ({int(round(jam / (4 / 3 * math.pi * RADIUS ** 3)))} "
+    jam_text = (f"RSA (seed {SEED}) jams at f = {jam:.3f} "
+                f"({int(round(jam / (4 / 3 * math.pi * RADIUS ** 3)))} "
                 f"spheres of d = L/6 wholly inside the cube, exclusion radius {1 + GAP:g} R; "
                 "50,000 further trials fail; without the gap it jams at 0.281, 116 spheres)"
                 if jam else "RSA did not jam at these fractions")
     return f"""**Setup.** 002 sec. 5.1: monodisperse spherical inclusions of diameter L/6 in a cube,
 contrast {CONTRAST:.2f} (silica 1.5 / epoxy 0.195 W/m/K), one realisation per fraction (seed
 {SEED}), scaled to each packing; no two inclusions closer than {2 * GAP:g} R (a near contact
-is resolved neither by the particles nor by the grids). Flux test of 002 (faces y = 0 / L held, adiabatic sides, law
+is resolved neither by the particles nor by the grids). Flux test of 002 (faces y = 0 / L held, \
+adiabatic sides, law
 `haddad`, phases by the particles' centres, harmonic interfaces, eq. 24), k_eff/k_m the ratio to
 the single-phase test. Reference: the same cube and inclusions by finite volumes
-(`tdem_post.continuum`'s operator; `validation/inclusions.continuum_field`) on {', '.join(f'{g}³' for g in grids)} grids,
+(`tdem_post.continuum`'s operator; `validation/inclusions.continuum_field`) on \
+{', '.join(f'{g}³' for g in grids)} grids,
 cells mixing the phases by volume fraction arithmetically and harmonically (the two bracket the
 limit), each extrapolated to h → 0 (Richardson); the reference is their mean ± half their
 difference — the role of 002's FFT solve. (The same FV operator gives the single inclusion of
@@ -288,7 +291,8 @@ moves alternating with inflation to the largest radius the configuration allows 
 Lubachevsky–Stillinger idea (002's "LSA") without the event-driven dynamics. YADE's own
 compression of the {reals[fs[-1]]['count']} large spheres would do the same.
 
-| f target | inclusions | placed by | f | FV reference | FV arithmetic ({'/'.join(map(str, grids))}) | FV harmonic |
+| f target | inclusions | placed by | f | FV reference | FV arithmetic \
+({'/'.join(map(str, grids))}) | FV harmonic |
 |---|---|---|---|---|---|---|
 {real_lines}
 

@@ -49,7 +49,8 @@ def parse_seeds(text: str) -> dict:
     """The five-seed campaign of docs/campaign.md ("4. Packing realisations", issue 15): the
     exponents of γ(p) and τ(p) (mean ± sd over seeds) and γ_paper / 003's γ(p) per pressure."""
     out = {}
-    m = re.search(r"exponent b of γ = a p\^b \+ c is ([\d.]+) ± ([\d.]+) over\s+the (\w+) seeds", text)
+    m = re.search(r"exponent b of γ = a p\^b \+ c is ([\d.]+) ± ([\d.]+) "
+                  r"over\s+the (\w+) seeds", text)
     if m:
         out["gamma_exponent"] = (float(m.group(1)), float(m.group(2)))
         out["seeds"] = m.group(3)
@@ -87,7 +88,8 @@ Everything — setup, the 21 cases, the profiles, the figures and the discussion
 | law | γ(p) | τ(p) | log-log slope of γ | γ / paper's γ (low → high p) |
 |---|---|---|---|---|
 {chr(10).join(rows)}
-| paper (003) | {pg[0]:.4g} p^{pg[1]:.4g} + {pg[2]:.4g} (Fig. 7) | {pt[0]:.4g} p^{pt[1]:.4g} {'+' if pt[2] >= 0 else '−'} {abs(pt[2]):.4g} s (Fig. 10) | falling | 1 |
+| paper (003) | {pg[0]:.4g} p^{pg[1]:.4g} + {pg[2]:.4g} (Fig. 7) | {pt[0]:.4g} p^{pt[1]:.4g} \
+{'+' if pt[2] >= 0 else '−'} {abs(pt[2]):.4g} s (Fig. 10) | falling | 1 |
 
 ![γ(p)](img/campaign_7500_gamma_p.png)
 

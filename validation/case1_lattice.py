@@ -52,7 +52,8 @@ On a {m['n_particles']}-sphere lattice ({m['interior_contacts']} interior contac
 | quantity | tdem against the stencil (max relative error) |
 |---|---|
 | H of an interior contact vs λ a | {_err(m['conductance_rel_error'])} |
-| capacity of an interior particle vs ρ c a³ | {m['capacity_rel_error']:.1e} (000's Table 1 prints f_vl(6) = 0.52359 for π/6: 1.7e-5) |
+| capacity of an interior particle vs ρ c a³ | {m['capacity_rel_error']:.1e} (000's Table 1 prints \
+f_vl(6) = 0.52359 for π/6: 1.7e-5) |
 | dT/dt of the centre particle for T = x² + 2y² − z² vs α ∇²T | {m['laplacian_rel_error']:.1e} |
 
 The test `{TEST}` asserts the same numbers (rtol 1e-14 for H, 2e-5 for the capacity and the

@@ -346,10 +346,12 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s) -> CaseR
     per_time_txt = ", ".join(f"{times_ms[k]:.3g} ms {100 * per_time[:, k].max():.2f} %"
                              for k in range(len(FOURIER)))
     seed_txt = ", ".join(f"{100 * r['max_error_over_dT']:.2f} %" for r in main)
-    rms_txt = ", ".join(f"{100 * np.mean([r['particle_rms_over_dT_per_time'][k] for r in main]):.2f} %"
-                        for k in range(len(FOURIER)))
+    rms_txt = ", ".join(
+        f"{100 * np.mean([r['particle_rms_over_dT_per_time'][k] for r in main]):.2f} %"
+        for k in range(len(FOURIER)))
     met = worst < 0.01
-    section = f"""Setup (000 sec. 5.1, Table 2): a cylindrical beam, length / diameter 9.454 (2.18445 mm /
+    section = f"""\
+Setup (000 sec. 5.1, Table 2): a cylindrical beam, length / diameter 9.454 (2.18445 mm /
 2 × 0.1155303 mm), 298 K initially, its end held at 798 K from t = 0, adiabatic elsewhere;
 λ 134 W/m/K, ρ 2790 kg/m³, c 880 J/kg/K. Compared with eq. 8 (`tdem_post.analytic.rod_temperature`,
 tested against the paper's printed series; bin means by `rod_mean_temperature`).
@@ -361,8 +363,10 @@ the packings of cases 4 and 6), copied and carved to the beam (`method = "tiled"
 (the beam's diameter is ~13.6 mean radii, the paper's 12.8: our φ is 0.65), and a ladder
 {', '.join(f'{int(n):,}' for n in conv[:, 0])} (seed means) for the convergence. The geometry
 is in the cell's units (mean radius 1 mm); the solution depends only on Fo = αt/L², so every
-comparison is at the paper's Fo and the times quoted are the paper's (t = Fo × {1e3 * PAPER_TIME_S:.1f} ms).
-Fig. 9's times are not in our text copy of the paper (an image): we use Fo = {', '.join(str(f) for f in FOURIER)}
+comparison is at the paper's Fo and the times quoted are the paper's (t = Fo × \
+{1e3 * PAPER_TIME_S:.1f} ms).
+Fig. 9's times are not in our text copy of the paper (an image): we use Fo = \
+{', '.join(str(f) for f in FOURIER)}
 (t = {', '.join(f'{t:.3g}' for t in times_ms)} ms), from the steep start to the nearly uniform end.
 
 **Law.** `haddad` with C_t calibrated on each beam (steady flux test along the axis, held-plane
@@ -375,9 +379,12 @@ Crank–Nicolson with Rannacher start-up, dt = 0.0025 L²/α (0.00025 L²/α up 
 output, where the profile is steepest); its own error (against dt/4) is
 {100 * dt_rows[-1, 3]:.3f} % of ΔT, far under the packing's.
 
-**Result** (max over {BINS} bins of |T − T_eq.8| / ΔT, ΔT = 500 K, all {len(seeds)} seeds): **{100 * worst:.2f} %**
-(goal < 1 %: {'met' if met else f'met on {n_ok[main_n]} of {len(seeds)} seeds, not on all'}). Per time: {per_time_txt}. Per seed: {seed_txt}.
-Signed, next to the hot end at the first time the beam is {'colder' if bias_first < 0 else 'hotter'} than eq. 8 by
+**Result** (max over {BINS} bins of |T − T_eq.8| / ΔT, ΔT = 500 K, all {len(seeds)} seeds): \
+**{100 * worst:.2f} %**
+(goal < 1 %: {'met' if met else f'met on {n_ok[main_n]} of {len(seeds)} seeds, not on all'}). Per \
+time: {per_time_txt}. Per seed: {seed_txt}.
+Signed, next to the hot end at the first time the beam is \
+{'colder' if bias_first < 0 else 'hotter'} than eq. 8 by
 {100 * abs(bias_first):.2f} % of ΔT (the hottest bin, seed mean; over all bins and times the mean
 is {100 * bias_all:+.3f} %).{bias_note}
 

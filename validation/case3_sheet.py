@@ -267,7 +267,6 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
     grid_diff = [[float(np.max(np.abs(f[i] - ref[i])) / rise_pt[i]) for i in range(3)]
                  for f in fields[:-1]]
     cmp = {k: compare(d, times, ref, point_index) for k, d in dems.items()}
-    dt_cmp = compare(dt_check, times, ref, point_index)
     big = max(sizes)
     dt_err = {p: float(np.max(np.abs(dt_check["probe_t"][p] - dems[(big, seeds[0])]["probe_t"][p]))
                        / cmp[(big, seeds[0])][p]["rise"]) for p in names}
@@ -357,7 +356,8 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
                         f"{row['source_energy_ratio_range'][0]:.4f}–"
                         f"{row['source_energy_ratio_range'][1]:.4f})" for row in table)
     nx_f, dt_f = grids[-1]
-    tab = ["| N (mean) | " + " | ".join(f"{p}: error (mean / max of seeds) | {p}: error of the seed mean | {p}: dispersion"
+    tab = ["| N (mean) | " + " | ".join(f"{p}: error (mean / max of seeds) | "
+                                        f"{p}: error of the seed mean | {p}: dispersion"
                                         for p in names) + " | thermal s |",
            "|---" * (2 + 3 * len(names)) + "|"]
     for row in table:
@@ -368,7 +368,8 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
     last = table[-1]
     worst_big = max(last[p]["err_mean_of_seeds"] for p in names)
     cts = [d["ct"] for d in dems.values()]
-    section = f"""Setup (000 sec. 5.2, Tables 3–5): sheet 50 × 30 × 2 mm (x in [0, 50], y in [−15, 15] mm),
+    section = f"""\
+Setup (000 sec. 5.2, Tables 3–5): sheet 50 × 30 × 2 mm (x in [0, 50], y in [−15, 15] mm),
 aluminium (λ 134 W/m/K, ρ 2790 kg/m³, c 880 J/kg/K), 25 °C initially, adiabatic everywhere; a
 cylindrical source of radius 4 mm through the whole 2 mm depth, 1e11 W/m³ (10.05 kW), its axis on
 y = 0 moving from x = 20 mm at 3.3 mm/s (it leaves the sheet at t = 10.3 s; we run to {T_END:g} s,
@@ -378,13 +379,16 @@ B {rise_pt[1]:.0f} K, C {rise_pt[2]:.0f} K (the paper notes the sheet would melt
 
 **Continuum reference** (`tdem_post/continuum.py`, tested in `tests/test_continuum.py`): the
 source spans the thickness and all faces are adiabatic, so T does not depend on z and one cell
-through the depth is exact. Finite volumes, cells of {', '.join(f'{1e3 * LX / g[0]:g}' for g in grids)} mm
+through the depth is exact. Finite volumes, cells of \
+{', '.join(f'{1e3 * LX / g[0]:g}' for g in grids)} mm
 (the paper's FEM: 0.5 mm) with dt = {', '.join(f'{g[1]:g}' for g in grids)} s (Crank–Nicolson,
 Rannacher start; the source's disc sampled 4 × 4 per cell and integrated over each step at two
 Gauss points). Observed order from the three finest: {float(est.order):.2f}; Richardson error of
-the finest at A, B, C: **{100 * rich_pt[0]:.3f} / {100 * rich_pt[1]:.3f} / {100 * rich_pt[2]:.3f} %**
+the finest at A, B, C: \
+**{100 * rich_pt[0]:.3f} / {100 * rich_pt[1]:.3f} / {100 * rich_pt[2]:.3f} %**
 of the peak rise (the finest grid is converged to {100 * rich_pt.max():.3f} %); the paper's 0.5 mm
-grid differs from the finest by {100 * max(grid_diff[1] if len(grid_diff) > 1 else grid_diff[0]):.2f} %.
+grid differs from the finest by \
+{100 * max(grid_diff[1] if len(grid_diff) > 1 else grid_diff[0]):.2f} %.
 Energy ledger exact to round-off on every grid.
 
 **DEM.** Sheets of 1,000 / 5,000 / 20,000 spheres × 5 seeds carved from one 2,000-sphere periodic
@@ -423,8 +427,11 @@ at 1,000 spheres this sampling of the source is itself an error of a few %, whic
 times as the offset of the whole history (A and B, Fig. above).
 
 The peak rises are large (the 10 kW source heats the whole adiabatic sheet by ~12,000 K by the
-end), so in kelvin the errors at {last['n']:,.0f} spheres are A {last['A']['err_mean_of_seeds'] * last['A']['rise_k']:.0f} K,
-B {last['B']['err_mean_of_seeds'] * last['B']['rise_k']:.0f} K, C {last['C']['err_mean_of_seeds'] * last['C']['rise_k']:.0f} K (means of the seeds); B, on the source's path,
+end), so in kelvin the errors at {last['n']:,.0f} spheres are A \
+{last['A']['err_mean_of_seeds'] * last['A']['rise_k']:.0f} K,
+B {last['B']['err_mean_of_seeds'] * last['B']['rise_k']:.0f} K, C \
+{last['C']['err_mean_of_seeds'] * last['C']['rise_k']:.0f} K (means of the seeds); B, on the \
+source's path,
 is the hardest point (the disc passes over it, and its neighbourhood is sampled by the spheres the
 disc switches on and off).
 

@@ -179,7 +179,8 @@ def _row(key: str, summary: dict, profile: list) -> dict:
                 max_err_over_dT=summary["max_error_over_dT"],
                 max_err_over_dT_per_time=summary["max_error_over_dT_per_time"],
                 steps=summary["steps"], run_seconds=summary["run_seconds"],
-                steady_pct=summary["steady_minus_linear_pct_dT"], profile=[list(r) for r in profile],
+                steady_pct=summary["steady_minus_linear_pct_dT"],
+                profile=[list(r) for r in profile],
                 measured=today(), how=HOW)
 
 
@@ -303,7 +304,7 @@ def run(ctx: Context) -> CaseResult:
                           section_md="", numbers=dict(rows=[row]))
     previous = {r["name"]: r for r in (previous_numbers(4).get("rows") or _legacy_rows())}
     rows = []
-    for key, label, family, name, default in INSTANCES:
+    for key, _label, _family, name, default in INSTANCES:
         path = DENSE_400 if name is None else optional_packing(name, default)
         if path is None:
             if key in previous:
@@ -316,7 +317,8 @@ def run(ctx: Context) -> CaseResult:
         row = _row(key, summary, profile)
         rows.append(row)
         write_text_atomic(ctx.out / f"{key}.json", json.dumps(summary, indent=1))
-        ctx.progress(f"{key}: N {row['n_particles']}, max err {100 * row['max_err_over_T_celsius']:.3f} "
+        ctx.progress(f"{key}: N {row['n_particles']}, "
+                     f"max err {100 * row['max_err_over_T_celsius']:.3f} "
                      f"% of T(C), {100 * row['max_err_over_dT']:.3f} % of dT, {row['steps']} "
                      f"steps, {row['run_seconds']:.1f} s")
     figs = _figures(ctx, rows)
@@ -357,7 +359,8 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
         mark = " †" if r["how"] != HOW else ""
         table.append(f"| {b}{r['label']}{b}{mark} | {b}{r['n_particles']:,}{b} | "
                      f"{r['ct_held']:.4f} / {r['ct_domain']:.4f} | "
-                     f"{b}{_p(r['max_err_over_T_celsius'])}{b} | {b}{_p(r['max_err_over_dT'])}{b} | "
+                     f"{b}{_p(r['max_err_over_T_celsius'])}{b} | "
+                     f"{b}{_p(r['max_err_over_dT'])}{b} | "
                      f"{r['steps']:,} | {t} |")
     ratios = [r["max_err_over_dT"] / r["max_err_over_T_celsius"] for r in rows]
     steady_rows = []
@@ -373,8 +376,8 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
                      "held layers")
         else:
             shape = "ends of one sign"
-        steady_rows.append(f"| {r['label']}, {r['n_particles']:,} | {_sg(cold)} | {mid} | {hot_t} | "
-                           f"{shape} |")
+        steady_rows.append(f"| {r['label']}, {r['n_particles']:,} | {_sg(cold)} | {mid} | "
+                           f"{hot_t} | {shape} |")
     b4, b5, b6 = by.get("ds_10000_s1"), by.get("tiled_1e5"), by.get("tiled_1e6")
     tiled4 = [by[k] for k in ("tiled_10000_s1", "tiled_10000_s2", "tiled_10000_s3") if k in by]
     parts = {}
@@ -383,8 +386,9 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
         first = p[p[:, 0] == p[0, 0]]
         cold = np.abs(p[p[:, 2] < 0.5, 5]).max()
         last = p[p[:, 2] == p[:, 2].max(), 5]
-        parts["where"] = (f"at 1e5 the error is < {cold:.3f} K over the cold half and grows towards "
-                          f"the hot face, {_sg(last.max())} to {_sg(last.min())} K in the last bin"
+        parts["where"] = (f"at 1e5 the error is < {cold:.3f} K over the cold half and grows "
+                          f"towards the hot face, {_sg(last.max())} to {_sg(last.min())} K in "
+                          "the last bin"
                           + (", the largest at the earliest time (the steepest gradient there)"
                              if abs(first[-1, 5]) >= np.abs(last).max() - 1e-12 else ""))
         n["error_1e5_last_bin_k"] = [float(last.min()), float(last.max())]
@@ -425,6 +429,8 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
     lbl = "held-plane distance, {:.1f} mm at 1e5".format(1e3 * b5["length_held_m"]) \
         if b5 and b5.get("length_held_m") else "the held-plane distance"
     prof_png = figs.get("profiles")
+    at_1e6 = (f"; at 1e6 {b6['run_seconds']:.0f} s ({b6['steps']:,} steps) for "
+              f"{_p(b6['max_err_over_dT'])}" if b6 else "")
     section = f"""\
 Setup (as the paper, 002 sec. 2.2 and Tab. 1): two faces normal to x held, T = 25 °C at xmin and
 35 °C at xmax from t = 0, 25 °C initially, adiabatic sides; ρ = 7800 kg/m³, λ = 33 W/m/K,
@@ -450,7 +456,8 @@ One packing by hand: `.venv/bin/python -m validation.case4_slab PACKING.h5 --nam
 
 (data: `img/{Path(prof_png[0]).with_suffix('.csv').name}`)
 """ if prof_png else "") + f"""
-| packing | N | C_t (held planes / domain) | max err / T(°C) | max err / ΔT | explicit steps | thermal (s) |
+| packing | N | C_t (held planes / domain) | max err / T(°C) | max err / ΔT | explicit steps | \
+thermal (s) |
 |---|---|---|---|---|---|---|
 {chr(10).join(table)}
 """ + (f"""
@@ -506,7 +513,7 @@ max err / ΔT against N over each family, least squares in log-log.)
 """ + (f"""
 **Speed against error.** The thermal part is cheap next to the packing: at 1e5,
 {b5['run_seconds']:.0f} s of explicit stepping (one thread) for {_p(b5['max_err_over_dT'])} of ΔT,
-after 551 s of YADE for the cell{f"; at 1e6 {b6['run_seconds']:.0f} s ({b6['steps']:,} steps) for {_p(b6['max_err_over_dT'])}" if b6 else ''}.
+after 551 s of YADE for the cell{at_1e6}.
 """ if b5 else "") + """
 **Test.** `tests/test_validation_small.py` runs `slab_case` on the committed 400-sphere box
 (`tests/data/dense_box.h5`) and asserts the errors measured there with a ~20 % margin (1.5 % of T
@@ -519,7 +526,8 @@ in °C, 5 % of ΔT) and the C_t conversion; `tdem validate 4 --quick` runs the s
                     if b6 else ""))
     verdict = ("goal ≤ 0.5 % " + ("met" if head["max_err_over_T_celsius"] <= 0.005 else "not met")
                + " in the paper's measure, "
-               + ("met" if head["max_err_over_dT"] <= 0.005 else "not quite") + " in the stricter one"
+               + ("met" if head["max_err_over_dT"] <= 0.005 else "not quite")
+               + " in the stricter one"
                + ("; does not keep falling from 1e5 to 1e6 (one periodic cell, see case 4)"
                   if b5 and b6 and not falls else ""))
     return CaseResult(

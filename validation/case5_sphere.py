@@ -9,11 +9,11 @@ C_t 0.806 / 0.834 (its cube calibration at the same N), the centre temperature a
 Ours: balls carved from copies of one relaxed 10,000-sphere periodic cell (`tiled`, the
 framework's sphere_1e5 and a 1e6 / smaller ones registered here); the carved surface is a cut
 surface whose "wall contacts" (the spheres within 1.1 r of it) are held at T_s by a
-`temperature` boundary on "surface" (thermal_kernel/boundaries/temperature.py). The analytical sphere is the
-*held shell*: radius R_h = mean distance of the held spheres' centres from the carving centre
-(the analogue of case 4's held planes). Not rescaled to D = 10 cm: the output time is the
-paper's Fourier number Fo = alpha 10 s / (5 cm)^2 = 0.3045 with our R_h (and Fig. 7's times
-1 ... 10 s likewise).
+`temperature` boundary on "surface" (thermal_kernel/boundaries/temperature.py). The analytical
+sphere is the *held shell*: radius R_h = mean distance of the held spheres' centres from the
+carving centre (the analogue of case 4's held planes). Not rescaled to D = 10 cm: the output
+time is the paper's Fourier number Fo = alpha 10 s / (5 cm)^2 = 0.3045 with our R_h (and
+Fig. 7's times 1 ... 10 s likewise).
 
 C_t, compared: the paper's (0.806 at 1e5, 0.834 at 1e6) and ours from the cube carved from the
 same cell with the same N: the primary one is the *bulk* C_t, the cube's steady flux test read in
@@ -41,7 +41,7 @@ import numpy as np
 
 from thermal_kernel.atomic import open_atomic, replacing, savefig_atomic, write_text_atomic
 from tdem_post.analytic import sphere_centre_temperature, sphere_temperature
-from thermal_kernel.calibrate import cross_section, flux_test
+from thermal_kernel.calibrate import flux_test
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
 from thermal_kernel.problem import boundary_particles, build_problem
@@ -289,11 +289,13 @@ def run(ctx: Context) -> CaseResult:
         ctx.progress(f"N {n}: packings")
         sphere_path, box_path = ctx.packing(sphere_name), ctx.packing(box_name)
         ctx.progress(f"N {n}: C_t on the cube {box_name}")
-        cal = _cached(out / f"calib_bulk_{box_name}.json", lambda: interior_ct(box_path))
+        cal = _cached(out / f"calib_bulk_{box_name}.json",
+                      lambda box_path=box_path: interior_ct(box_path))
         variants = [(PRIMARY, cal["ct_bulk"])]
         if n <= 100_000:        # the whole-cube conventions (3 steady solves; minutes above)
             cal.update(_cached(out / f"calib_{box_name}.json",
-                               lambda: calibrate_box(box_path, axes="x" if ctx.quick else "xyz")))
+                               lambda box_path=box_path:
+                               calibrate_box(box_path, axes="x" if ctx.quick else "xyz")))
             variants += [("ours, held planes", cal["ct_held_mean"]),
                          ("ours, domain length", cal["ct_domain_mean"])]
         calib[n] = cal
@@ -307,9 +309,10 @@ def run(ctx: Context) -> CaseResult:
             tag = {"held": "held_planes", "domain": "domain_length"}.get(tag, tag)
             rec = _cached(out / f"run_{sphere_name}_{tag}"
                           f"{'_cn' + str(steps) if steps else ''}.json",
-                          lambda: sphere_run(sphere_path, ct, method=method, steps=steps,
-                                             threads=ctx.threads,
-                                             keep_field=(label == PRIMARY)))
+                          lambda sphere_path=sphere_path, ct=ct, method=method, steps=steps,
+                                 label=label:
+                          sphere_run(sphere_path, ct, method=method, steps=steps,
+                                     threads=ctx.threads, keep_field=(label == PRIMARY)))
             rec.update(label=label, n_nominal=n, sphere=sphere_name)
             rows.append(rec)
     # speed against error: Rannacher CN at the paper's 1e5 (quick: the small sphere)
@@ -319,8 +322,8 @@ def run(ctx: Context) -> CaseResult:
     for steps in (5, 10, 20, 40, 80) if not ctx.quick else (5, 20):
         ctx.progress(f"N {n_speed}: Rannacher CN, {steps} steps")
         rec = _cached(out / f"cn_{sphere_name}_{steps}.json",
-                      lambda: sphere_run(ctx.packing(sphere_name), ct_ours, method="rannacher",
-                                         steps=steps))
+                      lambda steps=steps: sphere_run(ctx.packing(sphere_name), ct_ours,
+                                                     method="rannacher", steps=steps))
         speed.append(rec)
     return _report(ctx, rows, calib, speed, n_speed)
 
@@ -351,7 +354,7 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
         w = csv.writer(f)
         w.writerow(["n_particles", "ct_label", "ct", "paper_time_s", "T_centre_dem_C",
                     "T_centre_exact_C", "error_C"])
-        for k, r in enumerate(rows):
+        for r in rows:
             if (r["n_nominal"] < 100_000 and not ctx.quick) or "centre_dem_c" not in r:
                 continue            # the implicit 1e6 runs keep the final field only
             d = np.array(r["centre_dem_c"]) - np.array(r["centre_exact_c"])
@@ -492,7 +495,6 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
     best_cn = min(speed, key=lambda r: r["run_seconds"] if abs(r["centre_error_c"])
                   <= 1.1 * abs(main["centre_error_c"]) + 0.05 else math.inf)
     met = abs(main["centre_error_c"]) <= 1.0
-    img = "img/validation_case5_"
     n_fmt = ", ".join(f"{r['n_particles']:,}" for r in rows if r["label"] == PRIMARY)
     table = "\n".join(_fmt_row(r) for r in rows)
     cal_rows = "\n".join(
@@ -504,7 +506,8 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
         f"| {r['steps']} | {r['run_seconds']:.2f} | {r['centre_error_c']:+.3f} | "
         f"{r['max_abs_error_c']:.3f} |" for r in speed)
     paper_txt = (f"With the paper's C_t (0.806) on our 1e5 sphere the centre is off by "
-                 f"**{paper_1e5['centre_error_c']:+.2f} °C** (max {paper_1e5['max_abs_error_c']:.2f} °C): "
+                 f"**{paper_1e5['centre_error_c']:+.2f} °C** "
+                 f"(max {paper_1e5['max_abs_error_c']:.2f} °C): "
                  "our cut-cell packing conducts ~25 % more per contact at a given C_t "
                  "(case 6: our C_t is 0.63–0.65 where the paper's is 0.81–0.83), so the "
                  "paper's C_t heats the ball too fast. The C_t has to be calibrated on the "
@@ -523,14 +526,16 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
                   f"per C_t on one shared core; at 1e5, {BIG_STEPS} such steps are within "
                   f"0.01 °C of forward Euler, see the speed-against-error table; "
                   f"`TDEM_CASE5_1E6=explicit` runs forward Euler).") if big else
-                 "**The 1e6 ball was not run** (its packing or run failed; see validation/out/case5).")
+                 "**The 1e6 ball was not run** (its packing or run failed; see "
+                 "validation/out/case5).")
     section = f"""
 Setup (002 sec. 2.3): a ball of aluminium (ρ 2700 kg/m³, λ 185 W/m/K, c 900 J/kg/K) at
 T_0 = 20 °C whose surface is held at T_s = 200 °C from t = 0; law haddad; forward Euler (the
 paper's scheme) at 0.9 × the exact positivity bound. Packings: balls carved from copies of the
 relaxed 10,000-sphere periodic cell (`tiled`, docs/packings.md), N = {n_fmt}. The carved surface
 is a cut surface: the spheres within 1.1 r of it (its "wall contacts", wall `surface`) are held
-by a `temperature` boundary (`thermal_kernel/boundaries/temperature.py`). The analytical sphere is the **held
+by a `temperature` boundary (`thermal_kernel/boundaries/temperature.py`). The analytical sphere is \
+the **held
 shell**, R_h = mean distance of the held spheres' centres from the carving centre (the analogue
 of case 4's held planes; R_carve − R_h in the table). **Not rescaled** to
 D = 10 cm: the outputs are at the paper's Fourier numbers (Fo = α t / R² = {FO_END:.4f} at
@@ -572,12 +577,14 @@ than Q/A at 1e5, 4.6 % at 1e4) and so come out 2–6 % higher; they are run besi
 particles within 0.1 R_h of the centre; "max": max |T_p − T_exact(r_p)| over the free particles,
 the paper's Fig. 8c measure, with where it lies as r/R_h; thermal: 1 thread, shared machine):
 
-| N | C_t | value | R_h / R_carve (mm) | centre error | centre error vs R_carve | max error (r/R_h) | RMS | steps | thermal (s) |
+| N | C_t | value | R_h / R_carve (mm) | centre error | centre error vs R_carve | max error \
+(r/R_h) | RMS | steps | thermal (s) |
 |---|---|---|---|---|---|---|---|---|---|
 {table}
 
 At 1e5 with our C_t the centre error is **{main['centre_error_c']:+.3f} °C** against the paper's
-1.93 °C (max over the particles {main['max_abs_error_c']:.2f} °C, at r/R_h = {main['argmax_r_over_R']:.2f}):
+1.93 °C (max over the particles {main['max_abs_error_c']:.2f} °C, at r/R_h = \
+{main['argmax_r_over_R']:.2f}):
 the goal ≤ 1 °C is {'met' if met else 'not met'}.{big_txt} {paper_txt}
 The analytical radius matters: against the carving radius instead of the held shell the same
 field has the centre error of the column "vs R_carve" — the sphere's one free length is worth

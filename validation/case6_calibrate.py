@@ -200,7 +200,7 @@ def run(ctx: Context) -> CaseResult:
                           section_md="", numbers=dict(rows=rows))
     previous = {r["name"]: r for r in (previous_numbers(6).get("rows") or _legacy_rows())}
     rows = []
-    for key, label, name, default in INSTANCES:
+    for key, _label, name, default in INSTANCES:
         path = optional_packing(name, default)
         if path is None:
             if key in previous:
@@ -326,7 +326,8 @@ def _result(rows: list[dict], png: str, csv_name: str) -> CaseResult:
             f"{trend} slowly in both conventions (domain {d5:.3f} → {d6:.3f}, held planes "
             f"{h5:.3f} → {h6:.3f}) and the held-plane values fall like 1/L (a resistance of the "
             f"held layer to the bulk, averaged over a longer sample): from the 1e5 and 1e6 boxes, "
-            f"C_t(held) ≈ {bulk:.4f} + {_sci(slope, 1)} m / L_held, so the bulk C_t of these packings "
+            f"C_t(held) ≈ {bulk:.4f} + {_sci(slope, 1)} m / L_held, so the bulk C_t of these "
+            "packings "
             f"is ~{bulk:.3f}. We have no explanation for the paper's rise; its flux boundary (a "
             "flux imposed on one face, ΔT read there, 002 Fig. 2) differs from our two held faces.")
         if cyl:
@@ -369,7 +370,8 @@ cylinder carved from copies of a relaxed periodic cell. The shared packings are 
 (built when missing) and every other packing of the table already built on the machine.
 `tdem calibrate {SCENE} --packing FILE` prints the domain-length numbers of one packing.
 
-| packing | N | shape | C_t x / y / z (domain length) | C_t mean (domain) | C_t mean (held planes) | L_domain / L_held (mm) | Z with gaps, all / bulk | time (s) |
+| packing | N | shape | C_t x / y / z (domain length) | C_t mean (domain) | C_t mean (held planes) \
+| L_domain / L_held (mm) | Z with gaps, all / bulk | time (s) |
 |---|---|---|---|---|---|---|---|---|
 {chr(10).join(table)}
 
@@ -393,7 +395,8 @@ thread, shared machine.){carried_note}
                       (("tiled_1e5_box", "1e5"), ("tiled_1e6_box", "1e6"), ("tiled_8e6_box", "8e6"))
                       if k in by)
     verdict = ("lower than the paper's by "
-               + (f"{-100 * (b5d / 0.806 - 1):.0f}–{-100 * (_mean(b6, 'ct_domain') / 0.834 - 1):.0f} %"
+               + (f"{-100 * (b5d / 0.806 - 1):.0f}–"
+                  f"{-100 * (_mean(b6, 'ct_domain') / 0.834 - 1):.0f} %"
                   if b5 and b6 else "~20 %")
                + (f", ~{100 * frac:.0f} % of it explained by the coordination with gaps "
                   f"({b6['z_bulk']:.1f} vs {HADDAD_Z})" if frac is not None else "")
@@ -401,6 +404,6 @@ thread, shared machine.){carried_note}
     return CaseResult(
         our_n=f"{_fmt_n(min(r['n_particles'] for r in rows))} … "
               f"{_fmt_n(max(r['n_particles'] for r in rows))}",
-        our_error=our_error, wall_time=f"packing: 551 s CPU for the 10,000 cell (docs/packings.md); "
-                                       f"thermal {times}",
+        our_error=our_error,
+        wall_time=f"packing: 551 s CPU for the 10,000 cell (docs/packings.md); thermal {times}",
         verdict=verdict, section_md=section, numbers=n)

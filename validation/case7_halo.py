@@ -139,7 +139,7 @@ def run(ctx: Context) -> CaseResult:
         ctx.progress(f"N {n}: packing {name}")
         path = ctx.packing(name)
         ctx.progress(f"N {n}: steady slab and Halo fluxes at {len(RATIOS)} ratios")
-        rec = _cached(ctx.out / f"halo_{name}.json", lambda: halo_cov(path))
+        rec = _cached(ctx.out / f"halo_{name}.json", lambda path=path: halo_cov(path))
         rec.update(name=name, n_nominal=n)
         recs.append(rec)
     return _report(ctx, recs)
@@ -318,14 +318,16 @@ The Halo average keeps the mean: mean q_x / (Q/A) is the same at every ratio ≥
 because the layers along the cube's adiabatic cut faces conduct less (neighbours missing beyond
 the cut), so the interior carries more than the average flux Q/A.
 
-![CoV of the particle flux against the halo ratio, with the paper's values](img/validation_case7_cov.png)
+![CoV of the particle flux against the halo ratio, with the paper's \
+values](img/validation_case7_cov.png)
 
 ![mean, min and max flux against the halo ratio](img/validation_case7_minmax.png)
 
 **Against N and the ratio** (ratios where the CoV crosses 5 % and 2 %, log-log interpolated; the
 slope of log CoV against log ratio fitted for ratio ≥ 5; times on 1 thread of a shared machine):
 
-| N | ratio at 5 % | ratio at 2 % | slope (ratio ≥ 5) | steady solve (s) | Halo, all ratios (s) | packing (s) |
+| N | ratio at 5 % | ratio at 2 % | slope (ratio ≥ 5) | steady solve (s) | Halo, all ratios (s) | \
+packing (s) |
 |---|---|---|---|---|---|---|
 {ratio_lines}
 

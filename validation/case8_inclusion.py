@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from tdem_post.analytic import hashin_shtrikman, maxwell, rayleigh_cubic_array
-from thermal_kernel.packing import read_packing
 from validation import framework
 from validation import inclusions as I
 from validation.framework import CaseInfo, CaseResult, Context
@@ -293,8 +292,10 @@ def finish(ctx: Context, runs: list, total: float) -> CaseResult:
     fsec = [r for r in runs if r["series"] == "faces"]
     fd = ", ".join(f"{r['name']} {r['f_particles']:.4f} / {r['f_cells']:.4f}" for r in fsec)
     pack = ", ".join(f"{r['name']} {r['pack_s']:.0f} s" for r in fsec if r.get("pack_s"))
-    section = f"""**Setup.** 002 sec. 4.1: a cube of side L with one centred sphere of radius a = L/3
-(f = 4π/81 = 15.51 %), matrix λ 33 W/m/K, inclusion c λ for c = {', '.join(f'{c:g}' for c in CONTRASTS)},
+    section = f"""\
+**Setup.** 002 sec. 4.1: a cube of side L with one centred sphere of radius a = L/3
+(f = 4π/81 = 15.51 %), matrix λ 33 W/m/K, inclusion c λ for c = \
+{', '.join(f'{c:g}' for c in CONTRASTS)},
 law `haddad` (C_t cancels in k_eff/k_m), a particle is in the inclusion when its centre is
 (002, the YADE generator), the interface contacts get the harmonic mean (002 eq. 24). The paper
 compares with Maxwell; for this geometry the exact continuum value is the simple-cubic array's

@@ -268,7 +268,7 @@ def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s):
     for r in rs:
         t_rows.append(f"| tdem {r['n']:,} | " + " | ".join(
             f"{t:.3f} ({100 * e:.2f} %)" for t, e in zip(r["T"], r["err_T"])) + " |")
-    q_rows = [f"| FV reference (h → 0) | " + " | ".join(
+    q_rows = ["| FV reference (h → 0) | " + " | ".join(
         f"{v:.0f} ± {q0 * u:.0f}" for v, u in zip(ref_q, ref["q_unc"])) + " |",
         "| 002 FE / DE 150,000 / DE 500,000 | " + " | ".join(
             f"{a} / {b} / {c}" for a, b, c in zip(PAPER["FE"]["q"], PAPER["150,000 DE"]["q"],
@@ -283,7 +283,8 @@ def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s):
     return f"""**Setup.** The cube of case 8 with its centred inclusion a = L/3 at c = 5 (33 / 165
 W/m/K), y = 0 at 25 °C, y = L at 35 °C, adiabatic sides (002 sec. 4.2). DEM: one steady solve
 (law `haddad`, phases by the particles' centres, harmonic interfaces; C_t calibrated on each
-packing so that the single-phase test gives 33 W/m/K, 002 sec. 2.1: {', '.join(f"{r['ct_calibrated']:.4f}" for r in rs)}
+packing so that the single-phase test gives 33 W/m/K, 002 sec. 2.1: \
+{', '.join(f"{r['ct_calibrated']:.4f}" for r in rs)}
 at N = {', '.join(f"{r['n']:,}" for r in rs)}); T at a point from a
 linear least-squares fit over its 32 nearest particles; |q| the Halo flux (002 eq. 22–23) of the
 particle nearest the point, at Halo/DE ratios 0 (raw eq. 20), 4 and 11 (002's choice), scaled to

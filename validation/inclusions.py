@@ -11,8 +11,8 @@ segment lies inside, and the contact's conductivity is the series value
 nothing but the interface contacts' conductance and shows how much of the error is the interface.
 
 The flux test is 002 sec. 2.2 and 4.2: the faces ymin / ymax held at 25 / 35 C, adiabatic sides,
-one sparse steady solve; k_eff / k_m is the composite's heat flow over the single-phase one on the same
-packing, so that C_t and the domain length cancel.
+one sparse steady solve; k_eff / k_m is the composite's heat flow over the single-phase one on the
+same packing, so that C_t and the domain length cancel.
 """
 from __future__ import annotations
 

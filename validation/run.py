@@ -157,8 +157,8 @@ def run_cases(numbers: list[int], cases: dict, force: bool = False, quick: bool 
             failed += 1
             log = ctx.out / "error.log"
             write_text_atomic(log, "".join(traceback.format_exception(e)))
-            print(f"{head}: FAILED: {type(e).__name__}: {_one_line(e)} (traceback: "
-                  f"{log.relative_to(framework.ROOT) if log.is_relative_to(framework.ROOT) else log})",
+            shown = log.relative_to(framework.ROOT) if log.is_relative_to(framework.ROOT) else log
+            print(f"{head}: FAILED: {type(e).__name__}: {_one_line(e)} (traceback: {shown})",
                   flush=True)
             continue
         seconds = time.perf_counter() - t0

@@ -92,7 +92,8 @@ def hertz_moduli(young_now, young, poisson, wall_young, wall_poisson):
     the same factor as the particles)."""
     soft = young_now / young
     e_pp = young_now / (2.0 * (1.0 - poisson ** 2))
-    e_pw = 1.0 / ((1.0 - poisson ** 2) / young_now + (1.0 - wall_poisson ** 2) / (wall_young * soft))
+    e_pw = 1.0 / ((1.0 - poisson ** 2) / young_now
+                  + (1.0 - wall_poisson ** 2) / (wall_young * soft))
     return e_pp, e_pw
 
 

@@ -661,7 +661,8 @@ class Bed:
         self.log(f"wrote {path}: N {n}, phi {attrs['solid_fraction']:.4f}, "
                  f"Z {attrs['mean_coordination']:.3f}, contacts {len(c['pairs'])} "
                  f"(mean force {forces.mean() if len(forces) else 0:.4g} N), wall contacts "
-                 f"{len(c['w_particle'])}, p {attrs['pressure_pa']:.5g} Pa (from dumped plate contacts "
+                 f"{len(c['w_particle'])}, p {attrs['pressure_pa']:.5g} Pa "
+                 f"(from dumped plate contacts "
                  f"{plate_sum:.5g}), unbalanced {unb:.2e}, I max {imax:.2e}, plate displacement "
                  f"{attrs['plate_displacement_m'] * 1e3:.4f} mm, E used {self.young_now:.4g} Pa, "
                  f"{attrs['stage_wall_seconds']:.1f} s for this stage")

@@ -5,7 +5,8 @@
 """
 PARAMS = {
     "shape": dict(kind="str", default="box", choices=["box", "periodic", "cylinder", "sphere"],
-                  help="domain: box (6 plane walls), periodic cell, cylinder (beam along z), sphere"),
+                  help="domain: box (6 plane walls), periodic cell, cylinder (beam along z), "
+                       "sphere"),
     "n_particles": dict(kind="int", default=2000, minimum=20,
                         help="number of spheres"),
     "radius_mean_m": dict(kind="float", default=1e-3, minimum=1e-12, help="mean radius, m"),
@@ -22,8 +23,8 @@ PARAMS = {
                    help="relative side lengths x:y:z of the box or cell (cylinder: z is the "
                         "axis, length/diameter = z/x; sphere: unused)"),
     "confining_pressure_pa": dict(kind="float", default=1e5, minimum=1.0,
-                                  help="mean stress the packing is compressed to (radii grow in the fixed "
-                                       "domain until it is reached), Pa"),
+                                  help="mean stress the packing is compressed to (radii grow "
+                                       "in the fixed domain until it is reached), Pa"),
     "compaction_friction": dict(kind="float", default=0.0, minimum=0.0,
                                 help="friction coefficient while compressing (0 gives the densest "
                                      "random packing, phi ~0.64; more gives a looser one)"),

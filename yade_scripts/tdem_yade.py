@@ -36,8 +36,9 @@ domain is bounded by the axis-normal walls or the periodic cell, and along an ax
 the spheres' bounding box, which is then recorded as inferred), ``mean_coordination`` (2 M / N,
 touching sphere-sphere contacts), ``pressure_pa`` when not given (periodic cell: -trace/3 of
 YADE's ``utils.getStress()``; walls: the normal force on the wall named ``plate`` (see
-``wall_names``) over the domain's face area, else the mean of that over the axis-normal walls). Everything inferred is listed in the attribute ``inferred`` and
-printed by ``tdem info``. The stated contact law is checked against the forces (``force_law*``,
+``wall_names``) over the domain's face area, else the mean of that over the axis-normal walls).
+Everything inferred is listed in the attribute ``inferred`` and printed by ``tdem info``. The
+stated contact law is checked against the forces (``force_law*``,
 ``thermal_kernel/contact_check.py``): Hertz (``MindlinPhys``) against 4/3 E* sqrt(R*) delta^1.5
 with the given ``young_pa``/``poisson``, linear laws against k_n delta with YADE's own k_n.
 

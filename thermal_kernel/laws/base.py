@@ -12,8 +12,8 @@ exchange between a particle and a wall of fixed temperature. Laws are registered
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 

@@ -102,7 +102,7 @@ def _advance(n_steps, dt, use_rhs, indptr, indices, hval, inv_c, held, g, rhs, f
     """n_steps forward-Euler steps of size dt; the ledger (energy, J) is advanced with the
     boundary flows at the start of each step, i.e. exactly the fluxes the step uses.
     Returns (latest, other) buffers."""
-    for s in range(n_steps):
+    for _s in range(n_steps):
         _boundary_flows(indptr, indices, hval, ta, fixed_p, fixed_b, ex_p, ex_g, ex_t, ex_b,
                         held_b, held_out, flows)
         for b in range(energy.shape[0]):
