@@ -88,7 +88,8 @@ class Container:
         if self.shape == "cylinder":
             return lambda x, y, z, r: (math.hypot(x - cx, y - cy) + r <= rad and z - r >= 0
                                        and z + r <= sz)
-        return lambda x, y, z, r: math.sqrt((x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2) + r <= rad
+        return lambda x, y, z, r: (math.sqrt((x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2) + r
+                                   <= rad)
 
     def walls(self):
         walls = []

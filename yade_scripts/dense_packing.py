@@ -97,7 +97,8 @@ def build_scene(p, centres, radii, box, young):
         elif wall["kind"] == "cylinder":
             ids = O.bodies.append(geom.facetCylinder(
                 center=tuple(float(x) for x in box.centre), radius=wall["radius"],
-                height=box.size[2], segmentsNumber=p["wall_segments"], wallMask=4, material=facet_mat))
+                height=box.size[2], segmentsNumber=p["wall_segments"], wallMask=4,
+                material=facet_mat))
         else:
             ids = O.bodies.append(geom.facetSphere(
                 center=tuple(float(x) for x in box.centre), radius=wall["radius"],
