@@ -44,7 +44,7 @@ DENSE = [
      "cell_particles"),
     ("aspect = [1.0, 1.0]", "aspect"),
     # facets sagging more than the smallest cloud sphere: one would start outside them
-    ('shape = "sphere"\nwall_segments = 16', "wall_segments"),
+    ('shape = "sphere"\nsphere_facet_level = 1', "sphere_facet_level"),
 ]
 
 

@@ -316,33 +316,46 @@ def test_scripts_import_without_yade_and_do_not_run(script, monkeypatch):
     assert module.O is None
 
 
-def test_facet_sag_is_the_cylinder_polygon_and_bounds_the_measured_sphere():
-    """The cylinder's sag is the regular polygon's, exactly; for the sphere the bound is above
-    the sag measured on YADE 2023.02a's geom.facetSphere (min distance of its facet planes from
-    the centre, radius 1: n = 16, 24, 48, 96 -> 0.0438, 0.0186, 0.00447, 0.00109) and within
-    30 % of it."""
-    from yade_scripts.dense_geometry import facet_sag
+def test_facet_sag_is_the_cylinder_polygon_and_the_icospheres_inradius():
+    """The cylinder's sag is the regular polygon's; the icosphere's at level 0 is the regular
+    icosahedron's, 1 - inradius/circumradius = 1 - sqrt((5 + 2 sqrt 5) / 15) (closed form),
+    and each split into four roughly quarters it (the edges halve). Every icosphere vertex is
+    on the sphere, with 10 4^L + 2 vertices and 20 4^L triangles (Euler)."""
+    from yade_scripts.dense_geometry import facet_sag, icosphere
     for n in (8, 16, 48, 96):
         apothem = math.cos(math.pi / n)        # polygon of n sides inscribed in the unit circle
-        assert facet_sag("cylinder", 1.0, n) == pytest.approx(1.0 - apothem, rel=1e-12)
-    for n, measured in ((16, 0.0438051), (24, 0.0186466), (48, 0.00446732), (96, 0.00109355)):
-        assert measured < facet_sag("sphere", 1.0, n) < 1.3 * measured
-    assert facet_sag("box", 1.0, 48) == 0.0
+        assert facet_sag("cylinder", 1.0, segments=n) == pytest.approx(1.0 - apothem, rel=1e-12)
+    inradius = math.sqrt((5.0 + 2.0 * math.sqrt(5.0)) / 15.0)
+    assert facet_sag("sphere", 1.0, level=0) == pytest.approx(1.0 - inradius, rel=1e-12)
+    sags = [facet_sag("sphere", 2.0, level=level) / 2.0 for level in range(5)]
+    for coarse, fine in zip(sags[1:], sags[2:]):
+        assert 3.5 < coarse / fine < 4.5
+    for level in range(4):
+        v, f = icosphere(level)
+        assert len(v) == 10 * 4 ** level + 2 and len(f) == 20 * 4 ** level
+        assert np.allclose(np.linalg.norm(v, axis=1), 1.0, atol=1e-14)
+        edges = {tuple(sorted(e)) for t in f for e in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))}
+        assert len(edges) == 30 * 4 ** level        # closed surface: V - E + F = 2
+    assert facet_sag("box", 1.0) == 0.0
 
 
-def test_a_coarse_facet_sphere_is_refused_and_a_fine_one_accepted():
-    """wall_segments must keep every cloud sphere's centre inside the facets: the check names
-    the smallest number that does, and that number passes."""
+def test_a_coarse_facet_container_is_refused_and_a_fine_one_accepted():
+    """The facets must keep every cloud sphere's centre inside them: the check names the
+    smallest wall_segments (cylinder) / sphere_facet_level (sphere) that does, which passes."""
     from yade_scripts import dense_geometry, dense_params
     p = {k: v["default"] for k, v in dense_params.PARAMS.items()}
-    p.update(shape="sphere", n_particles=2000, wall_segments=16)
-    with pytest.raises(ValueError, match=r"^wall_segments: .* expected at least (\d+), got 16"):
+    p.update(shape="sphere", n_particles=2000, sphere_facet_level=1)
+    with pytest.raises(ValueError, match=r"^sphere_facet_level: .* expected at least 2, got 1"):
         dense_geometry.cloud_domain(p)
+    dense_geometry.cloud_domain(dict(p, sphere_facet_level=2))
+    dense_geometry.cloud_domain(dict(p, sphere_facet_level=3))        # the default: accepted
+    c = dict(p, shape="cylinder", aspect=[1.0, 1.0, 4.0], n_particles=20000, wall_segments=8)
+    with pytest.raises(ValueError, match=r"^wall_segments: .* expected at least (\d+), got 8"):
+        dense_geometry.cloud_domain(c)
     try:
-        dense_geometry.cloud_domain(p)
+        dense_geometry.cloud_domain(c)
     except ValueError as e:
         need = int(str(e).split("expected at least ")[1].split(",")[0])
-    dense_geometry.cloud_domain(dict(p, wall_segments=need))          # accepted
+    dense_geometry.cloud_domain(dict(c, wall_segments=need))          # accepted
     with pytest.raises(ValueError):
-        dense_geometry.cloud_domain(dict(p, wall_segments=need - 2))
-    dense_geometry.cloud_domain(dict(p, wall_segments=48))            # the default: accepted
+        dense_geometry.cloud_domain(dict(c, wall_segments=need - 2))

@@ -14,6 +14,7 @@ from .dense_params import PARAMS as _PARAMS
 from .tiling import carve, repetitions, tile
 
 WALL_SEGMENTS_DEFAULT = _PARAMS["wall_segments"]["default"]
+SPHERE_FACET_LEVEL_DEFAULT = _PARAMS["sphere_facet_level"]["default"]
 
 CLOUD_BATCH = 4096             # candidates drawn at a time by the cloud (one stream for all)
 CLOUD_MAX_TRIES = 100000       # candidates of one sphere before the cloud gives up
@@ -123,41 +124,80 @@ class Container:
         return wall["radius"] - np.linalg.norm(position - wall["point"], axis=1)
 
 
-def facet_sag(shape, radius, segments):
-    """How far (m) the facet container of YADE (``geom.facetCylinder`` with ``segments`` sides,
-    ``geom.facetSphere`` with ``segments`` x ``segments // 2``) lies inside the analytic
-    cylinder or sphere of ``radius`` at most: its vertices are on the analytic surface, its flat
-    facets sag between them. Cylinder: R (1 - cos(pi / n)), exact. Sphere: R (1 - cos(1.6 pi /
-    n)), an upper bound of the sag measured on YADE 2023.02a's facetSphere (n = 16, 24, 48, 96:
-    0.0438, 0.0186, 0.00447, 0.00109 R; the bound gives 0.0489, 0.0219, 0.00548, 0.00137 R).
-    0 for a box or a periodic cell."""
+def icosphere(level):
+    """The spherical container's facets: a regular icosahedron inscribed in the unit sphere,
+    each triangle split into four ``level`` times, the new vertices pushed out onto the sphere.
+    Returns (vertices (V, 3), triangles (20 4^level, 3) of vertex indices). Its triangles are
+    nearly equal (unlike a latitude-longitude sphere, whose slivers at the poles pair with many
+    near-wall spheres in YADE's collider): for the same sag, fewer and more compact facets."""
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    corners = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t),
+               (0, -1, -t), (0, 1, -t), (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
+    vertices = [np.array(c, dtype=float) / math.sqrt(1.0 + t * t) for c in corners]
+    faces = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4),
+             (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8),
+             (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    for _ in range(level):
+        middle = {}
+
+        def mid(a, b, middle=middle):
+            key = (min(a, b), max(a, b))
+            if key not in middle:
+                x = vertices[a] + vertices[b]
+                vertices.append(x / np.linalg.norm(x))
+                middle[key] = len(vertices) - 1
+            return middle[key]
+        split = []
+        for a, b, c in faces:
+            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+            split += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
+        faces = split
+    return np.array(vertices), np.array(faces, dtype=np.int64)
+
+
+def facet_sag(shape, radius, segments=48, level=3):
+    """How far (m) the facet container lies inside the analytic cylinder or sphere of
+    ``radius`` at most (its vertices are on the analytic surface, its flat facets sag between
+    them): YADE's ``geom.facetCylinder`` with ``segments`` sides, R (1 - cos(pi / n)); the
+    :func:`icosphere` of ``level``, R minus its smallest distance from the centre to a facet's
+    plane (exact; 0.0046 R at level 3). 0 for a box or a periodic cell."""
     if shape == "cylinder":
         return radius * (1.0 - math.cos(math.pi / segments))
     if shape == "sphere":
-        return radius * (1.0 - math.cos(1.6 * math.pi / segments))
+        v, f = icosphere(level)
+        normal = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        return radius * (1.0 - float(np.min(np.abs(np.einsum("ij,ij->i", normal, v[f[:, 0]])))))
     return 0.0
 
 
 def check_facet_sag(p, radii, box):
-    """ValueError('wall_segments: ...') when a sphere of the initial cloud, placed inside the
-    analytic container, could have its centre beyond a facet: the contact would push it out
-    and it would leave the container (measured: with wall_segments = 16 a 2,000-sphere sphere
-    container lost one, which flew off and made YADE's collider run every step)."""
+    """ValueError('wall_segments: ...' / 'sphere_facet_level: ...') when a sphere of the
+    initial cloud, placed inside the analytic container, could have its centre beyond a facet:
+    the contact would push it out and it would leave the container (measured: a 2,000-sphere
+    sphere container of 16 x 8 latitude-longitude facets lost one, which flew off and made
+    YADE's collider run every step)."""
     if box.shape not in ("cylinder", "sphere"):
         return
     shrink = (CLOUD_SOLID_FRACTION / EXPECTED_SOLID_FRACTION[box.shape]) ** (1.0 / 3.0)
     smallest = float(radii.min()) * shrink
-    segments = p.get("wall_segments", WALL_SEGMENTS_DEFAULT)
-    sag = facet_sag(box.shape, box.radius, segments)
-    if sag < smallest:
+    if box.shape == "cylinder":
+        key, value, step = "wall_segments", p.get("wall_segments", WALL_SEGMENTS_DEFAULT), 2
+    else:
+        key, value, step = ("sphere_facet_level",
+                            p.get("sphere_facet_level", SPHERE_FACET_LEVEL_DEFAULT), 1)
+
+    def sag(v):
+        return facet_sag(box.shape, box.radius, segments=v, level=v)
+    if sag(value) < smallest:
         return
-    need = segments
-    while facet_sag(box.shape, box.radius, need) >= smallest:
-        need += 2
-    raise ValueError(f"wall_segments: the {box.shape}'s facets sag {sag:.3g} m inside its radius "
+    need = value
+    while sag(need) >= smallest:
+        need += step
+    raise ValueError(f"{key}: the {box.shape}'s facets sag {sag(value):.3g} m inside its radius "
                      f"{box.radius:.4g} m, more than the smallest sphere of the initial cloud "
                      f"({smallest:.3g} m), which could start outside them and leave the "
-                     f"container; expected at least {need}, got {segments}")
+                     f"container; expected at least {need}, got {value}")
 
 
 EXPECTED_SOLID_FRACTION = {"periodic": 0.64, "box": 0.60, "cylinder": 0.60, "sphere": 0.60}

@@ -34,7 +34,7 @@ if __name__ == "__main__":       # run by YADE (yade -x): the package yade_scrip
 from yade_scripts import params as P  # noqa: E402
 from yade_scripts.dense_geometry import (  # noqa: E402
     CLOUD_SOLID_FRACTION, FREE_GROWTH_SOLID_FRACTION, WALL_YOUNG_FACTOR, CloudError, Container,
-    assign_phases, make_cloud, relaxed_contacts, relaxed_params, relaxed_wall_contacts,
+    assign_phases, icosphere, make_cloud, relaxed_contacts, relaxed_params, relaxed_wall_contacts,
     solid_fractions, stiffness_stages, tile_cell)
 from yade_scripts.tdem_dump import write_packing  # noqa: E402
 
@@ -100,10 +100,14 @@ def build_scene(p, centres, radii, box, young):
                 height=box.size[2], segmentsNumber=p["wall_segments"], wallMask=4,
                 material=facet_mat))
         else:
-            ids = O.bodies.append(geom.facetSphere(
-                center=tuple(float(x) for x in box.centre), radius=wall["radius"],
-                thetaResolution=p["wall_segments"], phiResolution=p["wall_segments"] // 2,
-                material=facet_mat))
+            # an icosphere, not geom.facetSphere: its latitude-longitude slivers at the poles
+            # paired with many near-wall spheres (1.65x the box's CPU against 1.3x, same sag)
+            vertices, triangles = icosphere(p["sphere_facet_level"])
+            corner = np.asarray(box.centre, dtype=float) + wall["radius"] * vertices
+            ids = O.bodies.append([
+                utils.facet([tuple(float(x) for x in corner[k]) for k in triangle],
+                            material=facet_mat, fixed=True)
+                for triangle in triangles])
         for i in ids:
             wall_of_body[i] = w
     collider = InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb()])
@@ -452,6 +456,7 @@ def domain_attrs(p, state, phi, phi_bulk, n_dispersed, cell_info, t0):
         "neighbour_criterion": "centre distance < (1 + gap_tolerance)(r_i + r_j)",
         "gap_tolerance": p["gap_tolerance"], "wall_gap_tolerance": p["wall_gap_tolerance"],
         "wall_segments": p["wall_segments"],
+        "sphere_facet_level": p["sphere_facet_level"],
         "wall_contact_model": "Hertz with R* = r and E* = E / (2 (1 - nu^2)): a flat wall of "
                               "the particles' material (curved walls: facets, locally flat)"
         if p["method"] == "direct" else

@@ -68,7 +68,10 @@ PARAMS = {
                               help="each stage ends when |mean stress / confining pressure - 1| "
                                    "is below this (and the unbalanced force is small)"),
     "wall_segments": dict(kind="int", default=48, minimum=8,
-                          help="facets around the cylinder mantle / the spherical container"),
+                          help="facets around the cylinder mantle"),
+    "sphere_facet_level": dict(kind="int", default=3, minimum=1,
+                               help="the spherical container is an icosphere of 20 x 4^level "
+                                    "triangles (level 3: 1,280, sag 0.0046 R)"),
     "gap_tolerance": dict(kind="float", default=0.0, minimum=0.0,
                           help="neighbour criterion: pairs with centre distance < "
                                "(1 + gap_tolerance)(r_i + r_j) are dumped as contacts (gaps "
