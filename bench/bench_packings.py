@@ -77,6 +77,8 @@ DEFAULT_CASES = (
     [f"reference:2000:{s}" for s in (1, 2, 3)] + [f"ds:2000:{s}" for s in (1, 2, 3)]
     + [f"reference:10000:{s}" for s in (1, 2, 3)] + [f"ds:10000:{s}" for s in (1, 2, 3)]
     + [f"tiled:10000:{s}:2000" for s in (1, 2, 3)]
+    # the walled curved containers against the box (the "same as the box +- 50 %")
+    + [f"ds:2000:{s}::{shape}" for shape in ("cylinder", "sphere") for s in (1, 2, 3)]
     + ["tiled:100000:1:10000", "tiled:1000000:1:10000", "tiled:8000000:1:10000",
        "tiled:100000:1:10000:cylinder", "tiled:100000:1:10000:sphere"]
 )
