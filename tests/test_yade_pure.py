@@ -109,7 +109,8 @@ def test_equal_spheres_for_volume():
 DENSE = dict(radius_mean_m=1e-3, radius_distribution="gaussian", radius_spread=0.2,
              radius_sigma_over_mean=0.3, radius_truncation_sigmas=2.0, aspect=[1.0, 1.0, 1.0],
              seed=3, method="direct", cell_particles=10000, inclusions=[],
-             inclusion_volume_fraction=0.0, inclusion_radius_over_mean=3.0, inclusion_phase=1)
+             inclusion_volume_fraction=0.0, inclusion_radius_over_mean=3.0, inclusion_phase=1,
+             wall_segments=48, sphere_facet_level=3)
 
 
 @pytest.mark.parametrize("shape, aspect", [("periodic", [1, 1, 1]), ("box", [1, 2, 0.7]),

@@ -10,11 +10,7 @@ import numpy as np
 
 from .neighbours import neighbour_pairs
 from .placement import equal_spheres_for_volume, random_sequential_addition
-from .dense_params import PARAMS as _PARAMS
 from .tiling import carve, repetitions, tile
-
-WALL_SEGMENTS_DEFAULT = _PARAMS["wall_segments"]["default"]
-SPHERE_FACET_LEVEL_DEFAULT = _PARAMS["sphere_facet_level"]["default"]
 
 CLOUD_BATCH = 4096             # candidates drawn at a time by the cloud (one stream for all)
 CLOUD_MAX_TRIES = 100000       # candidates of one sphere before the cloud gives up
@@ -182,13 +178,16 @@ def check_facet_sag(p, radii, box):
     shrink = (CLOUD_SOLID_FRACTION / EXPECTED_SOLID_FRACTION[box.shape]) ** (1.0 / 3.0)
     smallest = float(radii.min()) * shrink
     if box.shape == "cylinder":
-        key, value, step = "wall_segments", p.get("wall_segments", WALL_SEGMENTS_DEFAULT), 2
-    else:
-        key, value, step = ("sphere_facet_level",
-                            p.get("sphere_facet_level", SPHERE_FACET_LEVEL_DEFAULT), 1)
+        key, step = "wall_segments", 2
 
-    def sag(v):
-        return facet_sag(box.shape, box.radius, segments=v, level=v)
+        def sag(n):
+            return facet_sag("cylinder", box.radius, segments=n)
+    else:
+        key, step = "sphere_facet_level", 1
+
+        def sag(level):
+            return facet_sag("sphere", box.radius, level=level)
+    value = p[key]
     if sag(value) < smallest:
         return
     need = value
