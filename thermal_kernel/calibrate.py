@@ -24,11 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .boundaries import TemperatureBoundary
+from .boundaries import TemperatureBoundary, boundary_particles
 from .effective import EffectiveConductivity, effective_conductivity
 from .network import assemble
 from .packing import Packing, PackingError
-from .problem import boundary_particles, build_problem
+from .problem import build_problem
 from .scene import Scene, SceneError, SolverConfig
 
 AXES = "xyz"
@@ -103,15 +103,33 @@ def cross_section(packing: Packing, axis: int) -> float:
 
 @dataclass(frozen=True)
 class FluxTest:
-    effective_w_mk: float         # lambda^e = Q L / (A dT), 002 eq. 8
-    heat_flow_w: float            # Q through the hot face
-    balance: float                # |Q_hot + Q_cold| / Q_hot
-    length_m: float
-    area_m2: float
     n_hot: int
     n_cold: int
     law_params: dict
     effective: EffectiveConductivity     # the whole result (length convention "domain")
+
+    @property
+    def effective_w_mk(self) -> float:
+        """lambda^e = Q L / (A dT), 002 eq. 8."""
+        return self.effective.k_eff_w_mk
+
+    @property
+    def heat_flow_w(self) -> float:
+        """Q through the hot face."""
+        return self.effective.q_in_w
+
+    @property
+    def balance(self) -> float:
+        """|Q_hot + Q_cold| / Q_hot."""
+        return self.effective.balance
+
+    @property
+    def length_m(self) -> float:
+        return self.effective.length_m
+
+    @property
+    def area_m2(self) -> float:
+        return self.effective.area_m2
 
 
 def flux_test(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.0,
@@ -147,8 +165,6 @@ def flux_test(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.
         raise SceneError(f"{scene.path}: boundary: no heat flows from {faces[0]} to {faces[1]} "
                          f"in {packing.path} (the two faces are not connected by contacts)")
     return FluxTest(
-        effective_w_mk=effective.k_eff_w_mk, heat_flow_w=effective.q_in_w,
-        balance=effective.balance, length_m=effective.length_m, area_m2=effective.area_m2,
         n_hot=len(boundary_particles(test, packing, faces[0], "boundary[0]")),
         n_cold=len(boundary_particles(test, packing, faces[1], "boundary[1]")),
         law_params=dict(info["law_params"]), effective=effective)

@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from .boundaries import BuildContext, Rows
-from .boundaries.base import FACES, boundary_particles  # noqa: F401 (tdem_post imports them here)
+from .boundaries.base import FACES, boundary_particles  # noqa: F401 (imported from here by tdem_post, validation, bench and tests)
 from .laws import get_law
 from .laws.base import ContactInput, ParticleInput
 from .network import ThermalProblem

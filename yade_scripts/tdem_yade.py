@@ -514,17 +514,13 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
     if len(p_over):
         r_i, r_j = radius[pair[:, 0]], radius[pair[:, 1]]
         r_star = r_i * r_j / (r_i + r_j)
-    try:
-        _writer.write_packing(
-            path, position, radius, phase, pair, p_over, p_force, p_branch, wall_rows, w_part,
-            w_wall, w_over, w_force, lo, hi, (periodic,) * 3, out_attrs,
-            contact_radius=np.sqrt(r_star * np.clip(p_over, 0, None)),
-            wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)),
-            yade_id=yade_id)
-    except BaseException:
-        if os.path.exists(path + ".tmp"):
-            os.remove(path + ".tmp")
-        raise
+    # (the writer renames a finished <path>.tmp; on any error it removes it)
+    _writer.write_packing(
+        path, position, radius, phase, pair, p_over, p_force, p_branch, wall_rows, w_part,
+        w_wall, w_over, w_force, lo, hi, (periodic,) * 3, out_attrs,
+        contact_radius=np.sqrt(r_star * np.clip(p_over, 0, None)),
+        wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)),
+        yade_id=yade_id)
     summary = dict(n_particles=n, n_contacts=int(touching.sum()), n_wall_contacts=len(w_part),
                    walls=[w["name"] for w in walls], solid_fraction=solid_fraction,
                    mean_coordination=mean_z, pressure_pa=float(pressure_pa),

@@ -9,7 +9,6 @@ under construction (:class:`Rows`). The solvers only ever see the rows (plain ar
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -134,8 +133,3 @@ def read_temperature(t, key: str = "value") -> float:
     if value <= 0:
         t.fail(key, f"expected a temperature > 0 K, got {value!r}")
     return value
-
-
-def optional_number(t, key: str, default: float = math.nan, **checks) -> float:
-    """A number if the key is given (with ``checks`` as in ``_Table.number``), else ``default``."""
-    return t.number(key, **checks) if t.has(key) else default

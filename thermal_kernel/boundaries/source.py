@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .base import BoundaryKind, BuildContext, Rows, optional_number
+from .base import BoundaryKind, BuildContext, Rows
 
 SOURCE_SHAPES = ("cylinder", "sphere", "box")
 
@@ -51,13 +51,13 @@ class SourceBoundary(BoundaryKind):
             value=t.number("value"), shape=shape,
             centre_m=t.vector("centre_m", (0.0, 0.0, 0.0)),
             radius_m=t.number("radius_m", positive=True) if shape != "box" else math.nan,
-            depth_m=optional_number(t, "depth_m", math.inf, positive=True),
+            depth_m=t.number("depth_m", default=math.inf, positive=True),
             axis=t.vector("axis", (0.0, 0.0, 1.0)),
             half_size_m=t.vector("half_size_m", (0.0, 0.0, 0.0)) if shape == "box"
             else (0.0, 0.0, 0.0),
             velocity_m_s=t.vector("velocity_m_s", (0.0, 0.0, 0.0)),
             start_time=t.number("start_time", default=0.0, minimum=0.0),
-            stop_time=optional_number(t, "stop_time", math.inf))
+            stop_time=t.number("stop_time", default=math.inf))
         if b.stop_time <= b.start_time:
             t.fail("stop_time", f"expected a time after start_time = {b.start_time:g} s, got "
                                 f"{b.stop_time:g} s (the source would never be on)")

@@ -8,7 +8,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..laws.base import WallContactInput
-from .base import BoundaryKind, BuildContext, Rows, members, optional_number, read_temperature
+from .base import BoundaryKind, BuildContext, Rows, members, read_temperature
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -34,7 +34,7 @@ class WallTemperatureBoundary(BoundaryKind):
         on = t.string("on")
         value = read_temperature(t)
         return cls(name=t.string("name", default=f"{cls.kind}:{on}"), on=on, value=value,
-                   wall_conductivity=optional_number(t, "wall_conductivity", positive=True))
+                   wall_conductivity=t.number("wall_conductivity", default=math.nan, positive=True))
 
     def contribute(self, ctx: BuildContext, index: int, rows: Rows) -> None:
         where = f"boundary[{index}]"
