@@ -128,7 +128,7 @@ def case_scene(base, packing: Path, case_dir: Path):
     """The scene of one case: ``base`` (:func:`case_scenes`) on ``packing``, its output in
     ``case_dir`` (where [output] path puts it, thermal.h5 by default)."""
     output = base.output if base.output.is_absolute() else Path(case_dir) / base.output
-    return dataclasses.replace(base, packing=Path(packing).resolve(), pack=None, output=output)
+    return dataclasses.replace(base, packing=Path(packing).resolve(), output=output)
 
 
 def check_case_scenes(campaign_path: Path, conf: dict, text: str, out_dir: Path) -> dict:
@@ -257,7 +257,7 @@ def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label
     ``post/summary.json`` exists (post-processed again, from its thermal.h5 alone, with
     ``repost``), run otherwise: ``scene`` (the law's, :func:`case_scenes`) on ``packing``."""
     from thermal_kernel.run import run_scene
-    from tdem_post.post_run import post_run
+    from tdem_post.post_run import analyse, write_post
     name = f"{packing.stem.removeprefix('packing_')}_{scene.law}"
     case_dir = series_dir / "cases" / name
     summary_path = case_dir / "post" / "summary.json"
@@ -265,10 +265,11 @@ def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label
     if summary_path.exists() and repost and thermal_path.exists():
         old = json.loads(summary_path.read_text())
         t0 = time.time()
-        summary = post_run(thermal_path, n_bins=conf["n_bins"])
+        post = analyse(thermal_path, n_bins=conf["n_bins"])
+        summary = write_post(post)
         for key in ("case_wall_seconds", "thermal_wall_seconds"):
             summary[key] = old.get(key, float("nan"))
-        summary["flags"] = run_flags(thermal_path)
+        summary["flags"] = post.run.flags            # (analysed: the file is a complete run)
         write_text_atomic(summary_path, json.dumps(summary, indent=1))
         print(f"{label}{name}: thermal run kept, post-processed again: gamma "
               f"{old['gamma']:.4g} -> {summary['gamma']:.4g} ({time.time() - t0:.1f} s)",
@@ -285,10 +286,11 @@ def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label
         result = run_scene(scene, packing, quiet=True, threads=threads,
                            run_args=dict(run_args, case=name))
         run_seconds = time.time() - t0
-        summary = post_run(result.output, n_bins=conf["n_bins"])
+        post = analyse(result.output, n_bins=conf["n_bins"])
+        summary = write_post(post)
         summary["case_wall_seconds"] = time.time() - t0
         summary["thermal_wall_seconds"] = run_seconds
-        summary["flags"] = run_flags(result.output)
+        summary["flags"] = post.run.flags
         write_text_atomic(summary_path, json.dumps(summary, indent=1))
         print(f"{label}{name}: gamma {summary['gamma']:.4g} "
               f"[{summary['gamma_ci95'][0]:.4g}, {summary['gamma_ci95'][1]:.4g}], steady "
@@ -337,7 +339,7 @@ def results_table(rows: list):
     return pd.DataFrame([{
         **({"seed": r["seed"]} if r.get("seed") is not None else {}),
         "pressure_pa": r["pressure_pa"],
-        "pressure_target_pa": r.get("pressure_target_pa", r["pressure_pa"]),
+        "pressure_target_pa": r["pressure_target_pa"],
         "law": r["law"], "n_particles": r["n_particles"],
         "mean_coordination": r["mean_coordination"], "solid_fraction": r["solid_fraction"],
         "mean_normal_force_n": r["mean_normal_force_n"], "gamma": r["gamma"],
@@ -636,7 +638,7 @@ def _plot_contact_angles(out_dir, rows):
     by_p = {}
     for r in rows:
         if r["law"] == law:
-            by_p.setdefault(r.get("pressure_target_pa", r["pressure_pa"]), []).append(
+            by_p.setdefault(r["pressure_target_pa"], []).append(
                 np.asarray(r["contact_angle_pdf"]))
     edges = np.asarray(rows[0]["contact_angle_edges"])
     centres = 0.5 * (edges[1:] + edges[:-1])

@@ -31,7 +31,7 @@ def window_fit(case_dir, times=PAPER_TIMES, dt: float | None = None, threads: in
     from thermal_kernel.output import read_run_packing, read_thermal
     from thermal_kernel.run import run_scene
     from thermal_kernel.atomic import write_text_atomic
-    from .post_run import post_run
+    from .post_run import analyse, write_post
 
     case_dir = Path(case_dir)
     done = case_dir / "window.json"
@@ -49,8 +49,9 @@ def window_fit(case_dir, times=PAPER_TIMES, dt: float | None = None, threads: in
     t0 = time.time()
     result = run_scene(scene, run.packing_path, quiet=True, threads=threads,
                        run_args=dict(command="tdem_post.window", case=str(case_dir)))
-    window = post_run(result.output, n_bins=case["n_bins"], plots=True)
-    flags = read_thermal(result.output, data=False).flags
+    post = analyse(result.output, n_bins=case["n_bins"])
+    window = write_post(post, plots=True)
+    flags = post.run.flags
     out = {
         "case": str(case_dir), "law": case["law"], "pressure_pa": case["pressure_pa"],
         "solid_fraction": case["solid_fraction"], "times_s": list(times), "dt_s": solver.dt,
