@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import re
 import time
 from pathlib import Path
@@ -79,30 +78,6 @@ def read_campaign(path: Path) -> tuple[dict, str]:
     return dict(laws=laws, n_bins=n_bins, seeds=seeds, packings=packings), text
 
 
-def _toml_key(key: str) -> str:
-    bare = key and all(c.isascii() and (c.isalnum() or c in "-_") for c in key)
-    return key if bare else json.dumps(key, ensure_ascii=False)
-
-
-def _toml_value(value) -> str:
-    """One TOML value (inline: arrays, inline tables) of what tomllib read."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        return ("nan" if value != value else repr(value) if math.isfinite(value)
-                else "inf" if value > 0 else "-inf")
-    if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)     # a TOML basic string
-    if isinstance(value, list):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}"
-                               for k, v in value.items()) + "}"
-    return str(value)       # a TOML date or time: written as read
-
-
 def case_scenes(campaign_path: Path, conf: dict, text: str, out_dir: Path) -> dict:
     """{law: the campaign's thermal scene for that law}, parsed and checked by
     :func:`~thermal_kernel.scene.load_scene`: the campaign file's tables without [pack] and
@@ -118,9 +93,8 @@ def case_scenes(campaign_path: Path, conf: dict, text: str, out_dir: Path) -> di
     scenes = {}
     for law in conf["laws"]:
         case = {"packing": str(placeholder), "law": law, **data}
-        toml = "\n".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in case.items()) + "\n"
-        scene = load_scene(campaign_path, known_laws=LAWS, out_dir=Path("."), text=toml)
-        scenes[law] = dataclasses.replace(scene, text=text)
+        scenes[law] = load_scene(campaign_path, known_laws=LAWS, out_dir=Path("."), text=text,
+                                 data=case)
     return scenes
 
 

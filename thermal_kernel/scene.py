@@ -178,13 +178,16 @@ def read_toml(path, text=None, error=SceneError, what="a scene TOML file") -> tu
         raise error(f"{path}: not valid TOML ({e})") from None
 
 
-def load_scene(path, known_laws=None, out_dir=None, text=None) -> Scene:
+def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Scene:
     """Parse and check a scene file. ``known_laws``: names accepted for ``law`` (default: the
     registry). ``out_dir``: folder for a relative ``[output] path`` (default
     ``<scene folder>/out/<scene name>/``). ``text``: the scene's text, when it is not (yet) in
-    ``path`` (a campaign checks its cases before they exist; errors name ``path``)."""
+    ``path`` (a campaign checks its cases before they exist; errors name ``path``). ``data``:
+    its tables already parsed (a campaign's case: the campaign file's tables with ``law`` and
+    ``packing`` set), checked as they are; ``text`` is then stored as the scene's text."""
     path = Path(path)
-    data, text = read_toml(path, text)
+    if data is None:
+        data, text = read_toml(path, text)
     if known_laws is None:
         from .laws import LAWS
         known_laws = tuple(LAWS)
