@@ -50,8 +50,9 @@ _PACKAGE = "tdem_yade_scripts"      # the name yade_scripts/ is loaded under on 
 
 def scripts_module(name: str):
     """A pure module of ``yade_scripts/`` (``params``, ``placement``, ``dense_geometry``, ...),
-    imported from YADE_SCRIPTS as a submodule of the package ``tdem_yade_scripts`` (the folder
-    is not installed with tdem; its modules import each other relatively)."""
+    imported from YADE_SCRIPTS as a submodule of the package ``tdem_yade_scripts``: the folder
+    YADE will run (``TDEM_YADE_SCRIPTS`` may point elsewhere than the installed
+    ``yade_scripts``), so the checks before YADE are those of the scripts it runs."""
     if _PACKAGE not in sys.modules:
         spec = importlib.util.spec_from_file_location(
             _PACKAGE, YADE_SCRIPTS / "__init__.py", submodule_search_locations=[str(YADE_SCRIPTS)])
@@ -59,11 +60,6 @@ def scripts_module(name: str):
         sys.modules[_PACKAGE] = package
         spec.loader.exec_module(package)
     return importlib.import_module(f"{_PACKAGE}.{name}")
-
-
-def load_schema(generator: str) -> dict:
-    """The parameter schema of a generator, read from ``yade_scripts/<generator>_params.py``."""
-    return scripts_module("params").load_schema(generator)
 
 
 def resolve_params(generator: str, table: dict) -> dict:
@@ -82,7 +78,7 @@ def run_generator(generator: str, params: dict, out_dir: Path, *, threads: int =
     """
     out_dir = Path(out_dir).resolve()      # YADE runs in another folder: no relative paths
     out_dir.mkdir(parents=True, exist_ok=True)
-    params = dict(params, output_dir=str(out_dir.resolve()))
+    params = dict(params, output_dir=str(out_dir))
     params_path = out_dir / "params.json"
     write_text_atomic(params_path, json.dumps(params, indent=1, sort_keys=True))
     script = YADE_SCRIPTS / SCRIPTS[generator]

@@ -18,16 +18,14 @@ particles' volume), which is what the network sees.
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 
 from thermal_kernel.calibrate import flux_test
 from thermal_kernel.packing import Packing
 from thermal_kernel.scene import Material, Scene, SceneError
+from yade_scripts.placement import random_sequential_addition  # the one placement routine
 
 from .etc import bruggeman, hashin_shtrikman, maxwell
 from thermal_kernel.atomic import savefig_atomic
@@ -40,19 +38,6 @@ def single_inclusion_phase(packing: Packing, volume_fraction: float) -> np.ndarr
     radius = (3.0 * volume_fraction * float(np.prod(hi - lo)) / (4.0 * math.pi)) ** (1.0 / 3.0)
     inside = np.linalg.norm(packing.position - 0.5 * (lo + hi), axis=1) < radius
     return inside.astype(np.int32)
-
-
-def _placement():
-    """yade_scripts/placement.py, the one random sequential addition of tdem (numpy only; the
-    YADE generators use it too), loaded by path: yade_scripts/ is not an installed package."""
-    name = "tdem_yade_scripts_placement"
-    if name not in sys.modules:
-        path = Path(__file__).resolve().parent.parent / "yade_scripts" / "placement.py"
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        sys.modules[name] = module
-    return sys.modules[name]
 
 
 def dispersion_phase(packing: Packing, volume_fraction: float, diameter_m: float, seed: int = 0,
@@ -76,7 +61,7 @@ def dispersion_phase(packing: Packing, volume_fraction: float, diameter_m: float
             attempts += 1
             yield rng.uniform(lo + r, hi - r)
 
-    centres = _placement().random_sequential_addition([r] * count, candidates)
+    centres = random_sequential_addition([r] * count, candidates)
     if len(centres) < count:
         raise SceneError(f"{packing.path}: fractions: only {len(centres)} of {count} inclusions of "
                          f"diameter {diameter_m:g} m fit (volume fraction "

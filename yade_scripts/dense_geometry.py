@@ -175,8 +175,7 @@ def check_facet_sag(p, radii, box):
     YADE's collider run every step)."""
     if box.shape not in ("cylinder", "sphere"):
         return
-    shrink = (CLOUD_SOLID_FRACTION / EXPECTED_SOLID_FRACTION[box.shape]) ** (1.0 / 3.0)
-    smallest = float(radii.min()) * shrink
+    smallest = float(radii.min()) * cloud_shrink(box.shape)
     if box.shape == "cylinder":
         key, step = "wall_segments", 2
 
@@ -202,6 +201,12 @@ def check_facet_sag(p, radii, box):
 EXPECTED_SOLID_FRACTION = {"periodic": 0.64, "box": 0.60, "cylinder": 0.60, "sphere": 0.60}
 CLOUD_SOLID_FRACTION = 0.25
 FREE_GROWTH_SOLID_FRACTION = 0.5
+
+
+def cloud_shrink(shape):
+    """The factor the drawn radii are shrunk by in the initial cloud, so that it fills the
+    container (sized for the final solid fraction) at CLOUD_SOLID_FRACTION."""
+    return (CLOUD_SOLID_FRACTION / EXPECTED_SOLID_FRACTION[shape]) ** (1.0 / 3.0)
 
 
 def relaxed_params(p):
@@ -240,8 +245,7 @@ def make_cloud(p):
     candidates raises CloudError. Returns (centres, shrunk radii, container, drawn radii)."""
     radii, box = cloud_domain(p)
     n = radii.size
-    shrink = (CLOUD_SOLID_FRACTION / EXPECTED_SOLID_FRACTION[p["shape"]]) ** (1.0 / 3.0)
-    small = radii * shrink
+    small = radii * cloud_shrink(p["shape"])
     rng = np.random.default_rng(p["seed"] + 1)
     periodic = p["shape"] == "periodic"
     stream = {"buffer": [], "used": 0}
