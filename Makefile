@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 APT_PACKAGES := yade python3-h5py python3-scipy python3-venv liggghts openmpi-bin
 
-.PHONY: demo test test-fast coverage deps apt validate bench bench-packings clean
+.PHONY: demo test test-fast coverage deps apt validate bench bench-packings bench-bed clean
 
 demo: deps
 	$(BIN)/tdem demo
@@ -58,6 +58,11 @@ bench: deps
 # quoted by docs/packings.md.
 bench-packings: deps
 	$(BIN)/python bench/bench_packings.py --reuse
+
+# The 7,500-sphere bed series, the generator of 0c04f14 against today's, one YADE process at a
+# time (~10 min): bench/results/bed_series_7500_idle.{csv,md}, quoted by docs/packings.md.
+bench-bed: deps
+	$(BIN)/python bench/bench_bed.py --scene runs/bed_7500.toml --seeds 1 --stem bed_series_7500_idle --force
 
 # Long validation: the 7,500-sphere pressure campaign of the pipe-model paper (YADE ~8 min,
 # thermal ~3 min), quoted in docs/campaign.md; the ETC of composites on the 10,000-sphere dense
