@@ -2,7 +2,7 @@
 linked, not re-run.
 
 The campaign (`tdem campaign runs/campaign_7500.toml`, the first step of `make validate`: YADE
-~8 min, thermal ~3 min) writes its report; docs/campaign.md quotes it. This case reads that
+~3 min, thermal ~3 min) writes its report; docs/campaign.md quotes it. This case reads that
 committed report - the γ(p) and τ(p) fits per law, the paper's curves, γ / paper's γ - and puts
 the numbers in the summary, so the two pages cannot disagree. A fresh report under
 runs/out/campaign_7500/report.md, when present, is read instead.
@@ -100,7 +100,7 @@ paper's rises; the transient and steady γ agree within 8 %, and the contact for
 within 7 % on the same contacts.
 
 The campaign is the first step of `make validate` (`tdem campaign runs/campaign_7500.toml`,
-resumable; YADE ~8 min with the 2026-11 bed defaults, thermal ~3 min)."""
+resumable; YADE ~3 min (2026-12-01; 6.3 min with the generator before 2026-11), thermal ~3 min)."""
     ratio = pipe.get("ratio_to_paper", [])
     seeds = parse_seeds(DOC.read_text())
     if "gamma_exponent" in seeds and "tau_exponent" in seeds:
@@ -124,7 +124,7 @@ change with pressure."""
     return CaseResult(
         our_n="7,500" + (f" × {seeds['seeds']} seeds" if "seeds" in seeds else ""),
         our_error=our_error,
-        wall_time="YADE ~8 min + thermal ~3 min (docs/campaign.md)",
+        wall_time="YADE ~3 min + thermal ~3 min (docs/campaign.md)",
         verdict="the paper's curves are not reproduced: our γ rises with p as contact mechanics "
                 "predicts, theirs falls; a resistance used as a conductance reproduces the "
                 "paper's trends (docs/campaign.md)",
