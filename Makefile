@@ -64,9 +64,9 @@ bench-packings: deps
 bench-bed: deps
 	$(BIN)/python bench/bench_bed.py --scene runs/bed_7500.toml --seeds 1 --stem bed_series_7500_idle --force
 
-# Long validation: the 7,500-sphere pressure campaign of the pipe-model paper (YADE ~8 min,
+# Long validation: the 7,500-sphere pressure campaign of the pipe-model paper (YADE ~3 min,
 # thermal ~3 min), quoted in docs/campaign.md; the ETC of composites on the 10,000-sphere dense
-# box (YADE ~8 min), quoted in docs/post.md; then every case of docs/validation.md (the papers'
+# box (YADE ~4 min), quoted in docs/post.md; then every case of docs/validation.md (the papers'
 # own cases; resumable: a case with validation/results/caseN.json is skipped), which rewrites
 # docs/validation.md and the summary in README.md.
 validate: deps
