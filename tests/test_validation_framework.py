@@ -13,7 +13,7 @@ from validation.framework import CaseInfo, CaseResult
 
 def _case(number, calls, fail=False, title=None):
     info = CaseInfo(number=number, title=title or f"fake case {number}", paper=f"paper {number}",
-                    paper_n="1e5", paper_error="0.7 %")
+                    paper_n="1e5", paper_error="0.7 %", target="≤ 0.5 % at 1e5")
 
     def run_case(ctx):
         calls.append((number, ctx.quick))
@@ -22,7 +22,8 @@ def _case(number, calls, fail=False, title=None):
         return CaseResult(our_n="100", our_error=f"{number}.5 %", wall_time="1 s",
                           verdict="met | twice", section_md=f"Body of case {number}: see "
                           f"[the figure](img/validation_case{number}_x.png).",
-                          numbers={"n": number})
+                          numbers={"n": number}, at_paper_n=f"N 1e5: {number}.25 %",
+                          speed_vs_error="not reached", target_met=number < 5)
     return types.SimpleNamespace(CASE=info, run=run_case, __file__=f"case{number}_fake.py")
 
 
@@ -147,9 +148,12 @@ def test_assemble_keeps_the_prose_and_fills_every_row(tree):
     table = doc[doc.index("<!-- summary"):doc.index("<!-- end summary -->")]
     rows = [line for line in table.splitlines() if line.startswith("| ") and "---" not in line][1:]
     assert [int(r.split("|")[1]) for r in rows] == list(range(1, 13))
-    assert "| 4 | fake case 4 (paper 4) | 1e5 | 0.7 % | 100 | 4.5 % | 1 s | met \\| twice |" \
-        in rows[3]
+    # issue 23: the target and tdem at the paper's N come before the best figure at any N
+    assert ("| 4 | fake case 4 (paper 4) | 1e5 | 0.7 % | ≤ 0.5 % at 1e5 | N 1e5: 4.25 % | **yes** "
+            "| 4.5 % (N 100; 1 s) | not reached | met \\| twice |") in rows[3]
+    assert "| N 1e5: 6.25 % | **no** |" in rows[5]
     assert sum("not yet measured" in r for r in rows) == 10
+    assert sum("**" in r for r in rows) == 2        # no "met" claimed for a case not run
     assert "old table" not in doc and "old body 6" not in doc and "stale" not in doc
     # sections in number order, the one without a result kept, prose after case 6 still after it
     order = [doc.index(f"<!-- case {n}: generated") for n in (4, 6, 9)]

@@ -43,7 +43,8 @@ from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
 
 CASE = CaseInfo(number=2, title="beam heated at one end", paper="000 sec. 5.1, Table 2, eq. 8",
-                paper_n="19,465", paper_error='"good agreement" (Fig. 9)')
+                paper_n="19,465", paper_error='"good agreement" (Fig. 9)',
+                target="< 1 % of ΔT on 5 of 5 seeds at every output time, N 19,465")
 
 LAMBDA, RHO, CAP = 134.0, 2790.0, 880.0          # 000 Table 2
 ALPHA = LAMBDA / (RHO * CAP)

@@ -53,7 +53,8 @@ from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_secon
 
 CASE = CaseInfo(number=5, title="sphere with held surface, eq. 18-19",
                 paper="002 sec. 2.3, eq. 18-19, Fig. 7-8", paper_n="1e5, 1e6",
-                paper_error="centre (max) |T - T_exact| <= 1.93 C at 1e5, t = 10 s")
+                paper_error="centre (max) |T - T_exact| <= 1.93 C at 1e5, t = 10 s",
+                target="max |ΔT| ≤ 1 °C (paper 1.93 °C) with the paper's conventions, N 1e5")
 
 RHO, LAMBDA, CAP = 2700.0, 185.0, 900.0            # aluminium, 002 sec. 2.3
 ALPHA = LAMBDA / (RHO * CAP)

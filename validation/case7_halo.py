@@ -41,7 +41,8 @@ from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_secon
 
 CASE = CaseInfo(number=7, title="Halo CoV vs halo/DE radius ratio",
                 paper="002 sec. 3, eq. 20-23, Fig. 10-11", paper_n="1e5, 5e5",
-                paper_error="CoV 27 % raw, 5 % at ratio ~4, 2 % at ~11, independent of N")
+                paper_error="CoV 27 % raw, 5 % at ratio ~4, 2 % at ~11, independent of N",
+                target="CoV ≤ 5 % at ratio 4 and ≤ 2 % at 11, at 1e5 and 5e5")
 
 LAMBDA, RHO, CAP = 33.0, 7800.0, 0.9                # 002 Tab. 1
 T1, T2 = 298.15, 308.15

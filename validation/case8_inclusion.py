@@ -31,7 +31,8 @@ from validation.framework import CaseInfo, CaseResult, Context
 
 CASE = CaseInfo(number=8, title="Single spherical inclusion vs Maxwell, contrast 0.01-100",
                 paper="002 sec. 4.1, Fig. 14", paper_n="~150,000",
-                paper_error="max rel. error 0.65 % (vs Maxwell and FEM)")
+                paper_error="max rel. error 0.65 % (vs Maxwell and FEM)",
+                target="≤ 0.5 % at every contrast 0.01–100, N ~150,000 (paper 0.65 %)")
 CONTRASTS = (0.01, 0.1, 0.5, 2.0, 5.0, 10.0, 100.0)
 F = I.SINGLE_FRACTION
 DATA = framework.ROOT / "tests" / "data"

@@ -41,6 +41,9 @@ class CaseInfo:
     paper: str          # where in which paper, e.g. "002 sec. 2.2, eq. 17"
     paper_n: str        # the paper's number of spheres, as text ("1e5", "19,465")
     paper_error: str    # the paper's result / error, as text
+    # issue 23: what tdem must reach at the paper's own N, by the paper's measure (or the stricter
+    # reading where the paper leaves the measure open), as text; the verdict is judged on it
+    target: str = ""
 
 
 @dataclass
@@ -52,6 +55,13 @@ class CaseResult:
     section_md: str             # the case's section of docs/validation.md (markdown, no heading)
     numbers: dict = field(default_factory=dict)   # machine-readable values (tests read them)
     command: str = ""           # the command that reproduces it
+    # issue 23, the column the verdict is judged on: tdem at the paper's own N by the paper's
+    # measure (the stricter reading where the paper's is undefined, named), e.g.
+    # "N 100,031: 0.58 % of ΔT (max over 10 bins; 0.17 % of T in °C beside it)"
+    at_paper_n: str = ""
+    # the N and wall time tdem needs to reach the paper's error (or "not reached up to N ...")
+    speed_vs_error: str = ""
+    target_met: bool | None = None    # judged on at_paper_n against CaseInfo.target
 
 
 @dataclass

@@ -259,18 +259,35 @@ def _info(n: int, cases: dict, record: dict | None) -> CaseInfo:
     return KNOWN[n]
 
 
+SUMMARY_HEADER = ("| # | case | paper's N | paper's error | target at the paper's N | tdem at the "
+                  "paper's N, by the paper's measure | met | best tdem (N; wall time, packing + "
+                  "thermal) | speed against error | verdict |")
+
+
+def _met(r: dict) -> str:
+    met = r.get("target_met")
+    return "—" if met is None else ("**yes**" if met else "**no**")
+
+
 def summary_table(cases: dict, records: dict) -> str:
-    lines = ["| # | case | paper's N | paper's error | our N | our error | wall time (packing + "
-             "thermal) | verdict |", "|---|---|---|---|---|---|---|---|"]
+    """The summary of docs/validation.md (issue 23): the paper's N and error, the target at the
+    paper's N, tdem at the paper's N by the paper's measure (the column the verdict is judged on),
+    then tdem's best figure at any N with its wall time, and the N / time needed to reach the
+    paper's error. A result saved before these columns existed says so instead of guessing."""
+    lines = [SUMMARY_HEADER, "|" + "---|" * SUMMARY_HEADER.count(" | ") + "---|"]
     for n in sorted(set(KNOWN) | set(records)):
         rec = records.get(n)
         info = _info(n, cases, rec)
-        head = [str(n), f"{info.title} ({info.paper})", info.paper_n, info.paper_error]
+        head = [str(n), f"{info.title} ({info.paper})", info.paper_n, info.paper_error,
+                info.target or "—"]
         if rec is None:
-            tail = ["—", "not yet measured", "—", "—"]
+            tail = ["not yet measured", "—", "—", "—", "—"]
         else:
             r = rec["result"]
-            tail = [r["our_n"], r["our_error"], r["wall_time"], r["verdict"]]
+            best = f"{r['our_error']} (N {r['our_n']}; {r['wall_time']})"
+            tail = [r.get("at_paper_n") or "not yet measured at the paper's N (result of "
+                    f"{rec['finished'][:10]}, before issue 23)", _met(r), best,
+                    r.get("speed_vs_error") or "—", r["verdict"]]
         lines.append("| " + " | ".join(_cell(c) for c in head + tail) + " |")
     return "\n".join(lines)
 
