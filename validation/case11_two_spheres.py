@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 from .framework import CaseInfo, CaseResult, Context, test_module
+from .framework import Judgement
 
 CASE = CaseInfo(number=11, title="pipe / BOB / Argento / Chaudhuri two-sphere values",
                 paper="003 eq. 34–40, 004", paper_n="two spheres",
@@ -56,6 +57,16 @@ def measure() -> list[tuple[str, float, float, str]]:
                                                                 force=5.0))[0]),
                  3.0 * (3 * 5.0 * (2e-3 / 3) / (4 * e_star2)) ** (1 / 3), "004"))
     return rows
+
+
+
+def judge(numbers: dict) -> Judgement:
+    """Issue 23's columns: an exact case (two spheres, no N to choose)."""
+    worst = numbers.get("max_rel_error")
+    if worst is None:
+        return Judgement("not measured", "", None)
+    return Judgement(at_paper_n=f"two spheres: max {worst:.1e} against the closed forms",
+                     speed_vs_error="seconds", target_met=worst < 1e-12)
 
 
 def run(ctx: Context) -> CaseResult:

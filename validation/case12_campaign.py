@@ -12,6 +12,7 @@ from __future__ import annotations
 import re
 
 from .framework import ROOT, CaseInfo, CaseResult, Context
+from .framework import Judgement
 
 CASE = CaseInfo(number=12, title="the pressure campaign", paper="003 Fig. 7, 10", paper_n="7,500",
                 paper_error="γ(p), τ(p) fits")
@@ -61,6 +62,24 @@ def parse_seeds(text: str) -> dict:
     if m:
         out["gamma_paper_ratio"] = [float(v) for v in m.group(1).split(",")]
     return out
+
+
+
+def judge(numbers: dict) -> Judgement:
+    """Issue 23's columns: the paper's own N (7,500); 003 gives fitted curves, not an error, so
+    there is no target to meet — the row says how far apart the curves are."""
+    seeds = numbers.get("seeds", {})
+    pr = seeds.get("gamma_paper_ratio", [])
+    if "gamma_exponent" not in seeds:
+        return Judgement("not measured", "", None)
+    g, t = seeds["gamma_exponent"], seeds["tau_exponent"]
+    paper_g = numbers.get("paper", {}).get("gamma", [0, float("nan")])[1]
+    return Judgement(
+        at_paper_n=(f"7,500 × {seeds.get('seeds', '?')} seeds: γ ∝ p^({g[0]:.3g} ± {g[1]:.1g}) "
+                    f"where 003's fit falls (p^{paper_g:.2g}); τ ∝ p^({t[0]:.3g} ± {t[1]:.1g})"
+                    + (f"; γ_paper / 003's γ {min(pr):.2g}–{max(pr):.3g}" if pr else "")),
+        speed_vs_error="no paper error to reach (003's curves are not self-consistent: "
+                       "docs/campaign.md)", target_met=None)
 
 
 def run(ctx: Context) -> CaseResult:

@@ -41,6 +41,7 @@ from thermal_kernel.solvers.implicit import run_implicit
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
+from .framework import Judgement
 
 CASE = CaseInfo(number=2, title="beam heated at one end", paper="000 sec. 5.1, Table 2, eq. 8",
                 paper_n="19,465", paper_error='"good agreement" (Fig. 9)',
@@ -191,6 +192,30 @@ def _rel(path: Path) -> str:
         return str(path.relative_to(fw.ROOT / "docs"))
     except ValueError:
         return str(path)
+
+
+
+def judge(numbers: dict) -> Judgement:
+    """Issue 23's columns: the paper's N is 19,465; the measure (000: "good agreement", Fig. 9)
+    is read strictly as the max |error| / ΔT over the bins and output times, per seed."""
+    per_seed, ns = numbers.get("per_seed"), numbers.get("n_particles")
+    if not per_seed or not ns:
+        return Judgement("not measured", "", None)
+    ok = sum(e < 0.01 for e in per_seed)
+    at = (f"N {int(sum(ns) / len(ns)):,} × {len(per_seed)} seeds: max |ΔT_bin| / ΔT per seed "
+          + " / ".join(f"{100 * e:.2f}" for e in per_seed) + f" % ({ok} of {len(per_seed)} "
+          "< 1 %)")
+    speed = ""
+    reached = [c for c in numbers.get("convergence", []) if c[3] < 0.01]
+    if reached:
+        c = reached[0]
+        speed = (f"every seed < 1 % from N {int(c[0]):,} (worst {100 * c[3]:.2f} %, thermal "
+                 f"{c[4]:.1f} s a seed; packing: YADE cell + carving)")
+    met = ok == len(per_seed)
+    verdict = (("met" if met else f"not met at the paper's N: {ok} of {len(per_seed)} seeds < 1 %,"
+                f" worst {100 * max(per_seed):.2f} %, a cold bias at the cut hot end (held "
+                "layer)") + (f"; {speed}" if speed and not met else ""))
+    return Judgement(at_paper_n=at, speed_vs_error=speed, target_met=met, verdict=verdict)
 
 
 def run(ctx: Context) -> CaseResult:

@@ -37,6 +37,7 @@ from thermal_kernel.solvers.implicit import run_implicit
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
+from .framework import Judgement
 
 CASE = CaseInfo(number=3, title="sheet heated by a moving source",
                 paper="000 sec. 5.2, Tables 3–5, Fig. 11–14", paper_n="1,000–20,000 × 5",
@@ -212,6 +213,28 @@ def compare(dem: dict, times, ref_fields, point_index) -> dict:
 
 
 # ---------------------------------------------------------------------------- the case
+
+def judge(numbers: dict) -> Judgement:
+    """Issue 23's columns: 000 compares with FEM by figure only (Fig. 12–14), so the stricter
+    reading is used: the worst seed's error at A, B, C (% of the peak rise) at the paper's
+    largest N (20,000), the mean over seeds beside it. No numeric target."""
+    table = numbers.get("table", [])
+    if not table:
+        return Judgement("not measured", "", None)
+    top = max(table, key=lambda r: r["n"])
+    pts = [k for k in ("A", "B", "C") if k in top]
+    at = (f"N {int(top['n']):,}: worst seed " + " / ".join(
+        f"{k} {100 * top[k]['err_max']:.2f}" for k in pts) + " % of the peak rise (mean of 5 "
+          "seeds " + " / ".join(f"{100 * top[k]['err_mean_of_seeds']:.2f}" for k in pts) + " %)")
+    conv = numbers.get("convergence", [])
+    speed = (f"error ∝ N^{numbers['order']:.2f}; thermal {conv[-1][-1]:.0f} s a seed at "
+             f"{int(conv[-1][0]):,}" if conv and "order" in numbers else "")
+    verdict = ("no number in the paper to meet (FEM by figure); the worst seed within "
+               f"{100 * max(top[k]['err_max'] for k in pts):.1f} % of the peak rise at the "
+               "paper's largest N, against a continuum converged to 0.01 %")
+    return Judgement(at_paper_n=at, speed_vs_error=speed, target_met=None, verdict=verdict)
+
+
 def run(ctx: Context) -> CaseResult:
     t_start = time.perf_counter()
     pack_s = 0.0

@@ -19,6 +19,7 @@ Three series, all law haddad (C_t cancels in k_eff / k_m), phases by the particl
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 
@@ -28,6 +29,7 @@ from tdem_post.analytic import hashin_shtrikman, maxwell, rayleigh_cubic_array
 from validation import framework
 from validation import inclusions as I
 from validation.framework import CaseInfo, CaseResult, Context
+from validation.framework import Judgement
 
 CASE = CaseInfo(number=8, title="Single spherical inclusion vs Maxwell, contrast 0.01-100",
                 paper="002 sec. 4.1, Fig. 14", paper_n="~150,000",
@@ -233,6 +235,38 @@ def _table(runs, key):
                      + " | ".join(f"{100 * x[k]:+.2f} %" for x in r["rows"])
                      + f" | {100 * max_err(r, k):.2f} % | {r['thermal_s'] / r['solves']:.1f} |")
     return "\n".join(lines)
+
+
+
+def judge(numbers: dict) -> Judgement:
+    """Issue 23's columns: the paper's N is ~150,000 (0.65 %, max over contrasts 0.01–100
+    against Maxwell). Judged on the max |k/k_Maxwell - 1| over the contrasts of the faced box
+    nearest the paper's N (the paper's own boundaries), the periodic block nearest it beside."""
+    runs = numbers.get("runs", [])
+    if not runs:
+        return Judgement("not measured", "", None)
+
+    def worst(run):
+        return max(abs(r["err_maxwell"]) for r in run["rows"])
+
+    def nearest(series):
+        cands = [r for r in runs if r["series"] == series]
+        return min(cands, key=lambda r: abs(math.log(r["n"] / 150_000))) if cands else None
+    faces, block = nearest("faces"), nearest("periodic_harmonic")
+    at = ""
+    if faces:
+        at = (f"faced box, N {faces['n']:,} (a/r̄ {faces['a_over_r']:.1f}): max "
+              f"{100 * worst(faces):.2f} % over c 0.01–100")
+    if block:
+        at += (f"; periodic block, N {block['n']:,}: {100 * worst(block):.2f} %")
+    reached = sorted((r for r in runs if worst(r) <= 0.0065), key=lambda r: r["n"])
+    speed = (f"0.65 % first at N {reached[0]['n']:,} ({reached[0]['series']})" if reached
+             else "0.65 % not reached")
+    met = bool(faces) and worst(faces) <= 0.005
+    verdict = ("met" if met else "not met at the paper's N: the cut faces of the tiled box add "
+               "~1 point (the periodic block of the same size is closer), and the interface "
+               "error is first order in r̄/a; walled packings at scale (issue 24) are the fix")
+    return Judgement(at_paper_n=at, speed_vs_error=speed, target_met=met, verdict=verdict)
 
 
 def run(ctx: Context) -> CaseResult:

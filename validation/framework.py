@@ -64,6 +64,26 @@ class CaseResult:
     target_met: bool | None = None    # judged on at_paper_n against CaseInfo.target
 
 
+@dataclass(frozen=True)
+class Judgement:
+    """Issue 23's columns of one case, from its saved ``numbers``: tdem at the paper's own N by
+    the paper's measure (the verdict is judged on it), the N and time needed to reach the
+    paper's error, and whether CaseInfo.target is met (None: the paper gives no number)."""
+    at_paper_n: str
+    speed_vs_error: str
+    target_met: bool | None
+    verdict: str = ""       # judged on at_paper_n; "" keeps the case's own
+
+
+def judged(result: CaseResult, judgement: Judgement) -> CaseResult:
+    """``result`` with the issue-23 columns of ``judgement`` filled in (and its verdict, when
+    the judgement gives one)."""
+    return dataclasses.replace(result, at_paper_n=judgement.at_paper_n,
+                               speed_vs_error=judgement.speed_vs_error,
+                               target_met=judgement.target_met,
+                               verdict=judgement.verdict or result.verdict)
+
+
 @dataclass
 class Context:
     number: int

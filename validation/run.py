@@ -162,6 +162,8 @@ def run_cases(numbers: list[int], cases: dict, force: bool = False, quick: bool 
                   flush=True)
             continue
         seconds = time.perf_counter() - t0
+        if not result.at_paper_n and hasattr(mod, "judge"):     # issue 23's columns
+            result = framework.judged(result, mod.judge(result.numbers))
         if not quick:
             save_result(mod.CASE, result, seconds)
         print(f"{head}: done in {seconds:.1f} s: N {result.our_n}; error {result.our_error}",
@@ -269,6 +271,20 @@ def _met(r: dict) -> str:
     return "—" if met is None else ("**yes**" if met else "**no**")
 
 
+def _columns(n: int, cases: dict, rec: dict) -> tuple[str, str, bool | None, str] | None:
+    """(at_paper_n, speed_vs_error, target_met, verdict) of a saved result: as saved, or, for a
+    result saved before issue 23, from the case module's ``judge(numbers)`` (the function run_cases
+    applies to a new result of a case that does not fill them itself), or None."""
+    r = rec["result"]
+    if r.get("at_paper_n"):
+        return r["at_paper_n"], r.get("speed_vs_error", ""), r.get("target_met"), r["verdict"]
+    mod = cases.get(n)
+    if mod is None or isinstance(mod, Broken) or not hasattr(mod, "judge"):
+        return None
+    j = mod.judge(r.get("numbers", {}))
+    return j.at_paper_n, j.speed_vs_error, j.target_met, j.verdict or r["verdict"]
+
+
 def summary_table(cases: dict, records: dict) -> str:
     """The summary of docs/validation.md (issue 23): the paper's N and error, the target at the
     paper's N, tdem at the paper's N by the paper's measure (the column the verdict is judged on),
@@ -285,9 +301,12 @@ def summary_table(cases: dict, records: dict) -> str:
         else:
             r = rec["result"]
             best = f"{r['our_error']} (N {r['our_n']}; {r['wall_time']})"
-            tail = [r.get("at_paper_n") or "not yet measured at the paper's N (result of "
-                    f"{rec['finished'][:10]}, before issue 23)", _met(r), best,
-                    r.get("speed_vs_error") or "—", r["verdict"]]
+            cols = _columns(n, cases, rec)
+            if cols is None:
+                cols = (f"not yet measured at the paper's N (result of {rec['finished'][:10]}, "
+                        "before issue 23)", "", None, r["verdict"])
+            at_n, speed, met, verdict = cols
+            tail = [at_n, _met({"target_met": met}), best, speed or "—", verdict]
         lines.append("| " + " | ".join(_cell(c) for c in head + tail) + " |")
     return "\n".join(lines)
 
