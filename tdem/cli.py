@@ -129,8 +129,10 @@ def _cmd_calibrate(args):
     from thermal_kernel.calibrate import calibrate_axes
     scene, path, packing = _scene_and_packing(args)
     results, skipped, ct = calibrate_axes(scene, packing, args.axis)
-    print(f"tdem calibrate: {args.scene} on {path} ({packing.n_particles} particles), law haddad,"
-          f" lambda = {results[0].conductivity_w_mk:.6g} W/m/K (002, eq. 8-9: one steady solve)")
+    mean_radius = scene.law_params.get("mean_radius", "arithmetic")
+    print(f"tdem calibrate: {args.scene} on {path} ({packing.n_particles} particles), law haddad"
+          f" (R_m {mean_radius} mean), lambda = {results[0].conductivity_w_mk:.6g} W/m/K (002, "
+          "eq. 8-9: one steady solve)")
     for r in results:
         print(f"  axis {r.axis}: faces {r.n_hot} / {r.n_cold} particles, L = {r.length_m:.6g} m, "
               f"A = {r.area_m2:.6g} m^2, Q = {r.heat_flow_w:.6g} W at C_t = {r.ct_used:.6g} "
@@ -138,6 +140,8 @@ def _cmd_calibrate(args):
               f"C_t = {r.ct:.6f}")
     for axis, why in skipped.items():
         print(f"  axis {axis}: skipped ({why})")
+    if results[0].neighbours is not None:          # the same packing on every axis: one gap
+        print(f"  {results[0].neighbours.line()}")
     print(f"  put this in the scene:\n[law_params]\nct = {ct:.6f}")
 
 
@@ -181,7 +185,7 @@ def _cmd_post(args):
     thermal = path / "thermal.h5" if path.is_dir() else path
     if not thermal.exists():
         raise UserError(f"{thermal}: file not found (give a run folder or its thermal.h5)")
-    r = analyse(thermal, n_bins=args.bins, halo_ratio=args.halo)
+    r = analyse(thermal, n_bins=args.bins, halo_ratio=args.halo, halo_radius=args.halo_radius)
     files = write_post(r)["files"]
     pressure = f", p = {r.pressure_pa:.4g} Pa" if math.isfinite(r.pressure_pa) else ""
     print(f"tdem post: {thermal} ({r.run.law}, {r.packing.n_particles} particles{pressure})")
@@ -203,8 +207,10 @@ def _cmd_post(args):
               else f" (from the time series: {r.tau.tau_series_s:.5g} s)")
     print(f"  tau (middle)       {r.tau.tau_s:.5g} s{series}")
     if r.flux.cov_halo is not None:
-        print(f"  heat flux (steady) CoV of |q| {r.flux.cov_raw:.3f} per particle, "
-              f"{r.flux.cov_halo:.3f} with a halo of {r.flux.halo_ratio:g} R "
+        size = "r_mean" if r.flux.halo_radius == "common" else "R_p (own radius)"
+        print(f"  heat flux (steady) CoV of |q| {r.flux.cov_raw:.3f} per particle "
+              f"({r.flux.cov_raw_volume:.3f} volume-weighted), "
+              f"{r.flux.cov_halo:.3f} with a halo of {r.flux.halo_ratio:g} {size} "
               f"({r.flux.interior_particles} interior particles); mean axial q / (Q/A) "
               f"{r.flux.mean_over_q_per_area:.3f}")
     print(f"  wrote {thermal.parent / 'post'}/ ({', '.join(files)})")
@@ -424,6 +430,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--halo", type=float, default=3.0,
                    help="Halo radius over the particle radius for the flux field (002 eq. 22), "
                         "default 3")
+    p.add_argument("--halo-radius", default="common", choices=["common", "own"],
+                   help="Halo radius: halo x the packing's mean radius for every particle "
+                        "(common, default: 002's halo of a pre-defined number of DE) or halo x "
+                        "each particle's own radius (own)")
     p.set_defaults(func=_cmd_post)
 
     p = sub.add_parser("etc", help="ETC of a composite vs contrast and volume fraction "

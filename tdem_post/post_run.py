@@ -50,7 +50,7 @@ from thermal_kernel.scene import SceneError
 from .analytic import (slab_mean_temperature, slab_midplane_characteristic_time,
                        slab_temperature)
 from .fabric import affine_conductivity, contact_angle_pdf, love_weber_stress, mean_nz2
-from .flux import coefficient_of_variation, particle_flux
+from .flux import HALO_RADII, coefficient_of_variation, halo_radii, particle_flux
 from .fits import (GammaFit, characteristic_time_network, characteristic_time_series,
                    fit_gamma)
 from .profiles import binned_profile, partial_volumes
@@ -135,8 +135,11 @@ class Tau:
 class FluxField:
     """Heat flux per particle at steady state (002 eq. 20) and its Halo average (eq. 22-23)."""
     halo_ratio: float
+    halo_radius: str             # "common" (ratio x the mean radius) or "own" (ratio x R_p)
     interior_particles: int
     cov_raw: float | None        # coefficient of variation of |q| over the interior
+    cov_raw_volume: float | None    # the same weighted by V_p (eq. 20's 1/V_p: the raw CoV per
+    #                                 particle is dominated by the small spheres)
     cov_halo: float | None
     mean_over_q_per_area: float | None   # mean axial q of the interior / (Q / A)
     q_raw: np.ndarray = dataclasses.field(repr=False)
@@ -180,9 +183,12 @@ class PostResult:
     def summary(self) -> dict:
         fit = self.gamma.fit if self.gamma else None
         flux = {"flux_halo_ratio": self.flux.halo_ratio,
+                "flux_halo_radius": self.flux.halo_radius,
                 "flux_interior_particles": self.flux.interior_particles}
         if self.flux.cov_raw is not None:
-            flux.update(flux_cov_raw=self.flux.cov_raw, flux_cov_halo=self.flux.cov_halo,
+            flux.update(flux_cov_raw=self.flux.cov_raw,
+                        flux_cov_raw_volume_weighted=self.flux.cov_raw_volume,
+                        flux_cov_halo=self.flux.cov_halo,
                         flux_mean_over_q_per_area=self.flux.mean_over_q_per_area)
         return {
             "thermal": str(self.thermal), "packing": str(self.packing.path),
@@ -301,26 +307,33 @@ def tau_of(net, run: ThermalRun, packing, profiles: Profiles, slab: Slab, t_stea
 
 
 def flux_field(packing, conductance_w_k, t_steady, solid_fraction, slab: Slab,
-               profiles: Profiles, steady: EffectiveConductivity, halo_ratio: float) -> FluxField:
-    """Per-particle heat flux (002 eq. 20) and its Halo average; their scatter over the interior
-    (the spheres whose halo crosses no boundary, between the held planes)."""
+               profiles: Profiles, steady: EffectiveConductivity, halo_ratio: float,
+               halo_radius: str = "common") -> FluxField:
+    """Per-particle heat flux (002 eq. 20) and its Halo average (``halo_radius`` "common":
+    ratio x the mean radius, "own": ratio x R_p); their scatter over the interior (the spheres
+    whose halo crosses no boundary, between the held planes), the raw one also per unit solid
+    volume (weights V_p)."""
     args = (packing.position, packing.radius, packing.pair, packing.branch, conductance_w_k,
             t_steady, solid_fraction)
     q_raw = particle_flux(*args)
-    q_halo = particle_flux(*args, halo_ratio=halo_ratio)
+    q_halo = particle_flux(*args, halo_ratio=halo_ratio, halo_radius=halo_radius)
     z = profiles.height_m
-    interior = interior_mask(packing, halo_ratio * packing.radius) & profiles.conducting
+    reach = np.maximum(halo_radii(packing.radius, halo_ratio, halo_radius), packing.radius)
+    interior = interior_mask(packing, reach) & profiles.conducting
     interior &= (z > 0) & (z < slab.length_m)
-    cov_raw = cov_halo = ratio = None
+    cov_raw = cov_raw_volume = cov_halo = ratio = None
     if interior.sum() >= 2:
         sign = 1.0 if slab.bottom.value > slab.top.value else -1.0
         cov_raw = coefficient_of_variation(q_raw, interior)
+        cov_raw_volume = coefficient_of_variation(q_raw, interior, weights=packing.radius ** 3)
         cov_halo = coefficient_of_variation(q_halo, interior)
         # mean axial flux of the interior over the heat flow per cross-section Q / A
         ratio = float(sign * q_halo[interior, slab.axis].mean()
                       / (abs(steady.q_in_w) / steady.area_m2))
-    return FluxField(halo_ratio=halo_ratio, interior_particles=int(interior.sum()),
-                     cov_raw=cov_raw, cov_halo=cov_halo, mean_over_q_per_area=ratio,
+    return FluxField(halo_ratio=halo_ratio, halo_radius=halo_radius,
+                     interior_particles=int(interior.sum()), cov_raw=cov_raw,
+                     cov_raw_volume=cov_raw_volume, cov_halo=cov_halo,
+                     mean_over_q_per_area=ratio,
                      q_raw=q_raw, q_halo=q_halo)
 
 
@@ -356,20 +369,28 @@ def mean_field(scene, packing, solid_fraction, kp) -> dict:
     return out
 
 
-def _check_options(thermal_h5, n_bins, halo_ratio):
+def _check_options(thermal_h5, n_bins, halo_ratio, halo_radius="common"):
     if isinstance(n_bins, bool) or not isinstance(n_bins, (int, np.integer)) or n_bins < 1:
         raise SceneError(f"{thermal_h5}: --bins: expected an integer >= 1 (profile bins), got "
                          f"{n_bins!r}")
     if isinstance(halo_ratio, bool) or not isinstance(halo_ratio, (int, float)) \
             or not (math.isfinite(halo_ratio) and halo_ratio >= 0):
         raise SceneError(f"{thermal_h5}: --halo: expected a number >= 0 (the Halo radius over "
-                         f"the particle radius; 0: no Halo), got {halo_ratio!r}")
+                         f"the particle radius, mean or own: --halo-radius; 0: no Halo), got "
+                         f"{halo_ratio!r}")
+    if not isinstance(halo_radius, str) or halo_radius not in HALO_RADII:
+        raise SceneError(f"{thermal_h5}: --halo-radius: expected one of "
+                         f"{', '.join(HALO_RADII)} (ratio x the packing's mean radius, or ratio x "
+                         f"each particle's own radius), got {halo_radius!r}")
 
 
-def analyse(thermal_h5, n_bins: int = 10, halo_ratio: float = 3.0) -> PostResult:
-    """Every quantity of the module docstring, from the run's output alone; no file written."""
+def analyse(thermal_h5, n_bins: int = 10, halo_ratio: float = 3.0,
+            halo_radius: str = "common") -> PostResult:
+    """Every quantity of the module docstring, from the run's output alone; no file written.
+    The flux field's Halo radius is ``halo_ratio`` x the packing's mean radius ("common", 002's
+    "pre-defined number of DE") or x each particle's own radius ("own")."""
     thermal_h5 = Path(thermal_h5)
-    _check_options(thermal_h5, n_bins, halo_ratio)
+    _check_options(thermal_h5, n_bins, halo_ratio, halo_radius)
     run = read_thermal(thermal_h5)          # the scene as it ran, from the run's output
     packing = read_run_packing(run)         # refused if it changed since the run
     scene = run.scene
@@ -394,7 +415,7 @@ def analyse(thermal_h5, n_bins: int = 10, halo_ratio: float = 3.0) -> PostResult
         profiles=profiles, gamma=gamma, steady=steady, gamma_steady=steady.k_eff_w_mk / kp,
         tau=tau_of(net, run, packing, profiles, slab, t_steady),
         flux=flux_field(packing, problem.conductance_w_k, t_steady, phi, slab, profiles, steady,
-                        halo_ratio),
+                        halo_ratio, halo_radius),
         fabric=fabric_of(packing, problem.conductance_w_k, slab, area, kp),
         mean_field=mean_field(scene, packing, phi, kp), solid_fraction=phi,
         mean_coordination=float(2.0 * touching.sum() / packing.n_particles),
@@ -427,9 +448,11 @@ def write_post(result: PostResult, plots: bool = True) -> dict:
     return summary
 
 
-def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float = 3.0) -> dict:
+def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float = 3.0,
+             halo_radius: str = "common") -> dict:
     """:func:`analyse` then :func:`write_post`: the summary (post/summary.json) as a dict."""
-    return write_post(analyse(thermal_h5, n_bins=n_bins, halo_ratio=halo_ratio), plots=plots)
+    return write_post(analyse(thermal_h5, n_bins=n_bins, halo_ratio=halo_ratio,
+                              halo_radius=halo_radius), plots=plots)
 
 
 def _pressure_label(summary):
@@ -463,6 +486,11 @@ def _plot_profiles(out_dir, times, edges, profiles, fit, length, t_b, t_t, t_i, 
     write_text_atomic(out_dir / "profiles.csv", "\n".join(rows) + "\n")
 
 
+def _halo_label(summary):
+    size = "r_mean" if summary.get("flux_halo_radius", "common") == "common" else "R_p"
+    return f"Halo {summary['flux_halo_ratio']:g} {size}"
+
+
 def _plot_flux_section(out_dir, packing, axis, q_raw, q_halo, summary):
     """|q| in a slab one mean radius thick through the domain's centre, containing the axis
     (002 Fig. 16 style): eq. 20 beside its Halo average; data in flux_section.csv."""
@@ -478,8 +506,7 @@ def _plot_flux_section(out_dir, packing, axis, q_raw, q_halo, summary):
     top = np.percentile(np.r_[raw, halo], 99) if sel.any() else 1.0
     fig, axes = plt.subplots(1, 2, figsize=(9, 5), sharey=True)
     for ax, values, name in ((axes[0], raw, "eq. 20 (per particle)"),
-                             (axes[1], halo, f"Halo, ratio {summary['flux_halo_ratio']:g} "
-                                             "(eq. 22-23)")):
+                             (axes[1], halo, _halo_label(summary) + " (eq. 22-23)")):
         sc = ax.scatter(x, y, c=values, s=12, cmap="inferno", vmin=0, vmax=top)
         ax.set_aspect("equal")
         ax.set_xlabel(f"{'xyz'[across]} (mm)")
