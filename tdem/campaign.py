@@ -448,6 +448,14 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
         # give tau gamma_paper = 0.0056-0.0067 s (docs/campaign.md)
         lines.append(f"- {law}: τ γ_paper (s) = {ratios(g['tau_s'].to_numpy() * g['gamma_paper'])}"
                      f"; the paper's fits give {ratios(paper_tau(p_bar) * paper)}")
+        # App. A's own requirement, L^2 rho_p c_p / (8 kappa_p) = tau_slab gamma_paper (the slab's
+        # mid-plane time of the fitted diffusivity), against the paper's fits; and the paper's
+        # tau(p) read through App. A as a gamma_paper (> 1 would be k_eff > k_p: impossible)
+        app_a = g["tau_slab_s"].to_numpy() * g["gamma_paper"].to_numpy()
+        lines.append(f"- {law}: App. A requires τ γ_paper = L² ρ_p c_p/(8 κ_p) = {ratios(app_a)} s "
+                     f"(L of these runs); that over the paper's fits = "
+                     f"{ratios(app_a / (paper_tau(p_bar) * paper))}; the paper's τ(p) through "
+                     f"App. A gives γ_paper = {ratios(app_a / paper_tau(p_bar))}")
     lines += ["", f"Paper (003): γ = {PAPER_GAMMA['a']} p^{PAPER_GAMMA['b']} + "
                   f"{PAPER_GAMMA['c']} (Fig. 7); τ = {PAPER_TAU['a']} p^{PAPER_TAU['b']} "
                   f"{PAPER_TAU['c']:+} s (Fig. 10).", ""]
