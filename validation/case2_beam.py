@@ -135,7 +135,10 @@ def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: floa
         res.stored_energy_j)))
     return {
         "packing": packing_path, "n_particles": int(packing.n_particles), "law": law,
-        "ct_held_plane": ct, "length_rod_m": length, "length_domain_m": float(
+        "ct_held_plane": ct, "length_rod_m": length,
+        # the beam's radius in mean sphere radii (000 Table 2: 0.1155303 mm / 8.998 um = 12.8)
+        "radius_over_mean_radius": _beam_radius(packing) / float(packing.radius.mean()),
+        "length_domain_m": float(
             packing.domain_hi[2] - packing.domain_lo[2]), "z_held_m": z0,
         "fourier": list(fourier), "paper_times_s": [fo * PAPER_TIME_S for fo in fourier],
         "dt_fourier": dt_fo, "steps": int(res.steps),
@@ -147,6 +150,12 @@ def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: floa
         "edges_over_L": (edges / length).tolist(), "profile_k": prof.tolist(),
         "exact_k": exact.tolist(),
     }
+
+
+def _beam_radius(packing) -> float:
+    """The carved cylinder's radius (its wall), or half the domain's width when there is none."""
+    radii = [float(r) for k, r in zip(packing.wall_kind, packing.wall_radius) if k == "cylinder"]
+    return radii[0] if radii else 0.5 * float(packing.domain_hi[0] - packing.domain_lo[0])
 
 
 @dataclass(frozen=True)
@@ -264,6 +273,7 @@ def run(ctx: Context) -> CaseResult:
 
 def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s) -> CaseResult:
     main = [runs[(main_n, s, "haddad")] for s in seeds]
+    radius_r = float(np.mean([r.get("radius_over_mean_radius", np.nan) for r in main]))
     terr = [runs[(main_n, s, "terreros")] for s in seeds]
     per_time = np.array([r["max_error_over_dT_per_time"] for r in main])   # (seeds, times)
     worst = float(per_time.max())
@@ -386,7 +396,8 @@ tested against the paper's printed series; bin means by `rod_mean_temperature`).
 `runs/dense_box.toml`'s material: Gaussian radii σ/μ 0.3, steel, 1 bar, `gap_tolerance` 0.1 —
 the packings of cases 4 and 6), copied and carved to the beam (`method = "tiled"`,
 `cell_packing`); seeds 1–5, N = {', '.join(f'{n:,}' for n in n_actual)} for the paper's 19,465
-(the beam's diameter is ~13.6 mean radii, the paper's 12.8: our φ is 0.65), and a ladder
+(the beam's radius is {radius_r:.1f} mean sphere radii, i.e. {radius_r:.1f} mean diameters
+across; the paper's is 12.8 (Table 2: 0.1155 mm / 8.998 µm); our φ is 0.65), and a ladder
 {', '.join(f'{int(n):,}' for n in conv[:, 0])} (seed means) for the convergence. The geometry
 is in the cell's units (mean radius 1 mm); the solution depends only on Fo = αt/L², so every
 comparison is at the paper's Fo and the times quoted are the paper's (t = Fo × \
@@ -442,7 +453,7 @@ not what limits the accuracy — halving dt moves the profile by far less than t
 **What limits us.** The error is the packing's: the held layer at the hot end (the spheres within
 a radius of the cut face are held at 798 K, a layer of finite thickness the continuum does not
 have) and the sphere-scale heterogeneity of the conductance, which the calibration removes only on
-average. The beam is thin (~6.8 mean diameters across), so each bin holds few spheres.
+average. The beam is thin ({radius_r:.1f} mean diameters across), so each bin holds few spheres.
 """
     numbers = {
         "max_error_over_dT": worst, "max_error_over_dT_per_time": per_time.max(axis=0).tolist(),

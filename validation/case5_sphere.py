@@ -234,6 +234,10 @@ def sphere_run(packing_path, ct, *, method="explicit", steps=None, threads=1,
     exact_carve = sphere_temperature(r, times[-1], r_carve, ALPHA, TS_C, T0_C)
     rec["centre_error_carve_radius_c"] = float(np.average((final - exact_carve)[ball],
                                                           weights=vol[ball]))
+    # the paper's measure with the paper's radius (the domain's, R_carve): max over the particles
+    err_carve = (final - exact_carve)[free]
+    rec["max_abs_error_carve_radius_c"] = float(np.abs(err_carve).max())
+    rec["argmax_carve_r_over_R"] = float(r[free][np.argmax(np.abs(err_carve))] / r_carve)
     # shell profile: volume-weighted means over the free particles by centre radius
     edges = np.linspace(0.0, r_held, 11)
     shells = []
@@ -542,12 +546,29 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
         f"{r['max_abs_error_c']:.3f} |" for r in speed)
     paper_txt = (f"With the paper's C_t (0.806) on our 1e5 sphere the centre is off by "
                  f"**{paper_1e5['centre_error_c']:+.2f} °C** "
-                 f"(max {paper_1e5['max_abs_error_c']:.2f} °C): "
-                 "our cut-cell packing conducts ~25 % more per contact at a given C_t "
-                 "(case 6: our C_t is 0.63–0.65 where the paper's is 0.81–0.83), so the "
-                 "paper's C_t heats the ball too fast. The C_t has to be calibrated on the "
-                 "packing in use; it does not transfer between packing generators."
+                 f"(max {paper_1e5['max_abs_error_c']:.2f} °C): C_t calibrates the packing's "
+                 "conductance per unit of the law's contact area, so it carries the packing's "
+                 "coordination with gaps (the neighbour criterion) and the law's R_m — a packing "
+                 "with more conducting neighbours per particle than Haddad's needs a smaller C_t "
+                 f"(ours {main['ct']:.3f}, case 6). The C_t is calibrated on the packing in use."
                  if paper_1e5 else "")
+    # the paper's conventions (002 sec. 2.1-2.3): C_t of the whole-cube flux test with the
+    # domain length (002 eq. 8), the analytical sphere of the domain's radius (R_carve)
+    pc = by.get((100_000, "ours, domain length"))
+    paper_conv = None
+    if pc and "max_abs_error_carve_radius_c" in pc:
+        paper_conv = {"n_particles": pc["n_particles"], "ct": pc["ct"],
+                      "max_abs_error_c": pc["max_abs_error_carve_radius_c"],
+                      "argmax_r_over_R": pc["argmax_carve_r_over_R"],
+                      "centre_error_c": pc["centre_error_carve_radius_c"]}
+    paper_conv_txt = (
+        f"**With the paper's conventions** (C_t {paper_conv['ct']:.4f} from the whole-cube flux "
+        "test with the domain length, 002 eq. 8; the analytical sphere of the domain radius "
+        f"R_carve): max |T − T_exact| **{paper_conv['max_abs_error_c']:.2f} °C** (at r/R = "
+        f"{paper_conv['argmax_r_over_R']:.2f}), centre {paper_conv['centre_error_c']:+.2f} °C — "
+        "the column the summary judges (target ≤ 1 °C; the paper 1.93 °C)."
+        if paper_conv else "The paper's conventions (whole-cube C_t with the domain length, "
+        "domain radius) were not run at 1e5 here.")
     big_txt = ""
     if big:
         big_txt = (f" At 1e6 ({big['n_particles']:,} spheres) the centre error is "
@@ -619,8 +640,11 @@ the paper's Fig. 8c measure, with where it lies as r/R_h; thermal: 1 thread, sha
 
 At 1e5 with our C_t the centre error is **{main['centre_error_c']:+.3f} °C** against the paper's
 1.93 °C (max over the particles {main['max_abs_error_c']:.2f} °C, at r/R_h = \
-{main['argmax_r_over_R']:.2f}):
-the goal ≤ 1 °C is {'met' if met else 'not met'}.{big_txt} {paper_txt}
+{main['argmax_r_over_R']:.2f}): ≤ 1 °C is {'met' if met else 'not met'} at the centre and
+{'met' if main['max_abs_error_c'] <= 1.0 else 'not met'} for the max, the paper's measure.\
+{big_txt} {paper_txt}
+
+{paper_conv_txt}
 The analytical radius matters: against the carving radius instead of the held shell the same
 field has the centre error of the column "vs R_carve" — the sphere's one free length is worth
 about 6 ΔR/R of the centre's excess temperature at this Fourier number.
@@ -672,7 +696,7 @@ other cells (seeds), not done here. {big_limit}
         verdict=("goal ≤ 1 °C at 1e5 " + ("met" if met else "not met")
                  + " with our calibrated C_t; the paper's C_t does not transfer to our packing"),
         section_md=section,
-        numbers={"centre_error_c": main["centre_error_c"],
+        numbers={"centre_error_c": main["centre_error_c"], "paper_conventions": paper_conv,
                  "max_abs_error_c": main["max_abs_error_c"],
                  "rms_error_c": main["rms_error_c"], "ct_ours": main["ct"],
                  "n_particles": main["n_particles"], "orders": orders,
