@@ -434,12 +434,14 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
     text = {}
     if b5:
         e5c, e5d = b5["max_err_over_T_celsius"], b5["max_err_over_dT"]
-        text["paper"] = (f"**Against the paper.** At 1e5 the maximum error is {_p(e5c)} (of T in "
-                         f"°C) against the paper's 0.7 %; the issue's goal (≤ 0.5 % at 1e5) is "
-                         + ("met in that measure" if e5c <= 0.005 else "not met in that measure")
-                         + (", and in the stricter one" if e5d <= 0.005 else
-                            f", {'nearly ' if e5d < 0.0065 else 'not '}in the stricter one")
-                         + f" ({_p(e5d)} of ΔT).")
+        text["paper"] = (f"**Against the paper.** 002's \"max relative error 0.7 %\" does not say "
+                         "relative to what. Judged on the stricter reading, |bin mean − exact| / "
+                         f"ΔT (max over the 10 bins and 3 times): **{_p(e5d)} at 1e5** — the "
+                         "target ≤ 0.5 % is " + ("met" if e5d <= 0.005 else "not met") + ". "
+                         f"Relative to T in °C the same error is {_p(e5c)}, but that reading "
+                         "depends on the origin of the temperature scale (in kelvin it would be "
+                         "~10× smaller again) and is 3.3× laxer here, so it is shown, not "
+                         "judged on.")
         if b6:
             text["paper"] += (f" At 1e6 {_p(b6['max_err_over_T_celsius'])} "
                               f"({_p(b6['max_err_over_dT'])} of ΔT); the paper gives no 1e6 slab.")
@@ -548,10 +550,13 @@ after 551 s of YADE for the cell{at_1e6}.
 in °C, 5 % of ΔT) and the C_t conversion; `tdem validate 4 --quick` runs the same instance."""
     big = max(rows, key=lambda r: r["n_particles"])
     head = b5 or big
-    our_error = (f"max rel. error **{_p(head['max_err_over_T_celsius'])}** (of T in °C, our "
-                 f"reading of the paper's measure); {_p(head['max_err_over_dT'])} of ΔT"
-                 + (f"; at 1e6 {_p(b6['max_err_over_T_celsius'])} / {_p(b6['max_err_over_dT'])}"
-                    if b6 else ""))
+    best = min(rows, key=lambda r: r["max_err_over_dT"])
+    our_error = (f"{_p(head['max_err_over_dT'])} of ΔT ({_p(head['max_err_over_T_celsius'])} of "
+                 "T in °C)"
+                 + (f"; at 1e6 {_p(b6['max_err_over_dT'])} / {_p(b6['max_err_over_T_celsius'])}"
+                    if b6 else "")
+                 + f"; lowest {_p(best['max_err_over_dT'])} of ΔT ({best['label']}, "
+                   f"{best['n_particles']:,})")
     verdict = ("goal ≤ 0.5 % " + ("met" if head["max_err_over_T_celsius"] <= 0.005 else "not met")
                + " in the paper's measure, "
                + ("met" if head["max_err_over_dT"] <= 0.005 else "not quite")
