@@ -440,8 +440,8 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
                          "target ≤ 0.5 % is " + ("met" if e5d <= 0.005 else "not met") + ". "
                          f"Relative to T in °C the same error is {_p(e5c)}, but that reading "
                          "depends on the origin of the temperature scale (in kelvin it would be "
-                         "~10× smaller again) and is 3.3× laxer here, so it is shown, not "
-                         "judged on.")
+                         f"~10× smaller again) and is {e5d / e5c:.1f}× laxer here, so it is "
+                         "shown, not judged on.")
         if b6:
             text["paper"] += (f" At 1e6 {_p(b6['max_err_over_T_celsius'])} "
                               f"({_p(b6['max_err_over_dT'])} of ΔT); the paper gives no 1e6 slab.")
