@@ -1,17 +1,26 @@
 """Case 9 of docs/validation.md: the single inclusion of case 8 at contrast c = 5 (matrix 33,
 inclusion 165 W/m/K), temperature and Halo heat flux at A (0.5, 0.5, 0.5) L, B (0.08, 0.5, 0.5) L
 and C (0.5, 0.92, 0.5) L (002 sec. 4.2, Table 2: 150,000 and 500,000 spheres against FEM of
-100,000 tetrahedra; T within 1 %, heat flux within 19.6 % at worst over the section).
+100,000 tetrahedra; its point errors on |q| are +0.4 / +2.2 / -3.8 % at 150,000 and
++0.5 / +1.0 / -4.1 % at 500,000; T within 1 %).
 
 Thermal conditions of 002 sec. 2.2 / 4.2: y = 0 at 25 C, y = L at 35 C, adiabatic sides. The DEM:
-the flux test of validation/inclusions.py on the shared boxes (law haddad, phases by the
+the flux test of validation/inclusions.py on cubes tiled from the shared 10,000-sphere cell at
+the paper's N (150,000 and 500,000) and at 1e5 and 1e6 beside them (law haddad, phases by the
 particles' centres, harmonic interfaces); at each point
 - T: a least-squares linear fit of the temperatures of the 32 particles nearest the point,
   evaluated there (the nearest particle alone is up to a radius off: 0.1 K here);
-- C_t calibrated on the packing (the single-phase flux test gives 33 W/m/K, 002 eq. 8-9);
+- C_t calibrated on the packing (the single-phase flux test along the same axis gives
+  33 W/m/K, 002 eq. 8-9);
 - q: the Halo flux (002 eq. 22-23, tdem_post.flux.halo_flux) of the particle nearest the point,
-  at Halo/DE radius ratio 11 (002's choice: the 2 % CoV level of its Fig. 10) and 4 (5 %), and
-  the raw per-particle flux (ratio 0) for scale; |q| is reported.
+  at Halo/DE radius ratio 11 (002's choice: the 2 % CoV level of its Fig. 10) and 4 (5 %), the
+  halo radius ratio x the packing's mean radius (the "common" radius, 002's halo of a
+  pre-defined number of DE) and, beside it, ratio x the particle's own radius ("own", tdem's
+  reading before issue 23); the raw per-particle flux (ratio 0) for scale; |q| is reported.
+  The point value of one particle's halo carries the halo's own scatter (case 7's CoV): it is
+  measured here on the points equivalent to A, B and C by the symmetry of the problem (B: the
+  four mid-face points 0.08 L from an adiabatic face; C: 0.08 L from either held face; A: the
+  centre) with the gradient along each of the three axes in turn.
 Fluxes are scaled to the paper's cube, q x (0.1 m / L) (q = lambda dT / L: 3,300 W/m^2 without the
 inclusion), so they read as Table 2's W/m^2.
 
@@ -19,7 +28,9 @@ The continuum reference: tdem_post.continuum's finite-volume operator (harmonic 
 conductances) on n^3 grids of the same cube (validation/inclusions.continuum_field), cells mixing
 the two phases by volume fraction arithmetically and harmonically, point values by trilinear
 interpolation (T) and from the face fluxes (q), each extrapolated to h -> 0 (Richardson); the
-reference is the mean of the two, with half their difference as its uncertainty.
+reference is the mean of the two, with half their difference as its uncertainty. The paper's
+measure is the difference to its FE values (Table 2), so the target is judged against them; the
+errors against our converged FV reference are given beside.
 
   .venv/bin/python -m validation.case9_inclusion_points [--quick]
 """
@@ -48,9 +59,36 @@ POINTS = {"A": (0.5, 0.5, 0.5), "B": (0.08, 0.5, 0.5), "C": (0.5, 0.92, 0.5)}
 PAPER = {"150,000 DE": dict(T=(30, 30, 33.5), q=(7796, 2370, 6183)),
          "500,000 DE": dict(T=(30, 30, 33.4), q=(7809, 2342, 6163)),
          "FE": dict(T=(30, 30, 33.5), q=(7767, 2318, 6424))}
+PAPER_ERR = {n: [(q - fe) / fe for q, fe in zip(PAPER[k]["q"], PAPER["FE"]["q"])]
+             for n, k in ((150_000, "150,000 DE"), (500_000, "500,000 DE"))}
 HALOS = (0.0, 4.0, 11.0)
+KINDS = ("common", "own")
+MAIN = ("common", 11.0)          # 002's reading: ratio 11, the halo of a pre-defined number of DE
 PAPER_L = 0.1
 DATA = framework.ROOT / "tests" / "data"
+# the paper's N and one either side, tiled from the shared 10,000-sphere cell
+SIZES = {100_000: "box_1e5", 150_000: "box_150k", 500_000: "box_5e5", 1_000_000: "box_1e6"}
+framework.register_packing("box_150k", "runs/dense_box_1e5.toml", dict(n_particles=150_000))
+framework.register_packing("box_5e5", "runs/dense_box_1e5.toml", dict(n_particles=500_000))
+
+
+def equivalent_points(axis: int) -> dict:
+    """{label: [fractional points]} equivalent to A, B and C by the symmetry of the problem with
+    the gradient along ``axis`` (the inclusion centred: mirror planes through the centre, the
+    two axes across the gradient interchangeable, |q| even about the mid-plane across the
+    gradient); for axis 1 the first point of each is the paper's."""
+    others = [a for a in range(3) if a != axis]
+    out = {"A": [(0.5, 0.5, 0.5)], "B": [], "C": []}
+    for o in others:
+        for f in (0.08, 0.92):
+            pt = [0.5, 0.5, 0.5]
+            pt[o] = f
+            out["B"].append(tuple(pt))
+    for f in (0.92, 0.08):
+        pt = [0.5, 0.5, 0.5]
+        pt[axis] = f
+        out["C"].append(tuple(pt))
+    return out
 
 
 def cell_flux(grid, k, T):
@@ -126,52 +164,106 @@ def continuum_points(grids):
     return ref, out
 
 
-def dem_points(name, path, ctx):
+def _key(kind, ratio):
+    return "raw" if ratio == 0 else f"{kind}_{ratio:g}"
+
+
+KEYS = ["raw"] + [_key(k, r) for k in KINDS for r in HALOS if r > 0]
+
+
+def dem_points(name, path, ctx, axes=(1, 0, 2)):
+    """T and |q| at A, B, C (gradient along y) and |q| at their symmetric equivalents with the
+    gradient along each of ``axes`` (the first must be y: the paper's points)."""
     scene, pk = I.load(path)
     lo, hi = pk.domain_lo, pk.domain_hi
     size = hi - lo
     centres, radius = I.centred_inclusion(pk)
     phase = I.phase_of(pk, centres, radius)
-    t0 = time.perf_counter()
-    res = I.flux_test(scene, pk, phase, CONTRAST, keep=True)
-    solve_s = time.perf_counter() - t0
-    # C_t calibrated on the packing (002 sec. 2.1, eq. 8-9, the domain length): the single-phase
-    # test must give the matrix's 33 W/m/K. Every conductance is proportional to C_t and the
-    # temperatures do not depend on it, so the fluxes are scaled by 33 / k_m.
-    k_m = I.flux_test(scene, pk, np.zeros_like(phase), 1.0).k_eff
-    calib = I.K_MATRIX / k_m
-    T = res.temperature
     tree = cKDTree(pk.position)
-    pts = lo + np.array(list(POINTS.values())) * size
-    t_pts = []
-    for p in pts:
-        _, idx = tree.query(p, k=32)
-        A = np.column_stack([np.ones(len(idx)), pk.position[idx] - p])
-        coef = np.linalg.lstsq(A, T[idx], rcond=None)[0]
-        t_pts.append(coef[0] - 273.15)
-    nearest = tree.query(pts)[1]
-    h = res.net.problem.conductance_w_k
-    moments = contact_moments(pk.n_particles, pk.pair, pk.branch, h, T)
     volume = 4.0 / 3.0 * np.pi * pk.radius ** 3
     phi = float(pk.attrs["solid_fraction"])
-    scale = calib * float(size[1]) / PAPER_L             # calibrated, and x L / 0.1 m
-    q = {}
-    t1 = time.perf_counter()
-    for ratio in HALOS:
-        if ratio == 0:
-            flux = phi * moments[nearest] / (2.0 * volume[nearest, None])
-        else:
-            flux = halo_flux(pk.position, pk.radius, moments, volume, phi, ratio,
-                             particles=nearest, tree=tree)
-        q[ratio] = (np.linalg.norm(flux, axis=1) * scale).tolist()
-    halo_s = time.perf_counter() - t1
-    ctx.progress(f"{name}: T " + ", ".join(f"{t:.3f}" for t in t_pts) + " C; |q| halo 11 "
-                 + ", ".join(f"{v:.0f}" for v in q[11.0]) + f" W/m^2 ({solve_s:.1f} s)")
-    return dict(name=name, n=pk.n_particles, T=t_pts, q={str(k): v for k, v in q.items()},
-                ct_calibrated=0.806 * calib, k_m_at_ct_0806=k_m,
-                solve_s=solve_s, halo_s=halo_s, balance=res.balance,
+    samples = {k: {"A": [], "B": [], "C": []} for k in KEYS}
+    t_pts, q_paper, solve_s, halo_s, calib, balance = None, None, {}, 0.0, {}, {}
+    for axis in axes:
+        t0 = time.perf_counter()
+        res = I.flux_test(scene, pk, phase, CONTRAST, keep=True, axis=axis)
+        # C_t calibrated on the packing (002 sec. 2.1, eq. 8-9, the domain length): the
+        # single-phase test along the same axis must give the matrix's 33 W/m/K. Every
+        # conductance is proportional to C_t and the temperatures do not depend on it, so the
+        # fluxes are scaled by 33 / k_m.
+        k_m = I.flux_test(scene, pk, np.zeros_like(phase), 1.0, axis=axis).k_eff
+        solve_s["xyz"[axis]] = time.perf_counter() - t0
+        calib["xyz"[axis]] = I.K_MATRIX / k_m
+        balance["xyz"[axis]] = res.balance
+        T = res.temperature
+        if axis == 1:
+            t_pts = []
+            for p in lo + np.array(list(POINTS.values())) * size:
+                _, idx = tree.query(p, k=32)
+                A = np.column_stack([np.ones(len(idx)), pk.position[idx] - p])
+                coef = np.linalg.lstsq(A, T[idx], rcond=None)[0]
+                t_pts.append(coef[0] - 273.15)
+        eq = equivalent_points(axis)
+        labels = [lab for lab, pts in eq.items() for _ in pts]
+        pts = lo + np.array([pt for pts in eq.values() for pt in pts]) * size
+        nearest = tree.query(pts)[1]
+        moments = contact_moments(pk.n_particles, pk.pair, pk.branch,
+                                  res.net.problem.conductance_w_k, T)
+        scale = calib["xyz"[axis]] * float(size[axis]) / PAPER_L   # calibrated, x L / 0.1 m
+        t1 = time.perf_counter()
+        values = {}
+        for kind in KINDS:
+            for ratio in HALOS:
+                key = _key(kind, ratio)
+                if key in values:
+                    continue
+                if ratio == 0:
+                    flux = phi * moments[nearest] / (2.0 * volume[nearest, None])
+                else:
+                    flux = halo_flux(pk.position, pk.radius, moments, volume, phi, ratio,
+                                     particles=nearest, tree=tree, halo_radius=kind)
+                values[key] = np.linalg.norm(flux, axis=1) * scale
+        halo_s += time.perf_counter() - t1
+        for key, v in values.items():
+            for lab, x in zip(labels, v):
+                samples[key][lab].append(float(x))
+        if axis == 1:          # the paper's points are the first of each label
+            q_paper = {key: [float(v[labels.index(lab)]) for lab in "ABC"]
+                       for key, v in values.items()}
+    ctx.progress(f"{name}: T " + ", ".join(f"{t:.3f}" for t in t_pts) + " C; |q| Halo 11 r̄ "
+                 + ", ".join(f"{v:.0f}" for v in q_paper[_key(*MAIN)])
+                 + f" W/m^2 (solves {sum(solve_s.values()):.1f} s)")
+    return dict(name=name, n=pk.n_particles, T=t_pts, q=q_paper, samples=samples,
+                ct_calibrated=0.806 * calib["y"], calibration=calib, solve_s=solve_s,
+                halo_s=halo_s, balance=balance,
                 mean_radius_over_l=float(pk.radius.mean() / size[1]),
                 pack_s=framework.pack_seconds(name))
+
+
+def _errors(r, ref_T, ref_q):
+    fe_q = PAPER["FE"]["q"]
+    r["err_T"] = [abs(t - tr) / tr for t, tr in zip(r["T"], ref_T)]
+    r["err_T_of_dT"] = [abs(t - tr) / (I.T_HOT - I.T_COLD) for t, tr in zip(r["T"], ref_T)]
+    r["err_q"] = {k: [(v - vr) / vr for v, vr in zip(vals, ref_q)] for k, vals in r["q"].items()}
+    r["err_q_fe"] = {k: [(v - fe) / fe for v, fe in zip(vals, fe_q)]
+                     for k, vals in r["q"].items()}
+    # the point value's own scatter: the symmetric equivalents over the three gradient axes
+    r["scatter"] = {k: {lab: dict(n=len(v), mean_err=float(np.mean(v) / ref_q[i] - 1),
+                                  std=float(np.std(v, ddof=1) / ref_q[i]) if len(v) > 1
+                                  else float("nan"),
+                                  max_abs_err=float(np.max(np.abs(np.array(v) / ref_q[i] - 1))))
+                        for i, (lab, v) in enumerate(d.items())}
+                    for k, d in r["samples"].items()}
+
+
+def _judge(r):
+    """Issue 23's target at the run's N: |q| (common radius, ratio 11) against 002's FE within
+    the paper's point error at 150,000 at each of A, B, C, and T within 1 %."""
+    paper = PAPER_ERR[150_000]
+    errs = r["err_q_fe"][_key(*MAIN)]
+    points = [abs(e) <= abs(pe) for e, pe in zip(errs, paper)]
+    return dict(points=points, T=max(r["err_T"]) <= 0.01, met=all(points)
+                and max(r["err_T"]) <= 0.01)
 
 
 def run(ctx: Context) -> CaseResult:
@@ -179,9 +271,11 @@ def run(ctx: Context) -> CaseResult:
     if ctx.quick:
         grids = (16, 24, 36)
         boxes = [("dense_box_400", DATA / "dense_box.h5")]
+        axes = (1,)
     else:
         grids = (40, 60, 90)
-        boxes = [(name, ctx.packing(name)) for name in ("box_2000", "box_1e5", "box_1e6")]
+        boxes = [(name, ctx.packing(name)) for name in SIZES.values()]
+        axes = (1, 0, 2)
     t0 = time.perf_counter()
     ref, fv = continuum_points(grids)
     fv_s = time.perf_counter() - t0
@@ -190,32 +284,41 @@ def run(ctx: Context) -> CaseResult:
     ref_q = [q0 * v for v in ref["q"]]
     ctx.progress("FV reference: T " + ", ".join(f"{t:.3f}" for t in ref_T) + " C; |q| "
                  + ", ".join(f"{v:.0f}" for v in ref_q) + f" W/m^2 ({fv_s:.0f} s)")
-    runs = [dem_points(name, path, ctx) for name, path in boxes]
+    runs = [dem_points(name, path, ctx, axes=axes) for name, path in boxes]
     for r in runs:
-        r["err_T"] = [abs(t - tr) / tr for t, tr in zip(r["T"], ref_T)]
-        r["err_q"] = {k: [(v - vr) / vr for v, vr in zip(vals, ref_q)]
-                      for k, vals in r["q"].items()}
+        _errors(r, ref_T, ref_q)
+        r["judged"] = _judge(r)
     _plot(ctx, runs, ref_T, ref_q, ref, dT, q0)
     big = max(runs, key=lambda r: r["n"])
     err_t = max(big["err_T"])
-    err_q = max(abs(e) for e in big["err_q"]["11.0"])
+    err_q = max(abs(e) for e in big["err_q"][_key(*MAIN)])
     numbers = dict(points=POINTS, grids=list(grids), reference_T_c=ref_T, reference_q=ref_q,
                    reference_T_unc_k=[dT * v for v in ref["T_unc"]],
                    reference_q_unc=[q0 * v for v in ref["q_unc"]], fv=fv, runs=runs,
-                   paper=PAPER, max_T_error=err_t, max_q_error_halo11=err_q, fv_seconds=fv_s)
-    section = _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s)
+                   paper=PAPER, paper_point_errors=PAPER_ERR, max_T_error=err_t,
+                   max_q_error_halo11=err_q, fv_seconds=fv_s, main_reading=_key(*MAIN))
+    section, at_paper, speed, met = _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s,
+                                             quick=ctx.quick)
     pack = ", ".join(f"{r['name']} {r['pack_s']:.0f} s" for r in runs if r.get("pack_s"))
+    main_run = next((r for r in runs if r["n"] // 10_000 == 15), big)
+    e = main_run["err_q_fe"][_key(*MAIN)]
     return CaseResult(
         our_n=" / ".join(f"{r['n']:,}" for r in runs),
-        our_error=f"T max {100 * err_t:.2f} %, |q| (Halo 11) max {100 * err_q:.1f} % at A, B, "
-                  f"C vs FV (N {big['n']:,})",
+        our_error=f"N {main_run['n']:,}, Halo 11 r̄: |q| vs 002's FE "
+                  + " / ".join(f"{100 * v:+.1f} %" for v in e)
+                  + " at A / B / C (paper "
+                  + " / ".join(f"{100 * v:+.1f} %" for v in PAPER_ERR[150_000]) + "); "
+                  f"T max {100 * max(main_run['err_T']):.2f} %",
         wall_time=f"packing {pack or 'shared'} + FV {fv_s:.0f} s + thermal "
-                  f"{time.perf_counter() - t_start - fv_s:.0f} s",
-        verdict=("T within 1 %" if err_t <= 0.01 else "T not within 1 %")
-        + (", flux within 19.6 %" if err_q <= 0.196 else ", flux not within 19.6 %")
-        + " at A, B, C (002's 19.6 % is the max over its section map)",
+                  f"{time.perf_counter() - t_start - fv_s:.0f} s (3 gradient axes, C_t each)",
+        verdict=("target met" if met else "target missed" if met is False else "quick run")
+        + f" at N {main_run['n']:,}: |q| at A, B, C vs 002's FE "
+        + ", ".join(f"{lab} {100 * v:+.1f} %" for lab, v in zip("ABC", e))
+        + " (paper +0.4 / +2.2 / −3.8 %); T within 1 %"
+        + ("" if max(main_run["err_T"]) <= 0.01 else " NOT met"),
         section_md=section, numbers=numbers,
-        command=".venv/bin/python -m validation.case9_inclusion_points")
+        command=".venv/bin/python -m validation.case9_inclusion_points",
+        at_paper_n=at_paper, speed_vs_error=speed, target_met=met)
 
 
 def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
@@ -223,42 +326,56 @@ def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from thermal_kernel.atomic import savefig_atomic
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.5))
     names = list(POINTS)
     x = np.arange(3)
     rs = sorted(runs, key=lambda r: r["n"])
-    w = 0.8 / (len(rs) + 2)
+    w = 0.8 / (len(rs) + 3)
     ax.bar(x - 0.4 + w / 2, ref_T, w, yerr=[dT * v for v in ref["T_unc"]], color="k",
            label="FV (h -> 0)")
     ax.bar(x - 0.4 + 1.5 * w, PAPER["FE"]["T"], w, color="0.6", label="002 FE")
-    bx.bar(x - 0.4 + w / 2, ref_q, w, yerr=[q0 * v for v in ref["q_unc"]], color="k",
-           label="FV (h -> 0)")
-    bx.bar(x - 0.4 + 1.5 * w, PAPER["FE"]["q"], w, color="0.6", label="002 FE")
-    csv = [("FV", 0, *ref_T, *ref_q), ("002 FE", 0, *PAPER["FE"]["T"], *PAPER["FE"]["q"]),
-           ("002 DE", 150000, *PAPER["150,000 DE"]["T"], *PAPER["150,000 DE"]["q"]),
-           ("002 DE", 500000, *PAPER["500,000 DE"]["T"], *PAPER["500,000 DE"]["q"])]
+    csv = [("FV", 0, "", *ref_T, *ref_q),
+           ("002 FE", 0, "", *PAPER["FE"]["T"], *PAPER["FE"]["q"]),
+           ("002 DE", 150000, "", *PAPER["150,000 DE"]["T"], *PAPER["150,000 DE"]["q"]),
+           ("002 DE", 500000, "", *PAPER["500,000 DE"]["T"], *PAPER["500,000 DE"]["q"])]
     for k, r in enumerate(rs):
         ax.bar(x - 0.4 + (2.5 + k) * w, r["T"], w, color=f"C{k}", label=f"tdem {r['n']:,}")
-        bx.bar(x - 0.4 + (2.5 + k) * w, r["q"]["11.0"], w, color=f"C{k}",
-               label=f"tdem {r['n']:,} (Halo 11)")
-        csv.append(("tdem halo 11", r["n"], *r["T"], *r["q"]["11.0"]))
+        for key in KEYS:
+            csv.append(("tdem", r["n"], key, *r["T"], *r["q"][key]))
     ax.set_xticks(x, names)
     ax.set_ylim(24, 36)
     ax.set_ylabel("T, °C")
     ax.legend(fontsize=7)
+    # flux: error against 002's FE, ours (common radius, ratio 11; own radius hollow) and the
+    # paper's at its two N
+    for j, (lab, n) in enumerate((("002 DE 150,000", 150_000), ("002 DE 500,000", 500_000))):
+        bx.plot(x + 0.25 * (j - 0.5) * 0.3, [100 * v for v in PAPER_ERR[n]], "r*" if j == 0
+                else "m*", ms=11, label=lab)
+    for k, r in enumerate(rs):
+        off = -0.3 + 0.6 * k / max(len(rs) - 1, 1)
+        sc = r["scatter"][_key(*MAIN)]
+        bx.errorbar(x + off, [100 * v for v in r["err_q_fe"][_key(*MAIN)]],
+                    yerr=[100 * sc[lab]["std"] if np.isfinite(sc[lab]["std"]) else 0
+                          for lab in names], fmt="o", color=f"C{k}", capsize=3,
+                    label=f"tdem {r['n']:,}, Halo 11 r̄ (bar: std over the symmetric points)")
+        bx.plot(x + off + 0.04, [100 * v for v in r["err_q_fe"]["own_11"]], "^", mfc="none",
+                color=f"C{k}", label=f"tdem {r['n']:,}, Halo 11 R_p (own)")
+    bx.axhline(0, color="k", lw=0.8)
     bx.set_xticks(x, names)
-    bx.set_ylabel("|q|, W/m² (scaled to L = 10 cm)")
-    bx.legend(fontsize=7)
+    bx.set_ylabel("|q| against 002's FE (%)")
+    bx.set_ylim(-30, 30)
+    bx.legend(fontsize=6, ncol=2)
     fig.suptitle("single inclusion, c = 5: A (0.5, 0.5, 0.5) L, B (0.08, 0.5, 0.5) L, "
                  "C (0.5, 0.92, 0.5) L", fontsize=9)
     fig.tight_layout()
     path = ctx.figure("points")
     savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
-    I.write_csv(path, ("source", "n", "T_A_C", "T_B_C", "T_C_C", "q_A", "q_B", "q_C"), csv)
+    I.write_csv(path, ("source", "n", "flux_reading", "T_A_C", "T_B_C", "T_C_C", "q_A", "q_B",
+                       "q_C"), csv)
 
 
-def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s):
+def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, quick=False):
     rs = sorted(runs, key=lambda r: r["n"])
     t_rows = [f"| FV reference (h → 0), {'/'.join(map(str, grids))}³ | "
               + " | ".join(f"{t:.3f} ± {dT * u:.3f}" for t, u in zip(ref_T, ref["T_unc"]))
@@ -269,58 +386,142 @@ def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s):
                                                         PAPER["500,000 DE"]["T"])) + " |"]
     for r in rs:
         t_rows.append(f"| tdem {r['n']:,} | " + " | ".join(
-            f"{t:.3f} ({100 * e:.2f} %)" for t, e in zip(r["T"], r["err_T"])) + " |")
+            f"{t:.3f} ({100 * e:.2f} %; {100 * d:.2f} % of ΔT)"
+            for t, e, d in zip(r["T"], r["err_T"], r["err_T_of_dT"])) + " |")
     q_rows = ["| FV reference (h → 0) | " + " | ".join(
         f"{v:.0f} ± {q0 * u:.0f}" for v, u in zip(ref_q, ref["q_unc"])) + " |",
-        "| 002 FE / DE 150,000 / DE 500,000 | " + " | ".join(
-            f"{a} / {b} / {c}" for a, b, c in zip(PAPER["FE"]["q"], PAPER["150,000 DE"]["q"],
-                                                  PAPER["500,000 DE"]["q"])) + " |"]
+        "| 002 FE | " + " | ".join(f"{v}" for v in PAPER["FE"]["q"]) + " |"]
+    for n, lab in ((150_000, "150,000 DE"), (500_000, "500,000 DE")):
+        q_rows.append(f"| 002 DE {n:,} | " + " | ".join(
+            f"{v} ({100 * e:+.1f} %)" for v, e in zip(PAPER[lab]["q"], PAPER_ERR[n])) + " |")
+    names = {"raw": "raw (eq. 20)", "common_4": "Halo 4 r̄", "common_11": "**Halo 11 r̄**",
+             "own_4": "Halo 4 R_p (own)", "own_11": "Halo 11 R_p (own)"}
     for r in rs:
-        for ratio in ("0.0", "4.0", "11.0"):
-            q_rows.append(f"| tdem {r['n']:,}, Halo {float(ratio):g} | " + " | ".join(
-                f"{v:.0f} ({100 * e:+.1f} %)" for v, e in zip(r["q"][ratio],
-                                                           r["err_q"][ratio])) + " |")
-    timing = "; ".join(f"{r['n']:,}: solve {r['solve_s']:.1f} s, Halo {r['halo_s']:.1f} s"
-                       for r in rs)
-    return f"""**Setup.** The cube of case 8 with its centred inclusion a = L/3 at c = 5 (33 / 165
-W/m/K), y = 0 at 25 °C, y = L at 35 °C, adiabatic sides (002 sec. 4.2). DEM: one steady solve
-(law `haddad`, phases by the particles' centres, harmonic interfaces; C_t calibrated on each
-packing so that the single-phase test gives 33 W/m/K, 002 sec. 2.1: \
-{', '.join(f"{r['ct_calibrated']:.4f}" for r in rs)}
-at N = {', '.join(f"{r['n']:,}" for r in rs)}); T at a point from a
-linear least-squares fit over its 32 nearest particles; |q| the Halo flux (002 eq. 22–23) of the
-particle nearest the point, at Halo/DE ratios 0 (raw eq. 20), 4 and 11 (002's choice), scaled to
-the paper's L = 10 cm (3,300 W/m² without the inclusion). Reference: our finite-volume solve of
-the same cube (`tdem_post.continuum`'s operator, `validation/inclusions.continuum_field`) on
-{', '.join(f'{g}³' for g in grids)} grids, arithmetic and harmonic cell mixing each
-extrapolated to h → 0, their mean ± half their difference ({fv_s:.0f} s in all). 002's FE values
-(100,000 tetrahedra) are beside it. Error: |T − T_FV| / T_FV in °C (002's measure); flux
-(q − q_FV) / q_FV.
+        for key in ("common_11", "own_11", "common_4", "own_4", "raw"):
+            q_rows.append(f"| tdem {r['n']:,}, {names[key]} | " + " | ".join(
+                f"{v:.0f} ({100 * e:+.1f} %; FV {100 * f:+.1f} %)"
+                for v, e, f in zip(r["q"][key], r["err_q_fe"][key], r["err_q"][key])) + " |")
+    sc_rows = []
+    for r in rs:
+        for key in ("common_11", "own_11", "common_4"):
+            sc = r["scatter"][key]
+            sc_rows.append(f"| tdem {r['n']:,}, {names[key]} | " + " | ".join(
+                f"{100 * sc[lab]['mean_err']:+.1f} % ± {100 * sc[lab]['std']:.1f} % "
+                f"(max {100 * sc[lab]['max_abs_err']:.1f} %, {sc[lab]['n']})"
+                for lab in "ABC") + " |")
+    judged = {r["n"]: r["judged"] for r in rs}
+    main_run = next((r for r in rs if r["n"] // 10_000 == 15), rs[-1])
+    five = next((r for r in rs if r["n"] // 100_000 == 5), None)
+    met = None if quick else judged[main_run["n"]]["met"]
+    key = _key(*MAIN)
 
-Temperature (°C) at A, B, C:
+    def errs(r, k=key):
+        return " / ".join(f"{100 * v:+.1f} %" for v in r["err_q_fe"][k])
+
+    at_paper = (f"N {main_run['n']:,}: |q| (Halo 11 × r̄, the particle nearest the point) vs "
+                f"002's FE {errs(main_run)} at A / B / C (paper +0.4 / +2.2 / −3.8 %), "
+                f"T max {100 * max(main_run['err_T']):.2f} %")
+    if five is not None:
+        at_paper += (f"; N {five['n']:,}: {errs(five)} (paper +0.5 / +1.0 / −4.1 %), T max "
+                     f"{100 * max(five['err_T']):.2f} %")
+    at_paper += (f"; own radius at {main_run['n']:,}: {errs(main_run, 'own_11')}")
+    ok_runs = [r for r in rs if judged[r["n"]]["met"]]
+    if ok_runs:
+        r0 = ok_runs[0]
+        t = (r0["pack_s"] or 0) + r0["solve_s"]["y"] + r0["halo_s"] / max(len(r0["solve_s"]), 1)
+        all_n = ", ".join(f"{r['n']:,}" for r in rs)
+        speed = (f"N {r0['n']:,} is the smallest of {all_n} "
+                 f"within the paper's point errors at A, B and C: about {t:.0f} s "
+                 f"(packing {r0['pack_s'] or 0:.0f} s from the shared cell + composite and "
+                 f"single-phase solves {r0['solve_s']['y']:.0f} s + Halo)")
+        later = [r["n"] for r in rs if r["n"] > r0["n"] and not judged[r["n"]]["met"]]
+        if later:
+            speed += (f"; not at {', '.join(f'{n:,}' for n in later)}: the point value carries "
+                      "the halo's scatter (below), so meeting it is not monotone in N")
+    else:
+        speed = ("not reached at any of " + ", ".join(f"{r['n']:,}" for r in rs)
+                 + " (the point values' own scatter, below, is as large as the targets)")
+    timing = "; ".join(
+        f"{r['n']:,}: solves {', '.join(f'{a} {v:.1f} s' for a, v in r['solve_s'].items())}, "
+        f"Halo {r['halo_s']:.1f} s" for r in rs)
+    miss = []
+    for r in rs:
+        j = judged[r["n"]]
+        bad = [lab for lab, ok in zip("ABC", j["points"]) if not ok]
+        if bad:
+            miss.append(f"{r['n']:,}: {', '.join(bad)}")
+    sc_main = main_run["scatter"][key]
+    section = f"""**Setup.** The cube of case 8 with its centred inclusion a = L/3 at c = 5
+(33 / 165 W/m/K), y = 0 at 25 °C, y = L at 35 °C, adiabatic sides (002 sec. 4.2), on cubes
+tiled from the shared 10,000-sphere cell at the paper's N (150,000 and 500,000) and at 1e5
+and 1e6 beside them. DEM: one steady solve (law `haddad`, phases by the particles' centres,
+harmonic interfaces; C_t calibrated on each packing so that the single-phase test gives
+33 W/m/K, 002 sec. 2.1: {', '.join(f"{r['ct_calibrated']:.4f}" for r in rs)} at \
+N = {', '.join(f"{r['n']:,}" for r in rs)});
+T at a point from a linear least-squares fit over its 32 nearest particles; |q| the Halo flux
+(002 eq. 22–23) of the particle nearest the point, scaled to the paper's L = 10 cm (3,300 W/m²
+without the inclusion). **The halo**: ratio 11 (002's choice) × r̄, the packing's mean radius,
+for every particle (the "common" radius: 002's halo "contains a pre-defined number of DE";
+tdem's default since issue 23) — the reading the target is judged on; ratio × the particle's
+own radius ("own", tdem's reading before) and ratio 4 and the raw eq. 20 beside it.
+002's measure is the difference to its FE values (100,000 tetrahedra): the target (issue 23) is
+|q| at A, B, C within the paper's own point errors against that FE (+0.4 / +2.2 / −3.8 % at
+150,000), T within 1 %. Our converged reference is beside it: a finite-volume solve of the same
+cube (`validation/inclusions.continuum_field`) on {', '.join(f'{g}³' for g in grids)} grids,
+arithmetic and harmonic cell mixing each extrapolated to h → 0, their mean ± half their
+difference ({fv_s:.0f} s in all); it is within 1 % of 002's FE at the three points.
+
+Temperature (°C) at A, B, C (error: |T − T_FV| / T_FV in °C, 002's measure; and of ΔT = 10 K):
 
 | | A | B | C |
 |---|---|---|---|
 {chr(10).join(t_rows)}
 
-|q| (W/m²) at A, B, C:
+|q| (W/m²) at A, B, C (in brackets: against 002's FE; against our FV reference):
 
 | | A | B | C |
 |---|---|---|---|
 {chr(10).join(q_rows)}
 
-![T and flux at A, B, C](img/validation_case9_points.png)
+![T and the flux error at A, B, C](img/validation_case9_points.png)
 
-Timing: {timing} (one thread, shared machine). B and C lie 0.08 L from a face (adiabatic,
-held): that is {', '.join(f"{0.08 / r['mean_radius_over_l']:.1f}" for r in rs)} mean radii at
-N = {', '.join(f"{r['n']:,}" for r in rs)}, so a Halo of 11 radii (002's choice) reaches past
-the face wherever that is below 11 and averages over a truncated ball there (at B on 100,031
-spheres: +{100 * rs[-2]['err_q']['11.0'][1] if len(rs) > 1 else float('nan'):.0f} %); the raw
-flux (ratio 0) scatters by tens of % from particle to particle (002 Fig. 10's 27 % CoV), and a
-Halo of 4 radii keeps part of it. The Halo trades scatter for resolution: 11 radii is right
-only where the field is uniform over 11 radii, which needs N ≳ 1e6 here. Errors are at the
-three points only; 002's 19.6 % is the maximum over the section's map.
+**A point value carries the halo's scatter.** One particle's Halo flux scatters about the
+field like case 7's CoV (≈ 1–2 % at ratio 11 in a uniform field). Measured here on the points
+equivalent to A, B and C by the symmetry of the problem (A the centre; B the four mid-face
+points 0.08 L from an adiabatic face; C 0.08 L from either held face), with the gradient along
+each of the three axes in turn — mean error against the FV reference ± std over the equivalent
+points (max |error|, count):
+
+| | A | B | C |
+|---|---|---|---|
+{chr(10).join(sc_rows)}
+
+At {main_run['n']:,} the std of one point value (Halo 11 r̄) is
+{100 * sc_main['A']['std']:.1f} / {100 * sc_main['B']['std']:.1f} / \
+{100 * sc_main['C']['std']:.1f} %
+at A / B / C: a target of 0.4 % at A is below the scatter of a single halo there, so meeting it
+at one point and one N is partly chance; the symmetric mean is the better estimate of the bias.
+
+**Target** (issue 23, at N 150,000 against 002's FE, Halo 11 r̄):
+{"met" if met else ("not met (" + "; ".join(miss) + ")") if met is False else "not judged (quick)"}.
+{"" if not miss else "Where a point misses: "
+ + "; ".join(f"{r['n']:,}: " + ", ".join(
+     f"{lab} {100 * e:+.1f} % (symmetric mean {100 * r['scatter'][key][lab]['mean_err']:+.1f} "
+     f"± {100 * r['scatter'][key][lab]['std']:.1f} %)"
+     for lab, e, ok in zip("ABC", r["err_q_fe"][key], judged[r["n"]]["points"]) if not ok)
+     for r in rs if not judged[r["n"]]["met"])
+ + " — the error at the point set against its own scatter over the symmetric points."}
+
+Timing: {timing} (one thread, shared machine; the solves are the composite and the single-phase
+calibration along each axis). B and C lie 0.08 L from a face (adiabatic, held): that is
+{', '.join(f"{0.08 / r['mean_radius_over_l']:.1f}" for r in rs)} mean radii at
+N = {', '.join(f"{r['n']:,}" for r in rs)}, so the halo of 11 r̄ is cut by that face below
+~1e6 (eq. 23 then averages over the particles inside only). With the own radius the halo of a
+large sphere near B reaches 11 × its radius (up to 18 r̄): the +23 % at B on 1e5 before issue 23
+came from that. Errors are at the three points only; 002's 19.6 % is the maximum over the
+section's map.
 """
+    return section, at_paper, speed, met
 
 
 def main(argv=None):
