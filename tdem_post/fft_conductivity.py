@@ -248,8 +248,11 @@ def solve(conductivity, axis: int = 0, *, boundary: str = "periodic", scheme: st
     mean_e = np.zeros((3, 1, 1, 1))
     mean_e[axis] = 1.0
     e_mean = np.broadcast_to(mean_e, (3, *shape))
-    b = -project(vc.flux(e_mean))
+    q_mean = vc.flux(e_mean)
+    b = -project(q_mean)
     bb = float(np.vdot(b, b))
+    if bb <= 1e-28 * float(np.vdot(q_mean, q_mean)):    # round-off of a homogeneous cell
+        bb = 0.0
     x = np.zeros_like(b)
     it, res = 0, 0.0
     if bb > 0:
