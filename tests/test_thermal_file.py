@@ -55,7 +55,8 @@ def test_thermal_h5_holds_the_resolved_scene_and_the_run(run):
     # each boundary stored with its kind (its class in thermal_kernel.boundaries)
     assert stored["boundaries"][0] == {"kind": "temperature", "name": "temperature:zmin",
                                        "on": "zmin", "value": 500.0}
-    assert r.law_params == {"ct": 0.8, "interface_mean": "harmonic"}      # JSON, not a repr
+    assert r.law_params == {"ct": 0.8, "interface_mean": "harmonic",      # JSON, not a repr
+                            "mean_radius": "arithmetic"}
     assert r.dt == 0.5 and r.method.startswith("implicit")
     assert r.run_args["command"] == "run" and r.run_args["scene"] == str(scene_path)
     assert r.run_args["out"] == str(out) and r.run_args["checkpoint_every"] == 0
@@ -183,6 +184,8 @@ def test_a_version_1_file_is_read_from_its_stored_text(run, capsys):
          law_params=repr({"ct": 0.8, "interface_mean": "harmonic"}))
     scene_path.write_text("this is not TOML")
     old = read_thermal(thermal)
+    # mean_radius came later (issue 23); a version-1 file ran with the arithmetic mean
+    assert new.law_params.pop("mean_radius") == "arithmetic"
     assert old.format_version == 1 and old.law_params == new.law_params
     assert scene_to_json(old.scene) == new.scene_json
     assert main(["post", str(out)]) == 0

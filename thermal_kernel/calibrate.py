@@ -5,7 +5,9 @@ material's: a steady flux test along one axis gives lambda^e = phi L / dT (eq. 8
 C_t / C_t^arb = lambda / lambda^e (eq. 9). Every Haddad conductance is proportional to C_t
 (H = lambda C_t pi R_m^2 / d, eq. 1-7) and the test has only Dirichlet faces, so the steady
 heat flow Q - hence lambda^e - is proportional to C_t: ONE sparse steady solve at any C_t^arb
-gives the calibrated value exactly, no iteration and no time marching.
+gives the calibrated value exactly, no iteration and no time marching. The scene's law
+parameters (``mean_radius``) and ``[neighbours]`` criterion (the gap chosen for a target bulk Z)
+are those of the solve.
 
 Test: the two faces normal to ``axis`` held at T_hot and T_cold (their particles: the wall
 contacts of a wall of that name, or the spheres reaching the domain face); lambda^e = Q L / (A dT)
@@ -47,6 +49,7 @@ class Calibration:
     axis: str
     n_hot: int
     n_cold: int
+    neighbours: object = None     # thermal_kernel.neighbours.NeighbourChoice (None: every row)
 
 
 def _axis_of(vector) -> str | None:
@@ -107,6 +110,7 @@ class FluxTest:
     n_cold: int
     law_params: dict
     effective: EffectiveConductivity     # the whole result (length convention "domain")
+    neighbours: object = None            # the scene's [neighbours] criterion on this packing
 
     @property
     def effective_w_mk(self) -> float:
@@ -167,7 +171,8 @@ def flux_test(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.
     return FluxTest(
         n_hot=len(boundary_particles(test, packing, faces[0], "boundary[0]")),
         n_cold=len(boundary_particles(test, packing, faces[1], "boundary[1]")),
-        law_params=dict(info["law_params"]), effective=effective)
+        law_params=dict(info["law_params"]), effective=effective,
+        neighbours=info["neighbours"])
 
 
 def calibrate_ct(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.0,
@@ -183,7 +188,8 @@ def calibrate_ct(scene: Scene, packing: Packing, axis: str = "x", t_hot: float =
         ct=ct_used * conductivity / test.effective_w_mk,             # 002, eq. 9
         ct_used=ct_used, conductivity_w_mk=conductivity, effective_w_mk=test.effective_w_mk,
         heat_flow_w=test.heat_flow_w, balance=test.balance, length_m=test.length_m,
-        area_m2=test.area_m2, axis=axis, n_hot=test.n_hot, n_cold=test.n_cold)
+        area_m2=test.area_m2, axis=axis, n_hot=test.n_hot, n_cold=test.n_cold,
+        neighbours=test.neighbours)
 
 
 def calibrate_axes(scene: Scene, packing: Packing, axes: str = "all", t_hot: float = 1.0,

@@ -10,7 +10,9 @@ Layout (SI units, documented in docs/solvers.md):
   t0); stored_energy_change (K,) J = sum_p C_p (T_p - T0_p); capacity (N,) J/K;
   boundary_names (B,) str. Attributes: law, method, dt, dt_max, steps, wall_seconds,
   contact_updates_per_second, scene (TOML text), scene_json (the resolved scene, every default
-  filled in), run_args (how the run was started, JSON), law_params (JSON), scene_path, packing
+  filled in), run_args (how the run was started, JSON), law_params (JSON), neighbours (JSON: the
+  scene's [neighbours] criterion on the packing -- gap used, bulk Z reached -- or null),
+  scene_path, packing
   (path), packing_sha256 (content hash),
   tdem_version, git_hash, and the flags (comma-separated: the solver's, and ``max_principle`` /
   ``energy_ledger`` when the run's physics checks fail, with max_principle_checked,
@@ -181,7 +183,7 @@ def scene_from_json(text: str, fail):
     """The :class:`~thermal_kernel.scene.Scene` written by :func:`scene_to_json` (its ``text``
     empty). ``fail(field, what)`` raises the caller's one-line error."""
     from .boundaries import BOUNDARIES
-    from .scene import Material, Scene, SolverConfig
+    from .scene import Material, NeighbourCriterion, Scene, SolverConfig
     try:
         data = json.loads(text)
     except (TypeError, json.JSONDecodeError) as e:
@@ -214,9 +216,14 @@ def scene_from_json(text: str, fail):
     def solver(value, where):
         return _dataclass_from_json(SolverConfig, value, where, fail)
 
+    def neighbours(value, where):       # absent (None) in files written before issue 23
+        if value is None:
+            return None
+        return _dataclass_from_json(NeighbourCriterion, value, where, fail)
+
     return _dataclass_from_json(Scene, data, "scene_json", fail,
                                 special=dict(materials=materials, boundaries=boundaries,
-                                             solver=solver))
+                                             solver=solver, neighbours=neighbours))
 
 
 # ----------------------------------------------------------------------------- the reader

@@ -14,6 +14,7 @@ from .boundaries import BuildContext, Rows
 from .boundaries.base import FACES, boundary_particles  # noqa: F401 (imported from here by tdem_post, validation, bench and tests)
 from .laws import get_law
 from .laws.base import ContactInput, ParticleInput
+from .neighbours import choose_neighbours
 from .network import ThermalProblem
 from .packing import Packing
 from .scene import Scene, SceneError
@@ -46,11 +47,13 @@ def particle_materials(scene: Scene, packing: Packing):
     return k, rho, cp
 
 
-def build_law_inputs(scene: Scene, packing: Packing):
-    """The ContactInput and ParticleInput the scene's law receives."""
+def build_law_inputs(scene: Scene, packing: Packing, keep: np.ndarray | None = None):
+    """The ContactInput and ParticleInput the scene's law receives (every dumped row; with
+    ``keep``, the neighbour counts are those of the kept rows only)."""
     k, rho, cp = particle_materials(scene, packing)
     young, poisson = mechanical_properties(scene, packing)
-    nb = neighbour_counts(packing)
+    nb = (neighbour_counts(packing) if keep is None else
+          np.bincount(packing.pair[keep].reshape(-1), minlength=packing.n_particles))
     i, j = packing.pair[:, 0], packing.pair[:, 1]
     contacts = ContactInput(
         radius_i_m=packing.radius[i], radius_j_m=packing.radius[j],
@@ -72,11 +75,20 @@ def law_params(scene: Scene, law) -> dict:
 
 
 def build_problem(scene: Scene, packing: Packing):
-    """Return (ThermalProblem, info dict) for a scene on a packing."""
+    """Return (ThermalProblem, info dict) for a scene on a packing.
+
+    The scene's ``[neighbours]`` criterion (:mod:`thermal_kernel.neighbours`) gives H = 0 to
+    the dumped rows outside it (they stay in the problem's arrays, aligned with the packing's
+    rows; the network drops them); ``info["neighbours"]`` is its
+    :class:`~thermal_kernel.neighbours.NeighbourChoice` (None without a criterion)."""
     law = get_law(scene.law)
     params = law_params(scene, law)
-    contacts, particles = build_law_inputs(scene, packing)
+    choice = choose_neighbours(scene, packing)
+    keep = None if choice is None else choice.keep
+    contacts, particles = build_law_inputs(scene, packing, keep)
     conductance = np.asarray(law.conductance(contacts, params), dtype=np.float64)
+    if keep is not None:
+        conductance = np.where(keep, conductance, 0.0)
     capacity = np.asarray(law.capacity(particles, params), dtype=np.float64)
 
     young, poisson = mechanical_properties(scene, packing)
@@ -120,7 +132,8 @@ def build_problem(scene: Scene, packing: Packing):
         power_boundary=_cat(rows.pow_b, np.int32),
         source=source, source_boundary=int(source_boundary),
         boundary_names=tuple(b.name for b in scene.boundaries))
-    info = {"law_params": params, "particles_on_two_temperature_boundaries": n_shared}
+    info = {"law_params": params, "particles_on_two_temperature_boundaries": n_shared,
+            "neighbours": choice}
     return problem, info
 
 

@@ -176,6 +176,8 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
               f"{packing.n_particles} particles, {net.n_active_contacts} conducting contacts "
               f"({net.n_zero_contacts} with H = 0)", flush=True)
         print(f"  network: {net.clusters.summary()}", flush=True)
+        if info["neighbours"] is not None:
+            print(f"  {info['neighbours'].line()}", flush=True)
     ckpt = None
     if solver.method == "steady":
         if checkpoint_every or resume:
@@ -213,6 +215,10 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
         "n_conducting_contacts": int(net.n_active_contacts),
         "n_floating_clusters": net.clusters.n_floating, "n_rattlers": net.clusters.n_rattlers,
         "law_params": json.dumps(info["law_params"], sort_keys=True),
+        # the scene's [neighbours] criterion as applied to this packing (issue 23): the gap
+        # used and the bulk Z it gives ("null": every dumped row conducts)
+        "neighbours": json.dumps(None if info["neighbours"] is None else
+                                 info["neighbours"].summary(), sort_keys=True, default=float),
         "scene_json": scene_json,
         "run_args": json.dumps(dict(run_args or {}, threads=threads,
                                     checkpoint_every=checkpoint_every, resume=resume,

@@ -45,6 +45,18 @@ class SolverConfig:
 
 
 @dataclass(frozen=True)
+class NeighbourCriterion:
+    """The ``[neighbours]`` table: which dumped pairs conduct (thermal_kernel/neighbours.py,
+    docs/scenes.md). Exactly one of ``gap`` (pairs with d < (1 + gap)(r_i + r_j)) and
+    ``target_z_with_gaps`` (the gap that gives this mean coordination over the bulk) is a
+    number, the other NaN. Bulk: centres at least ``bulk_margin_diameters`` mean diameters from
+    every wall and cut face (periodic axes have none)."""
+    gap: float = math.nan
+    target_z_with_gaps: float = math.nan
+    bulk_margin_diameters: float = 2.0
+
+
+@dataclass(frozen=True)
 class Scene:
     path: Path
     packing: Path | None                   # resolved path, or None when built from [pack]
@@ -58,6 +70,7 @@ class Scene:
     boundaries: tuple                      # thermal_kernel.boundaries kinds, scene order
     solver: SolverConfig
     output: Path
+    neighbours: NeighbourCriterion | None = None   # None: every dumped pair conducts
     text: str = field(default="", repr=False)   # the scene file as read (stored in outputs)
 
     def material(self, phase: int) -> Material:
@@ -306,6 +319,8 @@ def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Sce
                        "max_steps)")
     sol.done()
 
+    neighbours = _neighbours(top.sub("neighbours"))
+
     output = out_dir / "thermal.h5"
     outt = top.sub("output")
     if outt is not None:
@@ -316,7 +331,22 @@ def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Sce
     return Scene(path=path, packing=packing, pack=pack, law=law, law_params=law_params,
                  materials=materials, young_pa=young, poisson=poisson,
                  initial_temperature=initial_temperature, boundaries=tuple(boundaries),
-                 solver=solver, output=output, text=text)
+                 solver=solver, output=output, neighbours=neighbours, text=text)
+
+
+def _neighbours(t: _Table | None) -> NeighbourCriterion | None:
+    """``[neighbours]``: gap = g, or target_z_with_gaps = Z (bulk), and bulk_margin_diameters."""
+    if t is None:
+        return None
+    if t.has("gap") == t.has("target_z_with_gaps"):
+        t.fail("", "expected exactly one of gap = <number >= 0> (pairs with centre distance "
+                   "< (1 + gap)(r_i + r_j)) and target_z_with_gaps = <bulk coordination>")
+    gap = t.number("gap", minimum=0) if t.has("gap") else math.nan
+    target = (t.number("target_z_with_gaps", positive=True) if t.has("target_z_with_gaps")
+              else math.nan)
+    margin = t.number("bulk_margin_diameters", default=2.0, minimum=0)
+    t.done()
+    return NeighbourCriterion(gap=gap, target_z_with_gaps=target, bulk_margin_diameters=margin)
 
 
 def _check_law_params(t: _Table, law_name: str) -> None:
@@ -335,6 +365,9 @@ def _check_law_params(t: _Table, law_name: str) -> None:
         if key == "interface_mean":
             from .laws.haddad import INTERFACE_MEANS
             t.string(key, choices=INTERFACE_MEANS)
+        elif key == "mean_radius":
+            from .laws.haddad import MEAN_RADII
+            t.string(key, choices=MEAN_RADII)
         elif isinstance(default, str):
             t.string(key)
         elif isinstance(default, (int, float)) and not isinstance(default, bool):

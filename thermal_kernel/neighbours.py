@@ -1,0 +1,196 @@
+"""Which dumped pairs conduct: the scene's ``[neighbours]`` criterion (issue 23, docs/scenes.md).
+
+A packing dumped by YADE lists every pair within ``(1 + gap_tolerance)(r_i + r_j)`` (touching
+contacts and gap neighbours, docs/packing-format.md). A geometric law such as ``haddad`` conducts
+through every listed row, so the dump's ``gap_tolerance`` sets the coordination. A scene may state
+instead
+
+- ``gap = g``: only the pairs with centre distance ``d < (1 + g)(r_i + r_j)`` conduct; or
+- ``target_z_with_gaps = Z``: tdem picks the gap ``g`` whose pairs give the mean coordination
+  ``Z`` (gaps included) over the **bulk**: the particles whose centres are at least
+  ``bulk_margin_diameters`` mean diameters from every wall and every cut face of the domain
+  (periodic axes have no face: a periodic cell is all bulk).
+
+The choice is made on the packing at hand by filtering its dumped rows: no new YADE run. Rows
+outside the criterion get H = 0 (they stay in the arrays, aligned with the packing's rows; the
+network drops them). The chosen gap is the midpoint between the normalised distances
+``d / (r_i + r_j)`` of the last pair kept and the first pair left out, so that giving it back as
+``gap`` keeps the same pairs. The bulk Z reached is the target or up to one pair's worth
+(2 / n_bulk) above it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .packing import Packing
+from .scene import NeighbourCriterion, SceneError
+
+
+def distance_ratio(packing: Packing) -> np.ndarray:
+    """d / (r_i + r_j) of every dumped row (d the centre distance, periodic image applied)."""
+    i, j = packing.pair[:, 0], packing.pair[:, 1]
+    return np.linalg.norm(packing.branch, axis=1) / (packing.radius[i] + packing.radius[j])
+
+
+def face_distance(packing: Packing) -> np.ndarray:
+    """Each centre's distance to the nearest wall or cut face, m (inf if none: a periodic cell).
+
+    Faces: the domain's faces normal to every non-periodic axis (walls of a box, or the cut
+    faces of a carved packing), every plane wall, and the curved walls (a cylinder: radial
+    distance to its surface; a sphere: R - distance to its centre)."""
+    p = packing.position
+    dist = np.full(packing.n_particles, np.inf)
+    for k in range(3):
+        if not packing.periodic[k]:
+            dist = np.minimum(dist, np.minimum(p[:, k] - packing.domain_lo[k],
+                                               packing.domain_hi[k] - p[:, k]))
+    for kind, point, normal, radius in zip(packing.wall_kind, packing.wall_point,
+                                           packing.wall_normal, packing.wall_radius):
+        rel = p - point
+        if kind == "plane":
+            dist = np.minimum(dist, np.abs(rel @ normal))
+        elif kind == "cylinder":
+            axial = rel @ normal
+            radial = np.linalg.norm(rel - np.outer(axial, normal), axis=1)
+            dist = np.minimum(dist, float(radius) - radial)
+        elif kind == "sphere":
+            dist = np.minimum(dist, float(radius) - np.linalg.norm(rel, axis=1))
+    return dist
+
+
+def bulk_particles(packing: Packing, margin_diameters: float) -> np.ndarray:
+    """(N,) bool: centres at least ``margin_diameters`` mean diameters from every wall / face."""
+    margin = 2.0 * float(packing.radius.mean()) * margin_diameters
+    return face_distance(packing) >= margin
+
+
+def bulk_coordination(packing: Packing, bulk: np.ndarray, keep: np.ndarray | None = None) -> float:
+    """Mean number of (kept) dumped pairs per bulk particle, gaps included."""
+    pair = packing.pair if keep is None else packing.pair[keep]
+    deg = np.bincount(pair.reshape(-1), minlength=packing.n_particles)
+    return float(deg[bulk].mean()) if bulk.any() else math.nan
+
+
+@dataclass(frozen=True)
+class NeighbourChoice:
+    """The criterion applied to one packing: what ``tdem run`` / ``tdem calibrate`` report."""
+    gap: float                    # pairs with d < (1 + gap)(r_i + r_j) conduct
+    mode: str                     # "gap" (given) | "target_z_with_gaps" (chosen)
+    target_z_with_gaps: float     # NaN when the gap was given
+    bulk_margin_diameters: float
+    bulk_z: float                 # reached: kept pairs per bulk particle
+    bulk_z_dumped: float          # every dumped row
+    z_all: float                  # kept pairs per particle, every particle
+    n_bulk: int
+    n_kept: int
+    n_dumped: int
+    dump_gap_tolerance: float     # the packing's gap_tolerance attribute (NaN if absent)
+    keep: np.ndarray              # (M,) bool over the packing's rows
+
+    def summary(self) -> dict:
+        """JSON-ready numbers (thermal.h5's attribute ``neighbours``, calibrate's output)."""
+        def num(x):
+            return None if math.isnan(x) else float(x)
+        return dict(gap=self.gap, mode=self.mode,
+                    target_z_with_gaps=num(self.target_z_with_gaps),
+                    bulk_margin_diameters=self.bulk_margin_diameters, bulk_z=self.bulk_z,
+                    bulk_z_dumped=self.bulk_z_dumped, z_all=self.z_all, n_bulk=self.n_bulk,
+                    n_kept=self.n_kept, n_dumped=self.n_dumped,
+                    dump_gap_tolerance=num(self.dump_gap_tolerance))
+
+    def line(self) -> str:
+        """One line for the command line."""
+        how = (f"chosen for bulk Z {self.target_z_with_gaps:g}" if self.mode != "gap"
+               else "given")
+        return (f"neighbours: gap {self.gap:.6g} ({how}): pairs with d < {1 + self.gap:.6g} "
+                f"(r_i + r_j), {self.n_kept} of {self.n_dumped} dumped rows; bulk Z with gaps "
+                f"{self.bulk_z:.4f} (every dumped row: {self.bulk_z_dumped:.4f}) over "
+                f"{self.n_bulk} particles >= {self.bulk_margin_diameters:g} mean diameters from "
+                f"every wall / cut face; Z over all particles {self.z_all:.4f}")
+
+
+def dump_gap_tolerance(packing: Packing) -> float:
+    value = packing.attrs.get("gap_tolerance")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def choose_gap(ratio: np.ndarray, weight: np.ndarray, need: float) -> tuple[float, int] | None:
+    """The gap whose rows (ratio < 1 + gap) sum ``weight`` to at least ``need`` first:
+    (gap, number of rows kept), or None when every row together stays below ``need``. The gap
+    is half way between the last row kept and the next one (or at the last row's ratio plus a
+    hair when every row is kept)."""
+    order = np.argsort(ratio, kind="stable")
+    s = ratio[order]
+    cum = np.cumsum(weight[order])
+    if cum.size == 0 or cum[-1] < need:
+        return None
+    k = int(np.searchsorted(cum, need, side="left"))
+    while k + 1 < s.size and s[k + 1] == s[k]:      # ties go in together
+        k += 1
+    if k + 1 < s.size:
+        cut = 0.5 * (s[k] + s[k + 1])
+    else:
+        cut = s[k] * (1 + 1e-12)
+    return cut - 1.0, k + 1
+
+
+def choose_neighbours(scene, packing: Packing) -> NeighbourChoice | None:
+    """The scene's [neighbours] criterion on ``packing`` (None: the scene has none, every dumped
+    row conducts). Refused in one line naming the scene, the key and the packing: a gap beyond
+    the dump's gap_tolerance, a target above what the dumped rows give the bulk (or below what
+    the touching contacts alone give), no bulk particle."""
+    crit: NeighbourCriterion | None = scene.neighbours
+    if crit is None:
+        return None
+    tol = dump_gap_tolerance(packing)
+    ratio = distance_ratio(packing)
+    bulk = bulk_particles(packing, crit.bulk_margin_diameters)
+    n_bulk = int(bulk.sum())
+    where = f"{scene.path}: neighbours"
+    if n_bulk == 0:
+        raise SceneError(f"{where}.bulk_margin_diameters: no particle of {packing.path} is "
+                         f"{crit.bulk_margin_diameters:g} mean diameters from every wall / cut "
+                         "face (expected a smaller margin or a larger packing)")
+    z_dumped = bulk_coordination(packing, bulk)
+    if not math.isnan(crit.gap):
+        if math.isfinite(tol) and crit.gap > tol * (1 + 1e-12):
+            raise SceneError(f"{where}.gap: {crit.gap:g} is beyond the gap_tolerance {tol:g} "
+                             f"{packing.path} was dumped with (the pairs in between are not in "
+                             f"the file); expected a gap <= {tol:g}")
+        gap, mode = crit.gap, "gap"
+    else:
+        target = crit.target_z_with_gaps
+        weight = (bulk[packing.pair[:, 0]].astype(np.int64)
+                  + bulk[packing.pair[:, 1]].astype(np.int64))
+        need = target * n_bulk * (1 - 1e-12)
+        found = choose_gap(ratio, weight, need)
+        if found is None:
+            tol_text = f"gap_tolerance {tol:g}" if math.isfinite(tol) else "its gap_tolerance"
+            raise SceneError(f"{where}.target_z_with_gaps: {target:g} is above the bulk Z "
+                             f"{z_dumped:.4f} of every pair {packing.path} holds (dumped with "
+                             f"{tol_text}); expected at most {z_dumped:.4f} (or a packing "
+                             "dumped with a larger gap_tolerance)")
+        gap = found[0]
+        if gap < 0:
+            z_touch = bulk_coordination(packing, bulk, ratio < 1.0)
+            raise SceneError(f"{where}.target_z_with_gaps: {target:g} is below the bulk Z "
+                             f"{z_touch:.4f} of the touching contacts of {packing.path} alone "
+                             "(a negative gap would cut touching contacts); expected at least "
+                             f"{z_touch:.4f}")
+        if math.isfinite(tol):
+            gap = min(gap, tol)
+        mode = "target_z_with_gaps"
+    keep = ratio < 1.0 + gap
+    n = packing.n_particles
+    return NeighbourChoice(
+        gap=float(gap), mode=mode, target_z_with_gaps=float(crit.target_z_with_gaps),
+        bulk_margin_diameters=float(crit.bulk_margin_diameters),
+        bulk_z=bulk_coordination(packing, bulk, keep), bulk_z_dumped=z_dumped,
+        z_all=2.0 * int(keep.sum()) / n, n_bulk=n_bulk, n_kept=int(keep.sum()),
+        n_dumped=packing.n_contacts, dump_gap_tolerance=tol, keep=keep)
