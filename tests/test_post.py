@@ -164,6 +164,10 @@ output_times = [2.0, 5.0, 10.0, 20.0, 40.0, 80.0, 150.0, 400.0]
     # heat flow per cross-section (within 15 %: the wall region and the halo's edge)
     assert s["flux_interior_particles"] > 20
     assert s["flux_cov_halo"] < s["flux_cov_raw"]
+    # the halo radius named (ratio x the mean radius by default); the raw CoV also per unit
+    # volume, close to the per-particle one for this bed's narrow radii (0.346 against 0.344)
+    assert s["flux_halo_radius"] == "common" and s["flux_halo_ratio"] == 3.0
+    assert s["flux_cov_raw_volume_weighted"] == pytest.approx(s["flux_cov_raw"], rel=0.1)
     assert s["flux_mean_over_q_per_area"] == pytest.approx(1.0, rel=0.15)
     assert (tmp_path / "out" / "post" / "flux_section.png").stat().st_size > 10_000
 
