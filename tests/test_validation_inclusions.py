@@ -108,6 +108,8 @@ def test_case10_quick_realisation_and_error():
     n = result.numbers
     for _f, rl in n["realisations"].items():
         low, high = hashin_shtrikman(1.0, case10.CONTRAST, rl["f"])
-        assert low <= rl["ref"] <= high                  # the FV reference inside the bounds
-        assert rl["ref"] == pytest.approx(1.2262, rel=0.01)   # the fine grids' value
-    assert n["max_error_vs_fv"] < 0.045                # measured 3.3 % (400 spheres)
+        assert low <= rl["ref"] <= high                  # the FFT reference inside the bounds
+        # the quick grids' (16-32^3) extrapolation against the full run's (48-128^3): 1.2285
+        assert rl["ref"] == pytest.approx(1.2285, rel=0.003)
+        assert abs(rl["ref"] - 1.2285) <= 2 * rl["ref_unc"]
+    assert n["max_error_vs_ref"] < 0.045               # measured 2.95 % (400 spheres)
