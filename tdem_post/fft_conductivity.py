@@ -424,3 +424,40 @@ def extrapolate(h, values) -> Extrapolation:
     c = d2 / (h2 ** p - h3 ** p)
     k0 = k3 - c * h3 ** p
     return Extrapolation(float(k0), float(p), float(abs(k3 - k0)), float(k3))
+
+
+# ------------------------------------------------------------------ command line
+def main(argv=None) -> None:
+    """``python -m tdem_post.fft_conductivity``: one sphere in the periodic cube (the
+    simple-cubic array) on a refined sequence of grids, against Rayleigh's formula: the
+    convergence table of docs/fft_reference.md."""
+    import argparse
+    from tdem_post.analytic import maxwell, rayleigh_cubic_array
+    ap = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
+    ap.add_argument("--fraction", type=float, default=0.2)
+    ap.add_argument("--contrast", type=float, default=1.5 / 0.195)
+    ap.add_argument("--grids", default="8,12,16,24,32,48,64")
+    ap.add_argument("--rules", default="laminate,arithmetic,harmonic")
+    ap.add_argument("--scheme", default="willot", choices=SCHEMES)
+    a = ap.parse_args(argv)
+    grids = [int(g) for g in a.grids.split(",")]
+    f, c = a.fraction, a.contrast
+    radius = (3 * f / (4 * math.pi)) ** (1 / 3)
+    exact = float(rayleigh_cubic_array(1.0, c, f))
+    print(f"one sphere, f {f}, contrast {c:.4f}: Rayleigh k/k_m {exact:.6f} "
+          f"(Maxwell {float(maxwell(1.0, c, f)):.6f}); scheme {a.scheme}, 1 thread")
+    for rule in a.rules.split(","):
+        errs = []
+        for n in grids:
+            r = solve(spheres([[0.31, 0.47, 0.58]], radius, 1.0, c, n, rule=rule), 0,
+                      scheme=a.scheme)
+            errs.append(r.k / exact - 1)
+            print(f"  {rule:10s} n {n:4d}: k/k_m {r.k:.6f}  error {100 * errs[-1]:+.4f} %  "
+                  f"CG {r.iterations:3d}  {r.seconds:6.2f} s")
+        h = 1.0 / np.array(grids, float)
+        p = np.polyfit(np.log(h), np.log(np.abs(errs)), 1)[0]
+        print(f"  {rule:10s} fitted order of |error| in h: {p:.2f}")
+
+
+if __name__ == "__main__":
+    main()
