@@ -318,8 +318,13 @@ def sphere_fraction(centres, radius: float, n: int, cell: float = 1.0, sub: int 
         np.add.at(phi.ravel(), flat, f[keep])
         w = f[keep] * (1.0 - f[keep])
         unit = rel[keep] / np.maximum(dist[keep], 1e-300)[:, None]
+        # a laminate's normal has no sign: align this sphere's normals with what the voxel holds
+        # (in the gap between two near spheres their outward normals are opposite - summed as
+        # they are they would cancel - and the laminate there is across the line of centres)
+        held = np.stack([nvec[a].ravel()[flat] for a in range(3)], axis=1)
+        sign = np.where(np.sum(held * unit, axis=1) < 0, -1.0, 1.0)
         for a in range(3):
-            np.add.at(nvec[a].ravel(), flat, w * unit[:, a])
+            np.add.at(nvec[a].ravel(), flat, sign * w * unit[:, a])
     phi = np.clip(phi, 0.0, 1.0)
     norm = np.sqrt(np.sum(nvec ** 2, axis=0))
     nvec = np.where(norm > 0, nvec / np.maximum(norm, 1e-300), 0.0)
