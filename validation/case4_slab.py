@@ -68,13 +68,20 @@ HOW = "tdem validate 4"
 CELL_MM = 42.0              # the relaxed 10,000-sphere cell of the tiled boxes (docs/packings.md)
 
 
-def scene_text(packing: str, ct: float) -> str:
+# Haddad's coordination with gaps in the bulk (002 sec. 2.1: Z ~ 7.5): the scene picks the gap that
+# gives it on each packing from the dumped neighbours (thermal_kernel.neighbours, issue 23)
+TARGET_Z = 7.5
+
+
+def scene_text(packing: str, ct: float, target_z: float | None = None) -> str:
+    neighbours = ("" if target_z is None else
+                  f"[neighbours]\ntarget_z_with_gaps = {float(target_z)!r}\n")
     return f"""
 packing = "{packing}"
 law = "haddad"
 [law_params]
 ct = {ct!r}
-[material]
+{neighbours}[material]
 conductivity = {LAMBDA}
 density = {RHO}
 heat_capacity = {CAP}
@@ -95,7 +102,8 @@ method = "steady"
 """
 
 
-def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 0.806):
+def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 0.806,
+              target_z: float | None = TARGET_Z):
     """One packing: (summary dict, profile rows (Fo, t, x/L, T_dem C, T_exact C, error K))."""
     from tdem_post.analytic import slab_mean_temperature
     from tdem_post.profiles import binned_profile
@@ -109,7 +117,7 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
     packing_path = str(Path(packing_path).resolve())
     scene_path = ROOT / "validation" / "case4_scene.toml"     # a name for messages only
     packing = read_packing(packing_path)
-    scene = load_scene(scene_path, text=scene_text(packing_path, ct_arb))
+    scene = load_scene(scene_path, text=scene_text(packing_path, ct_arb, target_z))
     c0 = time.perf_counter()
     # held-plane slab: mean centre planes of the two held sets
     x0, x1 = (float(np.mean(packing.position[boundary_particles(scene, packing, on, "b")][:, 0]))
@@ -123,8 +131,9 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
     ct_held = ct_domain * domain_length / length
     calib_s = time.perf_counter() - c0
 
-    scene = load_scene(scene_path, text=scene_text(packing_path, ct_held))
-    problem, _ = build_problem(scene, packing)
+    scene = load_scene(scene_path, text=scene_text(packing_path, ct_held, target_z))
+    problem, info = build_problem(scene, packing)
+    choice = info.get("neighbours")
     net = assemble(problem)
     times = [fo * length ** 2 / ALPHA for fo in FOURIER]
     r0 = time.perf_counter()
@@ -151,6 +160,9 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
     steady_s = time.perf_counter() - s0
     summary = {
         "packing": packing_path, "n_particles": int(packing.n_particles), "n_bins": n_bins,
+        "neighbour_gap": choice.gap if choice else None,
+        "bulk_z_with_gaps": choice.bulk_z if choice else None,
+        "bulk_z_dumped": choice.bulk_z_dumped if choice else None,
         "length_held_m": length, "length_domain_m": domain_length,
         "ct_held_plane": ct_held, "ct_domain_length": ct_domain,
         "steady_balance": test.balance, "area_m2": area,
@@ -183,6 +195,8 @@ def _row(key: str, summary: dict, profile: list) -> dict:
                 steps=summary["steps"], run_seconds=summary["run_seconds"],
                 steady_pct=summary["steady_minus_linear_pct_dT"],
                 profile=[list(r) for r in profile],
+                bulk_z_with_gaps=summary.get("bulk_z_with_gaps"),
+                neighbour_gap=summary.get("neighbour_gap"),
                 measured=today(), how=HOW)
 
 
@@ -353,6 +367,14 @@ def run(ctx: Context) -> CaseResult:
     return _result(rows, figs)
 
 
+def _z_cell(r: dict) -> str:
+    """The neighbour criterion a row was measured with: Haddad's bulk Z 7.5 (the gap chosen on
+    the packing), or every dumped pair (rows measured before issue 23)."""
+    if r.get("bulk_z_with_gaps") is None:
+        return "every dumped pair"
+    return f"{r['bulk_z_with_gaps']:.2f} ({r['neighbour_gap']:.3f})"
+
+
 def _p(x, digits=2):
     return f"{100 * x:.{digits}f} %"
 
@@ -388,7 +410,7 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
         table.append(f"| {b}{r['label']}{b}{mark} | {b}{r['n_particles']:,}{b} | "
                      f"{r['ct_held']:.4f} / {r['ct_domain']:.4f} | "
                      f"{b}{_p(r['max_err_over_T_celsius'])}{b} | "
-                     f"{b}{_p(r['max_err_over_dT'])}{b} | "
+                     f"{b}{_p(r['max_err_over_dT'])}{b} | {_z_cell(r)} | "
                      f"{r['steps']:,} | {t} |")
     ratios = [r["max_err_over_dT"] / r["max_err_over_T_celsius"] for r in rows]
     steady_rows = []
@@ -486,13 +508,13 @@ One packing by hand: `.venv/bin/python -m validation.case4_slab PACKING.h5 --nam
 
 (data: `img/{Path(prof_png[0]).with_suffix('.csv').name}`)
 """ if prof_png else "") + f"""
-| packing | N | C_t (held planes / domain) | max err / T(°C) | max err / ΔT | explicit steps | \
-thermal (s) |
-|---|---|---|---|---|---|---|
+| packing | N | C_t (held planes / domain) | max err / T(°C) | max err / ΔT | bulk Z (gap) | \
+explicit steps | thermal (s) |
+|---|---|---|---|---|---|---|---|
 {chr(10).join(table)}
 """ + (f"""
-† Measured {', '.join(carried)} by validation/case4_slab.py before `tdem validate` (on the
-packings of bench/out/packings) and carried over: those packings are not on this machine;
+† Measured {', '.join(carried)} (through every dumped pair: before the scene's neighbour
+criterion of issue 23) and carried over: those packings are not on this machine;
 `TDEM_VALIDATE_ALL_PACKINGS=1 tdem validate 4 --force` builds and measures them again.
 """ if carried else "") + f"""
 **Where the error is.** Not in the bulk: {parts['where']}. The DEM lags the solution next to the

@@ -90,6 +90,11 @@ for _n, (_s, _b) in QUICK.items():
     register_packing(_b, "runs/dense_box_1e5.toml", _cell)
 
 
+# Haddad's coordination with gaps in the bulk (002 sec. 2.1, Z ~ 7.5), picked per packing from the
+# dumped neighbours (thermal_kernel.neighbours, issue 23)
+TARGET_Z = 7.5
+
+
 def scene_text(packing: str, ct: float, surface: str | None = "surface") -> str:
     held = f"""
 [[boundary]]
@@ -103,6 +108,8 @@ packing = "{packing}"
 law = "haddad"
 [law_params]
 ct = {float(ct)!r}
+[neighbours]
+target_z_with_gaps = {TARGET_Z!r}
 [material]
 conductivity = {LAMBDA}
 density = {RHO}
