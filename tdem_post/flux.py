@@ -12,8 +12,8 @@ is read as a "Halo-DE radius ratio". The halo radius is chosen by ``halo_radius`
     arithmetic (number) mean radius of the packing. Every halo then holds about the same number of
     spheres, phi ratio^3 r_mean^3 / <r^3> (~ 0.5 ratio^3 for radii of sigma/mu 0.3), as the
     paper's "pre-defined number of DE"; the number mean is the "radius of the DE" a packing is
-    described by (the r_mean of every tdem report), and for the paper's narrow LSA radii any mean
-    gives the same ratio;
+    described by (the r_mean of every tdem report); 002 gives no size distribution
+    ("polydisperse"), and for narrow radii any mean gives nearly the same ratio;
   - "own": R_halo = ratio x R_p, p's own radius (tdem before issue 23): the halos of the large
     spheres reach ~2x further than the common one, those of the small ones hold few spheres.
 A uniform gradient on a regular lattice gives the exact flux at every interior particle, for any
