@@ -57,7 +57,8 @@ TARGET = {4.0: 0.05, 11.0: 0.02}                    # issue 23, at 1e5 and 5e5 (
 Z_PAPER = 7.5                                       # 002's coordination (with gaps)
 MAX_EVAL = 20_000           # particles evaluated per ratio (a seeded random subset above it)
 MIN_EVAL = 200              # fewer particles with the halo inside: no point
-VERSION = 4
+VERSION = 5
+CLASSES = (0.0, 0.7, 1.0, 1.3, np.inf)    # R_p / r_mean classes of the scatter by size
 
 CELL400 = ROOT / "tests" / "data" / "dense_periodic.h5"
 SIZES = {100_000: "box_1e5", 500_000: "box_5e5"}     # 002 Fig. 10's two packings
@@ -190,12 +191,22 @@ def halo_cov(packing_path, ratios=RATIOS, max_eval=MAX_EVAL, seed=1, kinds=KINDS
                               halo_radius=kind)
             halo_s = time.perf_counter() - h0
             members = alone = float("nan")
+            class_members = [float("nan")] * (len(CLASSES) - 1)
+            size = np.digitize(rad / r_mean, CLASSES[1:-1])
             if ratio > 0:       # halo sizes on a random 1,000 of the evaluated particles
                 sub = np.random.default_rng(seed + 1).permutation(pick)[:1000]
                 count = tree.query_ball_point(pos[sub], halo_radii(rad, ratio, kind)[sub],
                                               return_length=True)
                 members, alone = float(np.mean(count)), float(np.mean(count == 1))
+                class_members = [float(np.mean(count[size[sub] == c]))
+                                 if np.any(size[sub] == c) else float("nan")
+                                 for c in range(len(CLASSES) - 1)]
             mag = np.linalg.norm(q, axis=1) / q_macro
+            # rms deviation of |q| from the mean, per class of R_p / r_mean
+            dev = (mag / mag.mean() - 1) ** 2
+            class_dev = [float(np.sqrt(dev[size[pick] == c].mean()))
+                         if np.any(size[pick] == c) else float("nan")
+                         for c in range(len(CLASSES) - 1)]
             qx = -q[:, 0] / q_macro                           # along the imposed gradient
             rows[kind].append({
                 "ratio": ratio, "n_inside": int(len(cand)), "n_eval": int(len(pick)),
@@ -205,6 +216,7 @@ def halo_cov(packing_path, ratios=RATIOS, max_eval=MAX_EVAL, seed=1, kinds=KINDS
                 "mean_abs": float(mag.mean()), "mean_x": float(qx.mean()),
                 "min_abs": float(mag.min()), "max_abs": float(mag.max()),
                 "members_mean": members, "alone_fraction": alone,
+                "class_rms_dev": class_dev, "class_members": class_members,
                 "seconds": halo_s, "seconds_per_particle": halo_s / len(pick)})
     # the raw scatter against the coordination: the dumped neighbours cut to 002's Z 7.5
     bulk = bulk_mask(packing, 3 * r_mean)
@@ -446,6 +458,15 @@ def _summary(recs, main, slopes, quick=False) -> CaseResult:
         + f" (own radius: {_pct(_at(rec, 4.0, kind='own'))} / {_pct(_at(rec, 11.0, kind='own'))})"
         for rec in recs) + ("; CoV of |q| per particle, halo ratio × r̄ (r̄ the mean radius: "
                             "002's halo of a pre-defined number of DE)")
+    labels = [f"R_p/r̄ {a:g}–{b:g}" if np.isfinite(b) else f"R_p/r̄ ≥ {a:g}"
+              for a, b in zip(CLASSES[:-1], CLASSES[1:])]
+    class_table = "\n".join(
+        ["| halo | ratio | " + " | ".join(labels) + " |", "|---|---|" + "---|" * len(labels)]
+        + [f"| {kind} | {ratio:g} | " + " | ".join(
+            f"{100 * d:.1f} % ({m:.0f})" for d, m in zip(_at(main, ratio, 'class_rms_dev', kind),
+                                                        _at(main, ratio, 'class_members', kind)))
+           + " |" for kind in KINDS for ratio in (2.0, 3.0, 4.0)
+           if np.isfinite(_at(main, ratio, kind=kind))])
     z = main["z_rows"]
     z75 = z[1] if len(z) > 1 else None
     z_text = ("" if z75 is None else
@@ -517,13 +538,16 @@ that gives 002's bulk Z 7.5, no new packing; Z counted over the spheres ≥ 3 r�
 
 At {n_main:,} spheres, common radius: {_pct(c4)} at ratio 4 (paper 5 %), {_pct(c11)} at 11
 (paper 2 %); own radius: {_pct(o4)} and {_pct(o11)}. The common halo has no cliff: with the own
-radius, the halos of the small spheres (R_p down to 0.4 r̄) hold only their own sphere up to
-ratio ≈ 3 — {_pct(_at(main, 2.0, 'alone_fraction', 'own'), 0)} of the own halos at ratio 2,
-{_pct(_at(main, 3.0, 'alone_fraction', 'own'), 0)} at 3, against
-{_pct(_at(main, 2.0, 'alone_fraction'), 0)} and {_pct(_at(main, 3.0, 'alone_fraction'), 0)} of
-the common ones — and their eq. 20 scatter survives (the 3→4 drop of the own curve). At
-large ratios both fall about as ratio^(−3/2) (a halo of M spheres averages M nearly
-independent fluxes, M ∝ ratio³). The component along the gradient (q_x) scatters as |q|
+radius the halos of the smallest spheres hold a few others and keep their scatter. By class
+of R_p / r̄ (rms deviation of |q| from the mean; mean number of spheres in a halo), at
+{n_main:,}:
+
+{class_table}
+
+The own curve's drop between 3 and 4 is the smallest spheres' (R_p < 0.7 r̄) halos filling up;
+with the common radius every size class scatters alike from ratio 3 on. At large ratios both
+fall about as ratio^(−3/2) (a halo of M spheres averages M nearly independent fluxes,
+M ∝ ratio³). The component along the gradient (q_x) scatters as |q|
 does. The Halo average keeps the mean: mean q_x / (Q/A) is {mean_x4:.4f} at ratio 4 on
 {n_main:,}; above 1 by a 1/L amount, because the layers along the cube's adiabatic cut faces
 conduct less (neighbours missing beyond the cut), so the interior carries more than the
