@@ -96,6 +96,14 @@ def test_case9_quick_reference_and_error():
     for q, fe in zip(q_ref, case9.PAPER["FE"]["q"]):
         assert q == pytest.approx(fe, rel=0.04)
     assert n["max_T_error"] < 0.045                    # measured 3.51 % (400 spheres)
+    # both halo radii at the paper's points; the paper's point is the first of its symmetric
+    # equivalents (B: four mid-face points, C: two), read from the same solve
+    run = n["runs"][0]
+    assert n["main_reading"] == "common_11" and {"common_11", "own_11", "raw"} <= set(run["q"])
+    for key in ("common_11", "own_11"):
+        assert [run["samples"][key][lab][0] for lab in "ABC"] == run["q"][key]
+        assert [len(run["samples"][key][lab]) for lab in "ABC"] == [1, 4, 2]
+    assert run["q"]["common_11"] != run["q"]["own_11"]
 
 
 def test_case10_quick_realisation_and_error():
