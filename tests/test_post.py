@@ -133,7 +133,7 @@ def test_power_law_fit_recovers_parameters():
     assert (fit2.a, fit2.b, fit2.c) == pytest.approx((3.0, 0.1, 2.0), rel=1e-5)
 
 
-def test_post_run_on_a_yade_bed(tmp_path):
+def test_post_run_on_a_yade_bed(tmp_path, capsys):
     """A long Crank-Nicolson run on the committed 300-sphere bed: the fitted gamma agrees with
     the steady ETC, heat in = heat out, and the tdem post command prints the table."""
     scene = tmp_path / "bed.toml"
@@ -170,6 +170,12 @@ output_times = [2.0, 5.0, 10.0, 20.0, 40.0, 80.0, 150.0, 400.0]
     assert s["flux_cov_raw_volume_weighted"] == pytest.approx(s["flux_cov_raw"], rel=0.1)
     assert s["flux_mean_over_q_per_area"] == pytest.approx(1.0, rel=0.15)
     assert (tmp_path / "out" / "post" / "flux_section.png").stat().st_size > 10_000
+    # tdem post --halo-radius own: the per-particle radius, named in the summary and printed
+    assert main(["post", str(tmp_path / "out"), "--halo-radius", "own", "--halo", "3"]) == 0
+    own = json.loads((tmp_path / "out" / "post" / "summary.json").read_text())
+    assert own["flux_halo_radius"] == "own" and own["flux_cov_halo"] != s["flux_cov_halo"]
+    assert own["flux_cov_halo"] < own["flux_cov_raw"]
+    assert "3 R_p (own radius)" in capsys.readouterr().out
 
 
 def test_gamma_of_a_simple_cubic_lattice_run_is_its_closed_form(tmp_path):
