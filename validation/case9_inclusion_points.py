@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -171,10 +172,26 @@ def _key(kind, ratio):
 KEYS = ["raw"] + [_key(k, r) for k in KINDS for r in HALOS if r > 0]
 
 
-def dem_points(name, path, ctx, axes=(1, 0, 2)):
+TARGET_Z = 7.5    # Haddad's bulk coordination with gaps (002 sec. 2.1), as the dense scenes
+
+
+def load(path, target_z=TARGET_Z):
+    """(scene, packing) of validation/inclusions' flux test, its neighbours cut to the bulk
+    coordination ``target_z`` ([neighbours] target_z_with_gaps; None: every dumped pair)."""
+    from thermal_kernel.packing import read_packing
+    from thermal_kernel.scene import load_scene
+    path = str(Path(path).resolve())
+    text = I.SCENE_TEXT.format(packing=path)
+    if target_z is not None:
+        text += f"[neighbours]\ntarget_z_with_gaps = {float(target_z)!r}\n"
+    return (load_scene(framework.ROOT / "validation" / "inclusions_scene.toml", text=text),
+            read_packing(path))
+
+
+def dem_points(name, path, ctx, axes=(1, 0, 2), target_z=TARGET_Z):
     """T and |q| at A, B, C (gradient along y) and |q| at their symmetric equivalents with the
     gradient along each of ``axes`` (the first must be y: the paper's points)."""
-    scene, pk = I.load(path)
+    scene, pk = load(path, target_z)
     lo, hi = pk.domain_lo, pk.domain_hi
     size = hi - lo
     centres, radius = I.centred_inclusion(pk)
@@ -342,11 +359,17 @@ def run(ctx: Context) -> CaseResult:
     ref_q = [q0 * v for v in ref["q"]]
     ctx.progress("FV reference: T " + ", ".join(f"{t:.3f}" for t in ref_T) + " C; |q| "
                  + ", ".join(f"{v:.0f}" for v in ref_q) + f" W/m^2 ({fv_s:.0f} s)")
-    runs = [_cached(ctx.out / f"points_{name}.json",
+    runs = [_cached(ctx.out / f"points_{name}_z{TARGET_Z:g}.json",
                     lambda name=name, path=path: dem_points(name, path, ctx, axes=axes))
             if not ctx.quick else dem_points(name, path, ctx, axes=axes)
             for name, path in boxes]
-    for r in runs:
+    # beside: every dumped pair conducting (bulk Z ~8.8; tdem's reading before issue 23)
+    every = [] if ctx.quick else [
+        _cached(ctx.out / f"points_{name}.json",
+                lambda name=name, path=path: dem_points(name, path, ctx, axes=axes,
+                                                        target_z=None))
+        for name, path in boxes]
+    for r in runs + every:
         _errors(r, ref_T, ref_q)
         r["judged"] = _judge(r)
     _plot(ctx, runs, ref_T, ref_q, ref, dT, q0)
@@ -357,8 +380,12 @@ def run(ctx: Context) -> CaseResult:
                    reference_T_unc_k=[dT * v for v in ref["T_unc"]],
                    reference_q_unc=[q0 * v for v in ref["q_unc"]], fv=fv, runs=runs,
                    paper=PAPER, paper_point_errors=PAPER_ERR, max_T_error=err_t,
-                   max_q_error_halo11=err_q, fv_seconds=fv_s, main_reading=_key(*MAIN))
-    section, at_paper, speed, met = _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s,
+                   max_q_error_halo11=err_q, fv_seconds=fv_s, main_reading=_key(*MAIN),
+                   neighbours=f"bulk Z {TARGET_Z:g}",
+                   every_dumped_pair=[{k: r[k] for k in ("name", "n", "T", "q", "err_q",
+                                                         "err_q_fe", "scatter", "judged")}
+                                      for r in every])
+    section, at_paper, speed, met = _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, every,
                                              quick=ctx.quick)
     pack = ", ".join(f"{r['name']} {r['pack_s']:.0f} s" for r in runs if r.get("pack_s"))
     main_run = _near(runs, 150_000) or big
@@ -437,7 +464,7 @@ def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
                        "q_C"), csv)
 
 
-def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, quick=False):
+def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, every=(), quick=False):
     rs = sorted(runs, key=lambda r: r["n"])
     t_rows = [f"| FV reference (h → 0), {'/'.join(map(str, grids))}³ | "
               + " | ".join(f"{t:.3f} ± {dT * u:.3f}" for t, u in zip(ref_T, ref["T_unc"]))
@@ -492,7 +519,8 @@ def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, quick=False):
     def errs(r, k=key):
         return " / ".join(f"{100 * v:+.1f} %" for v in r["err_q_fe"][k])
 
-    at_paper = (f"N {main_run['n']:,}: |q| (Halo 11 × r̄, the particle nearest the point) vs "
+    at_paper = (f"N {main_run['n']:,} (bulk Z {TARGET_Z:g}): |q| (Halo 11 × r̄, the particle "
+                f"nearest the point) vs "
                 f"002's FE {errs(main_run)} at A / B / C (paper +0.4 / +2.2 / −3.8 %), "
                 f"T max {100 * max(main_run['err_T']):.2f} %")
     if five is not None:
@@ -529,6 +557,19 @@ def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, quick=False):
         if bad:
             miss.append(f"{r['n']:,}: {', '.join(bad)}")
     sc_main = main_run["scatter"][key]
+    every_rows = "\n".join(
+        f"| {r['n']:,} | " + " | ".join(
+            f"{v:.0f} ({100 * e:+.1f} %; FV {100 * f:+.1f} %)"
+            for v, e, f in zip(r["q"][key], r["err_q_fe"][key], r["err_q"][key]))
+        + f" | {'met' if r['judged']['met'] else 'missed'} |" for r in every)
+    every_md = "" if not every else f"""
+Through every dumped pair instead (bulk Z ≈ 8.8, the dump's gap tolerance 0.1; tdem's network
+before issue 23), Halo 11 r̄, against 002's FE (and our FV):
+
+| N | A | B | C | target |
+|---|---|---|---|---|
+{every_rows}
+"""
 
     def series(field, i):
         return ", ".join(f"{100 * r[field][key][i]:+.1f} %" for r in rs)
@@ -555,8 +596,10 @@ reaches 11 × its radius (up to 18 r̄): the +23 % at B on 1e5 before issue 23 c
     section = f"""**Setup.** The cube of case 8 with its centred inclusion a = L/3 at c = 5
 (33 / 165 W/m/K), y = 0 at 25 °C, y = L at 35 °C, adiabatic sides (002 sec. 4.2), on cubes
 tiled from the shared 10,000-sphere cell at the paper's N (150,000 and 500,000) and at 1e5
-and 1e6 beside them. DEM: one steady solve (law `haddad`, phases by the particles' centres,
-harmonic interfaces; C_t calibrated on each packing so that the single-phase test gives
+and 1e6 beside them. DEM: one steady solve (law `haddad`, conducting through the dumped
+neighbours of Haddad's bulk coordination Z {TARGET_Z:g} as the dense scenes state it,
+`[neighbours] target_z_with_gaps`; phases by the particles' centres, harmonic interfaces; C_t
+calibrated on each packing so that the single-phase test gives
 33 W/m/K, 002 sec. 2.1: {', '.join(f"{r['ct_calibrated']:.4f}" for r in rs)} at \
 N = {', '.join(f"{r['n']:,}" for r in rs)});
 T at a point from a linear least-squares fit over its 32 nearest particles; |q| the Halo flux
@@ -583,7 +626,7 @@ Temperature (°C) at A, B, C (error: |T − T_FV| / T_FV in °C, 002's measure; 
 | | A | B | C |
 |---|---|---|---|
 {chr(10).join(q_rows)}
-
+{every_md}
 ![T and the flux error at A, B, C](img/validation_case9_points.png)
 
 **A point value carries the halo's scatter.** One particle's Halo flux scatters about the
