@@ -466,9 +466,11 @@ def _result(rows: list[dict], stats: dict, png: str, csv_name: str) -> CaseResul
                 f"Z {zd:.2f} (gap 0.1) to Haddad's 7.5 (gap {b6['variants']['z75']['gap']:.4f}) "
                 f"raises its C_t from {d6:.3f} to {c6:.3f}: **the coordination accounts for "
                 f"{100 * share:.0f} % of the distance to the paper's 0.834** (measured, not "
-                f"scaled). The estimate before this measurement (C_t × Z_bulk / 7.5) said "
-                f"~54 %: conduction does not scale with the number of links, because the links "
-                f"cut are the longest and weakest gap pairs.")
+                f"scaled). The estimate this section gave before the measurement, C_t × Z_bulk / "
+                f"7.5 = {d6 * zd / HADDAD_Z:.3f}, said ~54 %: the network's conduction falls "
+                f"faster than its number of links (λ^e × {d6 / c6:.3f} for Z × "
+                f"{HADDAD_Z / zd:.3f}; an effective-medium network conducts like Z − Z_c, not "
+                f"like Z).")
         if b5 and "dump" in b5["variants"] and "z75" in b5["variants"]:
             d5, c5 = _mean(b5, "ct_domain", "dump"), _mean(b5, "ct_domain", "z75")
             share5 = (c5 - d5) / (0.806 - d5)
@@ -485,13 +487,25 @@ def _result(rows: list[dict], stats: dict, png: str, csv_name: str) -> CaseResul
             rm.append(f"at {size} geometric {g:.3f} ({_pct(g / base - 1)}), harmonic {h:.3f} "
                       f"({_pct(h / base - 1)}) against arithmetic {base:.3f}")
     if rm:
+        h5 = stats.get("1e5", {}).get("z75_harmonic")
+        h6 = stats.get("1e6", {}).get("z75_harmonic")
+        vs = ""
+        if h5 and h6:
+            vs = (f" The harmonic reading meets the paper at 1e5 ({h5['ct']:.3f} against 0.806, "
+                  f"{_pct(h5['ct'] / 0.806 - 1)}) but not at 1e6 ({h6['ct']:.3f} against 0.834, "
+                  f"{_pct(h6['ct'] / 0.834 - 1)}): no reading of R_m gives the paper's rise with "
+                  "N, so none is singled out by it.")
         text.append("*R_m.* 002 does not say which mean radius R_m of eq. 7 is; the haddad law's "
                     "`mean_radius` offers the three (docs/laws.md). With bulk Z 7.5: "
-                    + "; ".join(rm) + ". Every reading but the arithmetic one gives a smaller "
-                    "π R_m² for unequal radii, so a larger calibrated C_t; which one the paper's "
-                    "0.806 / 0.834 assumes cannot be told from the paper. The default stays "
-                    "arithmetic (the plain reading of \"mean radius\"); the paper's numbers lie "
-                    "between the arithmetic and the harmonic readings at 1e5.")
+                    + "; ".join(rm) + ". The geometric and harmonic means are smaller than the "
+                    "arithmetic one for unequal radii, so π R_m² is smaller and the calibrated "
+                    "C_t larger." + vs + " The default stays arithmetic, the plain reading of "
+                    "\"mean radius\"" + (
+                        "; all three readings put C_t inside 0.75–0.84 at 1e5 and 1e6."
+                        if all(0.75 <= stats.get(k, {}).get(v, {}).get("ct", 0) <= 0.84
+                               for k in ("1e5", "1e6") for v in ("z75", "z75_geometric",
+                                                                 "z75_harmonic"))
+                        else "."))
     if "z75" in s5 and "z75" in s6:
         a, b = s5["z75"], s6["z75"]
         trend = "falls" if b["ct"] < a["ct"] else "rises"
