@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -172,20 +171,12 @@ def _key(kind, ratio):
 KEYS = ["raw"] + [_key(k, r) for k in KINDS for r in HALOS if r > 0]
 
 
-TARGET_Z = 7.5    # Haddad's bulk coordination with gaps (002 sec. 2.1), as the dense scenes
+TARGET_Z = I.TARGET_Z    # Haddad's bulk coordination with gaps (002 sec. 2.1), as the dense scenes
 
 
 def load(path, target_z=TARGET_Z):
-    """(scene, packing) of validation/inclusions' flux test, its neighbours cut to the bulk
-    coordination ``target_z`` ([neighbours] target_z_with_gaps; None: every dumped pair)."""
-    from thermal_kernel.packing import read_packing
-    from thermal_kernel.scene import load_scene
-    path = str(Path(path).resolve())
-    text = I.SCENE_TEXT.format(packing=path)
-    if target_z is not None:
-        text += f"[neighbours]\ntarget_z_with_gaps = {float(target_z)!r}\n"
-    return (load_scene(framework.ROOT / "validation" / "inclusions_scene.toml", text=text),
-            read_packing(path))
+    """validation/inclusions' flux test on ``path`` through Haddad's bulk Z by default."""
+    return I.load(path, target_z)
 
 
 def dem_points(name, path, ctx, axes=(1, 0, 2), target_z=TARGET_Z):

@@ -65,11 +65,18 @@ K_MATRIX = 33.0
 SINGLE_FRACTION = 4.0 * math.pi / 81.0       # a = L/3 in a cube of side L: 15.51 % (002 sec. 4)
 
 
-def load(path):
-    """(scene, packing) of the flux test on the packing file ``path``."""
+# Haddad's bulk coordination with gaps (002 sec. 2.1, Z ~ 7.5), as the dense scenes state it
+TARGET_Z = 7.5
+
+
+def load(path, target_z: float | None = None):
+    """(scene, packing) of the flux test on the packing file ``path``, its neighbours cut to the
+    bulk coordination ``target_z`` ([neighbours] target_z_with_gaps; None: every dumped pair)."""
     path = str(Path(path).resolve())
-    scene = load_scene(ROOT / "validation" / "inclusions_scene.toml",
-                       text=SCENE_TEXT.format(packing=path))
+    text = SCENE_TEXT.format(packing=path)
+    if target_z is not None:
+        text += f"[neighbours]\ntarget_z_with_gaps = {float(target_z)!r}\n"
+    scene = load_scene(ROOT / "validation" / "inclusions_scene.toml", text=text)
     return scene, read_packing(path)
 
 
