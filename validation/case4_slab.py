@@ -321,16 +321,17 @@ def judge(numbers: dict) -> Judgement:
         return Judgement("not measured", "", None)
     r = at_n[0]
     bins = r.get("n_bins", 10)
-    at = (f"N {r['n_particles']:,}: {100 * r['max_err_over_dT']:.2f} % of ΔT (max over {bins} "
+    at = (f"N {r['n_particles']:,}: {100 * r['max_err_over_dT']:.3f} % of ΔT (max over {bins} "
           f"bins × 3 times; {100 * r['max_err_over_T_celsius']:.2f} % of T in °C beside it)")
     reached = sorted((x for x in rows if x["max_err_over_dT"] <= 0.007),
                      key=lambda x: x["n_particles"])
-    speed = (f"0.7 % of ΔT first at N {reached[0]['n_particles']:,} ({reached[0]['label']}: "
-             f"thermal {reached[0]['run_seconds']:.1f} s + its packing)" if reached
+    speed = (f"0.7 % of ΔT first at N {reached[0]['n_particles']:,} ({reached[0]['label']}, "
+             f"{_z_cell(reached[0])}: thermal {reached[0]['run_seconds']:.1f} s + its packing)"
+             if reached
              else "0.7 % of ΔT not reached")
     met = r["max_err_over_dT"] <= 0.005
     verdict = ("met at 1e5 in the stricter measure" if met else
-               f"not met at 1e5: {100 * r['max_err_over_dT']:.2f} % of ΔT, in the bins at the "
+               f"not met at 1e5: {100 * r['max_err_over_dT']:.3f} % of ΔT, in the bins at the "
                "cut hot face (a boundary resistance of the held layer the calibrated C_t cannot "
                "absorb); the laxer reading (of T in °C) would pass, which is why it is not used")
     return Judgement(at_paper_n=at, speed_vs_error=speed, target_met=met, verdict=verdict)

@@ -272,17 +272,17 @@ def _met(r: dict) -> str:
 
 
 def _columns(n: int, cases: dict, rec: dict) -> tuple[str, str, bool | None, str] | None:
-    """(at_paper_n, speed_vs_error, target_met, verdict) of a saved result: as saved, or, for a
-    result saved before issue 23, from the case module's ``judge(numbers)`` (the function run_cases
-    applies to a new result of a case that does not fill them itself), or None."""
+    """(at_paper_n, speed_vs_error, target_met, verdict) of a saved result: from the case
+    module's ``judge(numbers)`` when it has one (so a judge's change reaches every saved result
+    without a new run), else as the case saved them, else None."""
     r = rec["result"]
+    mod = cases.get(n)
+    if mod is not None and not isinstance(mod, Broken) and hasattr(mod, "judge"):
+        j = mod.judge(r.get("numbers", {}))
+        return j.at_paper_n, j.speed_vs_error, j.target_met, j.verdict or r["verdict"]
     if r.get("at_paper_n"):
         return r["at_paper_n"], r.get("speed_vs_error", ""), r.get("target_met"), r["verdict"]
-    mod = cases.get(n)
-    if mod is None or isinstance(mod, Broken) or not hasattr(mod, "judge"):
-        return None
-    j = mod.judge(r.get("numbers", {}))
-    return j.at_paper_n, j.speed_vs_error, j.target_met, j.verdict or r["verdict"]
+    return None
 
 
 def summary_table(cases: dict, records: dict) -> str:
