@@ -215,7 +215,7 @@ def run(ctx: Context, reference_only: bool = False) -> CaseResult | None:
         boxes = [(name, ctx.packing(name)) for name in ("box_2000", "box_1e5", "box_1e6")] \
             if not reference_only else []
         # the paper's N: only where box_8e6 is built here (framework.optional_packing) and the
-        # machine has the memory (measured 1.6 GB per 1e6 spheres for one solve)
+        # machine has the memory (GB_8E6)
         big = None if reference_only else framework.optional_packing("box_8e6", default=False)
         if big is not None:
             boxes.append(("box_8e6", big))
@@ -234,10 +234,10 @@ def run(ctx: Context, reference_only: bool = False) -> CaseResult | None:
     return finish(ctx, reals, runs, time.perf_counter() - t_start)
 
 
-GB_8E6 = 14.0     # memory one 8e6 solve needs (1.6 GB measured at 1e6, x 8, and a margin)
-COST_8E6 = ("box_8e6 is 2.5 GB, tiled in ~100 s from the 10,000-sphere cell; one steady solve "
-            "needs ~13 GB of memory (1.6 GB measured at 1e6) - more than the shared machine had "
-            "free - and ~8-10x the 1e6 solve's time")
+GB_8E6 = 12.5     # memory the 8e6 run needs: 11.0 GB peak resident measured, and a margin
+COST_8E6 = ("box_8e6 is 2.5 GB, tiled in ~100 s from the 10,000-sphere cell; its run peaks at "
+            "11 GB resident (measured) - more than the shared machine had free - and takes "
+            "~25 min, ~215 s per steady solve")
 
 
 def _available_gb() -> float:
@@ -599,7 +599,7 @@ def rebuild() -> None:
 
 
 def add_8e6() -> None:
-    """Solve box_8e6 alone (its packing built, ~13 GB of memory) and add its rows to the saved
+    """Solve box_8e6 alone (its packing built, 11 GB peak) and add its rows to the saved
     result, then rebuild the figures and the section: the paper's N without re-running the
     rest."""
     import json
@@ -621,7 +621,7 @@ def main(argv=None):
     ap.add_argument("--reference", action="store_true",
                     help="the inclusions and their FFT reference only (cached for the full run)")
     ap.add_argument("--add-8e6", action="store_true",
-                    help="solve box_8e6 alone and add it to the saved result (~13 GB)")
+                    help="solve box_8e6 alone and add it to the saved result (11 GB, 25 min)")
     ap.add_argument("--rebuild", action="store_true",
                     help="figures and section again from the saved result (no solve)")
     a = ap.parse_args(argv)
