@@ -95,23 +95,26 @@ def test_case5_quick_sphere_within_its_documented_error():
     rows = {r["label"]: r for r in res.numbers["rows"]}
     ours = rows["ours, bulk"]
     assert ours["n_particles"] == 2011
-    assert ours["n_held"] > 300 and ours["unconnected"] == 0
+    # Haddad's bulk Z 7.5 (the case's [neighbours] target) leaves a few particles without a
+    # conducting pair: they are counted apart and kept out of the measures (free particles only)
+    assert ours["n_held"] > 300 and ours["unconnected"] < 0.01 * ours["n_particles"]
+    assert ours["n_free"] + ours["n_held"] + ours["unconnected"] == ours["n_particles"]
     # the held shell lies inside the carving radius, by less than a mean radius
     assert 0 < ours["r_carve_m"] - ours["r_held_m"] < 1e-3
-    # measured (C_t from the cube's interior, 0.6452): centre -1.15 C, max 4.54 C, RMS 1.09 C;
-    # whole-cube C_t, held planes (0.6966): centre +2.75 C; domain length (0.6605): +0.11 C.
-    # Bounds: those + ~25 %.
-    assert abs(ours["centre_error_c"]) < 1.5
-    assert ours["max_abs_error_c"] < 5.7
+    # measured through bulk Z 7.5 (C_t from the cube's interior, 0.7795): centre -1.27 C, max
+    # 3.86 C, RMS 1.10 C; whole-cube C_t, held planes (0.8479): centre +3.00 C; domain length
+    # (0.8040): +0.39 C. Bounds: those + ~25 %.
+    assert abs(ours["centre_error_c"]) < 1.6
+    assert ours["max_abs_error_c"] < 4.8
     assert ours["rms_error_c"] < 1.4
-    assert abs(rows["ours, held planes"]["centre_error_c"]) < 3.5
+    assert abs(rows["ours, held planes"]["centre_error_c"]) < 3.8
     # a larger C_t heats the centre faster
     assert rows["ours, held planes"]["centre_error_c"] > ours["centre_error_c"]
     # the centre warms monotonically towards the surface temperature
     c = np.array(ours["centre_dem_c"])
     assert np.all(np.diff(c) > 0) and 20.0 < c[0] and c[-1] < 200.0
-    # the implicit runs of the speed figure approach the explicit one (20 CN steps: -1.43 C
-    # against -1.15 C; the time error at 20 steps is a few tenths of a degree here)
+    # the implicit runs of the speed figure approach the explicit one (20 CN steps: -1.56 C
+    # against -1.27 C; the time error at 20 steps is a few tenths of a degree here)
     assert abs(res.numbers["speed"][-1]["centre_error_c"] - ours["centre_error_c"]) < 0.5
 
 
