@@ -127,9 +127,11 @@ def _scene_and_packing(args):
 
 def _cmd_calibrate(args):
     from thermal_kernel.calibrate import calibrate_axes
+    from thermal_kernel.laws import get_law
+    from thermal_kernel.problem import law_params
     scene, path, packing = _scene_and_packing(args)
     results, skipped, ct = calibrate_axes(scene, packing, args.axis)
-    mean_radius = scene.law_params.get("mean_radius", "arithmetic")
+    mean_radius = law_params(scene, get_law(scene.law))["mean_radius"]   # with the default
     print(f"tdem calibrate: {args.scene} on {path} ({packing.n_particles} particles), law haddad"
           f" (R_m {mean_radius} mean), lambda = {results[0].conductivity_w_mk:.6g} W/m/K (002, "
           "eq. 8-9: one steady solve)")

@@ -97,7 +97,6 @@ def halo_flux(position_m, radius_m, moments, volume_m3, solid_fraction, halo_rat
     radius, "own": ratio x R_p). Done ``chunk`` particles at a time (one neighbour list per
     chunk, summed with np.add.reduceat), so memory stays bounded at 1e5-1e6 particles and large
     halos (ratio 11 holds ~700 spheres)."""
-    check_halo_radius(halo_radius)
     position_m = np.asarray(position_m, float)
     radius_m = np.asarray(radius_m, float)
     moments = np.asarray(moments, float)

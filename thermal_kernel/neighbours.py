@@ -67,11 +67,16 @@ def bulk_particles(packing: Packing, margin_diameters: float) -> np.ndarray:
     return face_distance(packing) >= margin
 
 
+def neighbour_counts(packing: Packing, keep: np.ndarray | None = None) -> np.ndarray:
+    """Particle–particle neighbours of each particle as listed in the dump (gaps included; wall
+    contacts are not neighbours — Terreros 2012, sec. 4.1), or of the rows ``keep`` only."""
+    pair = packing.pair if keep is None else packing.pair[keep]
+    return np.bincount(pair.reshape(-1), minlength=packing.n_particles)
+
+
 def bulk_coordination(packing: Packing, bulk: np.ndarray, keep: np.ndarray | None = None) -> float:
     """Mean number of (kept) dumped pairs per bulk particle, gaps included."""
-    pair = packing.pair if keep is None else packing.pair[keep]
-    deg = np.bincount(pair.reshape(-1), minlength=packing.n_particles)
-    return float(deg[bulk].mean()) if bulk.any() else math.nan
+    return float(neighbour_counts(packing, keep)[bulk].mean()) if bulk.any() else math.nan
 
 
 @dataclass(frozen=True)

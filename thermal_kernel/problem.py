@@ -14,16 +14,10 @@ from .boundaries import BuildContext, Rows
 from .boundaries.base import FACES, boundary_particles  # noqa: F401 (imported from here by tdem_post, validation, bench and tests)
 from .laws import get_law
 from .laws.base import ContactInput, ParticleInput
-from .neighbours import choose_neighbours
+from .neighbours import choose_neighbours, neighbour_counts
 from .network import ThermalProblem
 from .packing import Packing
 from .scene import Scene, SceneError
-
-
-def neighbour_counts(packing: Packing) -> np.ndarray:
-    """Particle–particle neighbours of each particle as listed in the dump (gaps included; wall
-    contacts are not neighbours — Terreros 2012, sec. 4.1)."""
-    return np.bincount(packing.pair.reshape(-1), minlength=packing.n_particles)
 
 
 def mechanical_properties(scene: Scene, packing: Packing) -> tuple[float, float]:
@@ -52,8 +46,7 @@ def build_law_inputs(scene: Scene, packing: Packing, keep: np.ndarray | None = N
     ``keep``, the neighbour counts are those of the kept rows only)."""
     k, rho, cp = particle_materials(scene, packing)
     young, poisson = mechanical_properties(scene, packing)
-    nb = (neighbour_counts(packing) if keep is None else
-          np.bincount(packing.pair[keep].reshape(-1), minlength=packing.n_particles))
+    nb = neighbour_counts(packing, keep)
     i, j = packing.pair[:, 0], packing.pair[:, 1]
     contacts = ContactInput(
         radius_i_m=packing.radius[i], radius_j_m=packing.radius[j],

@@ -17,7 +17,7 @@ or last row (n = 1 or 20). The table's values are used as printed (f_vl(6) = 0.5
 pi/6 = 0.5235988: relative difference 1.7e-5).
 
 Neighbours: particle-particle rows of the dump, gaps included; wall contacts are not neighbours
-(counted by ``thermal_kernel.problem.neighbour_counts``). Gaps conduct like any other row
+(counted by ``thermal_kernel.neighbours.neighbour_counts``). Gaps conduct like any other row
 (geometric law, the neighbour criterion put them in the dump); H = 0 only if d <= 0.
 
 Phases: 000 has one conductivity; at a contact between two phases tdem uses the interface rule
