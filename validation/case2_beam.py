@@ -263,20 +263,29 @@ def series_name(series: str, seed: int) -> str:
     return f"beam_{series}_{P.BEAM_N}_s{seed}"
 
 
+BEAM = dict(shape="cylinder", aspect=[1.0, 1.0, P.BEAM_ASPECT], n_particles=P.BEAM_N)
+
+
 def _cell10k(seed: int) -> str:
+    """The relaxed 10,000-sphere periodic cell of ``seed`` (the cell of that seed's 1e5 box),
+    built first when missing: seed 1's is runs/dense_box_1e5.toml's own cell when it exists,
+    else the one the shared box_1e5 relaxes; seeds 2-5 are box_1e5_s<seed>'s."""
     if seed == 1:
-        return str(fw.CELL_1E5)
-    fw.register_packing(f"box_1e5_s{seed}", "runs/dense_box_1e5.toml", dict(seed=seed))
-    return str(fw.OUT / "packings" / f"box_1e5_s{seed}" / "cell.h5")
+        if not fw.CELL_1E5.exists():
+            fw.packing("box_1e5")
+        return str(fw.CELL_1E5 if fw.CELL_1E5.exists()
+                   else fw.OUT / "packings" / "box_1e5" / "cell.h5")
+    name = f"box_1e5_s{seed}"
+    fw.register_packing(name, "runs/dense_box_1e5.toml", dict(seed=seed))
+    fw.packing(name)
+    return str(fw.OUT / "packings" / name / "cell.h5")
 
 
 def register_series(seeds=P.SEEDS) -> None:
-    beam = dict(shape="cylinder", aspect=[1.0, 1.0, P.BEAM_ASPECT], n_particles=P.BEAM_N)
+    """The walled beams' names (their recipes need no other packing); the cell10k beams are
+    registered by series_path once their cell exists."""
     for s in seeds:
-        fw.register_packing(series_name("cell10k", s), "runs/dense_box.toml",
-                            dict(beam, method="tiled", cell_particles=10_000,
-                                 cell_packing=_cell10k(s), seed=s))
-        fw.register_packing(series_name("walled", s), "runs/dense_box.toml", dict(beam, seed=s))
+        fw.register_packing(series_name("walled", s), "runs/dense_box.toml", dict(BEAM, seed=s))
 
 
 def series_path(series: str, seed: int):
@@ -284,11 +293,9 @@ def series_path(series: str, seed: int):
     cell first), the walled ones only when already built (or asked for)."""
     name = series_name(series, seed)
     if series == "cell10k":
-        cell = fw.PACKINGS[name][1]["cell_packing"]
-        if seed != 1 and not Path(cell).exists():
-            fw.packing(f"box_1e5_s{seed}")
-        elif seed == 1 and not Path(cell).exists():
-            fw.packing("box_1e5")
+        fw.register_packing(name, "runs/dense_box.toml",
+                            dict(BEAM, method="tiled", cell_particles=10_000,
+                                 cell_packing=_cell10k(seed), seed=seed))
         return fw.packing(name)
     return fw.optional_packing(name, default=False)
 
