@@ -224,7 +224,10 @@ def _write(path, position, radius, pair, branch, overlap, walls, wp, wi, wo, lo,
         path, position, radius, np.zeros(n, np.int32), pair, overlap,
         np.where(overlap > 0, 1e-3, 0.0), branch, walls, np.asarray(wp, np.int64),
         np.asarray(wi, np.int32), np.asarray(wo, float), np.zeros(k), lo, hi, periodic,
-        dict(generator="test", seed=0, solid_fraction=0.6, mean_coordination=2.0 * m / n,
+        # phi as the generators measure it: the spheres' volume over the domain's (checked)
+        dict(generator="test", seed=0, mean_coordination=2.0 * m / n,
+             solid_fraction=float(np.sum(4 / 3 * np.pi * radius ** 3) / np.prod(np.subtract(hi,
+                                                                                         lo))),
              pressure_pa=float("nan"), young_pa=2.1e11, poisson=0.3, density=7800.0))
 
 

@@ -7,6 +7,7 @@ written here and one written under YADE are the same bytes for the same arrays.
 """
 from __future__ import annotations
 
+import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -126,6 +127,20 @@ def read_packing(path) -> Packing:
         f = h5py.File(path, "r")
     except OSError as e:
         raise PackingError(f"{path}: not an HDF5 file ({str(e).splitlines()[0]})") from None
+    return _read_open(f, path)
+
+
+def read_packing_image(image, name) -> Packing:
+    """Validate the bytes of a packing file built in memory (:func:`packing_image`) before
+    anything is written; messages name the file ``name`` it is meant for."""
+    try:
+        f = h5py.File(io.BytesIO(image), "r")
+    except OSError as e:
+        raise PackingError(f"{name}: not an HDF5 image ({str(e).splitlines()[0]})") from None
+    return _read_open(f, str(name))
+
+
+def _read_open(f, path) -> Packing:
     with f:
         fmt = f.attrs.get("format")
         if isinstance(fmt, bytes):
@@ -155,6 +170,7 @@ def read_packing(path) -> Packing:
                 _fail(path, key, f"expected a number, got {value!r}")
             if key not in NAN_ALLOWED_ATTRS and not math.isfinite(value):
                 _fail(path, key, f"expected a finite number, got {value!r}")
+        _check_attr_ranges(path, attrs)
 
         position = _dataset(f, path, "particles/position", "f", (None, 3))
         n = position.shape[0]
@@ -232,6 +248,12 @@ def read_packing(path) -> Packing:
 
     _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_particle,
                     wall_overlap, dom["lo"], dom["hi"], dom["periodic"])
+    _check_forces_and_walls(path, position, radius, pair, overlap, normal_force, branch,
+                            wall_kind, wall_point, wall_normal, wall_radius, wall_particle,
+                            wall_index, wall_overlap, wall_normal_force)
+    _check_solid_fraction(path, attrs["solid_fraction"], position, radius, wall_kind,
+                          wall_normal, wall_radius, wall_particle, wall_overlap, dom["lo"],
+                          dom["hi"])
 
     return Packing(position=position, radius=radius, phase=phase.astype(np.int32),
                    pair=pair.astype(np.int64), overlap=overlap, normal_force=normal_force,
@@ -310,6 +332,184 @@ def _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_p
                   "centre on the wall's side)")
 
 
+# Root attributes with a physical range (the thermal laws use young_pa and poisson when a scene
+# gives none, post and the capacity rules use solid_fraction): (low, high, low open, high open).
+ATTR_RANGES = {
+    "young_pa": (0.0, math.inf, True, True, "Pa"),
+    "poisson": (-1.0, 0.5, True, True, ""),
+    "density": (0.0, math.inf, True, True, "kg/m^3"),
+    "pressure_pa": (0.0, math.inf, False, True, "Pa"),        # NaN: none (checked above)
+    "solid_fraction": (0.0, 1.0, True, False, ""),
+    "mean_coordination": (0.0, math.inf, False, True, ""),
+}
+# A contact's overlap must be r_i + r_j - |branch| (docs/packing-format.md) within this fraction of
+# the smaller radius, and a plane wall contact's r - (distance to the plane) within this fraction
+# of its radius. Every generator writes exactly that (measured: 1.5e-15 of the radius over every
+# committed and validation packing); a LIGGGHTS import keeps LIGGGHTS' delta, which with the
+# default 6-digit dump format differs from the positions by ~1e-5 of a radius (1 % of an overlap).
+OVERLAP_RTOL = 1e-3
+# Cylinder and sphere walls are facet polygons in YADE: a contact's depth is measured against a
+# facet, the file's wall is the analytic surface; they differ by up to the facets' sagitta, which
+# the file does not record (measured up to 0.067 r, dense_sphere.h5). Half a radius leaves any
+# usable facet mesh and still refuses a wall contact on a particle away from the wall.
+CURVED_WALL_RTOL = 0.5
+# solid_fraction against the particles: every generator divides the spheres' volume, whole or
+# less the caps beyond the walls (tdem_yade, import liggghts), by the domain's volume (the box
+# lo..hi, pi R^2 L in a cylinder wall, 4/3 pi R^3 in a sphere wall); measured equal to 1e-12 on
+# every packing made here. 1e-3 of phi accepts a value rounded to 3-4 digits or measured by
+# another tool; it is 0.1 % of gamma_paper = gamma / phi, below any interval post reports.
+SOLID_FRACTION_RTOL = 1e-3
+
+
+def _check_attr_ranges(path, attrs):
+    for key, (low, high, low_open, high_open, unit) in ATTR_RANGES.items():
+        value = attrs[key]
+        if math.isnan(value):
+            continue
+        below = value <= low if low_open else value < low
+        above = value >= high if high_open else value > high
+        if below or above:
+            interval = ("(" if low_open else "[") + f"{low:g}, {high:g}" + \
+                (")" if high_open else "]")
+            unit = f" {unit}" if unit else ""
+            _fail(path, key, f"root attribute is {value:.6g}{unit}; expected a value in "
+                             f"{interval}")
+
+
+def _wall_distance(kind, point, normal, radius, x):
+    """Distance of the centres ``x`` to a wall, positive on the domain's side."""
+    d = x - point
+    if kind == "plane":
+        return d @ normal
+    if kind == "cylinder":
+        along = d @ normal
+        return radius - np.linalg.norm(d - along[:, None] * normal, axis=1)
+    return radius - np.linalg.norm(d, axis=1)
+
+
+def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force, branch,
+                            wall_kind, wall_point, wall_normal, wall_radius, wall_particle,
+                            wall_index, wall_overlap, wall_normal_force):
+    """Overlaps that contradict the geometry, forces on gaps: a contact's overlap is
+    r_i + r_j - |branch| (the branch is already checked against the centres), a wall contact's
+    is r - its centre's distance to the wall; a gap (overlap <= 0) carries no force."""
+    scale = np.abs(position).max(initial=0.0)
+    eps = 8 * np.finfo(float).eps * scale
+    if pair.shape[0]:
+        i, j = pair[:, 0], pair[:, 1]
+        r_min = np.minimum(radius[i], radius[j])
+        # the branch (already checked to join the centres) gives the spheres' own overlap
+        geo = radius[i] + radius[j] - np.linalg.norm(branch, axis=1)
+        off = np.abs(overlap - geo) > OVERLAP_RTOL * r_min + eps
+        if off.any():
+            c = int(np.flatnonzero(off)[0])
+            _fail(path, "contacts/overlap",
+                  f"contact {c} ({int(i[c])}, {int(j[c])}) has overlap {overlap[c]:.6g} m, "
+                  f"but its spheres give r_i + r_j - |branch| = {geo[c]:.6g} m; expected the "
+                  f"overlap of the two spheres (within {OVERLAP_RTOL:g} of the smaller radius)")
+        gap_force = (overlap <= 0) & (normal_force > 0)
+        if gap_force.any():
+            c = int(np.flatnonzero(gap_force)[0])
+            _fail(path, "contacts/normal_force",
+                  f"contact {c} ({int(i[c])}, {int(j[c])}) is a gap (overlap "
+                  f"{overlap[c]:.6g} m) with a normal force of {normal_force[c]:.6g} N; "
+                  "expected 0 on a gap")
+    if wall_particle.size:
+        r = radius[wall_particle]
+        for w, kind in enumerate(wall_kind):
+            rows = np.flatnonzero(wall_index == w)
+            if not rows.size:
+                continue
+            dist = _wall_distance(kind, wall_point[w], wall_normal[w], wall_radius[w],
+                                  position[wall_particle[rows]])
+            geo = r[rows] - dist
+            rtol = OVERLAP_RTOL if kind == "plane" else CURVED_WALL_RTOL
+            off = np.abs(wall_overlap[rows] - geo) > rtol * r[rows] + eps
+            if off.any():
+                k = int(np.flatnonzero(off)[0])
+                c = int(rows[k])
+                _fail(path, "wall_contacts/overlap",
+                      f"row {c} (particle {int(wall_particle[c])}, wall {w}) has overlap "
+                      f"{wall_overlap[c]:.6g} m, but the particle's centre is "
+                      f"{dist[k]:.6g} m from the {kind} wall (r - distance = {geo[k]:.6g} m); "
+                      f"expected r - distance (within {rtol:g} of the radius)")
+        gap_force = (wall_overlap <= 0) & (wall_normal_force > 0)
+        if gap_force.any():
+            c = int(np.flatnonzero(gap_force)[0])
+            _fail(path, "wall_contacts/normal_force",
+                  f"row {c} (particle {int(wall_particle[c])}) is a gap (overlap "
+                  f"{wall_overlap[c]:.6g} m) with a normal force of "
+                  f"{wall_normal_force[c]:.6g} N; expected 0 on a gap")
+    # coincident centres: two spheres in one place (any overlap search would be O(N log N) on
+    # every load; equal centres are the impossible case that costs one sort)
+    if position.shape[0] > 1:
+        order = np.lexsort(position.T[::-1])
+        same = np.flatnonzero(np.all(np.diff(position[order], axis=0) == 0, axis=1))
+        if same.size:
+            a, b = sorted((int(order[same[0]]), int(order[same[0] + 1])))
+            _fail(path, "particles/position",
+                  f"particles {a} and {b} have the same centre "
+                  f"({', '.join(f'{v:.6g}' for v in position[a])}) m; expected distinct "
+                  "spheres")
+
+
+def domain_volume(wall_kind, wall_normal, wall_radius, lo, hi):
+    """The volume the spheres fill, m^3: a sphere wall's ball, a cylinder wall's pi R^2 times the
+    domain's length along its (axis-aligned) axis, else the box lo..hi; None when a cylinder's
+    axis is oblique (not measurable from the file)."""
+    for k, kind in enumerate(wall_kind):
+        if kind == "sphere":
+            return 4.0 / 3.0 * math.pi * float(wall_radius[k]) ** 3
+    for k, kind in enumerate(wall_kind):
+        if kind == "cylinder":
+            axis = int(np.argmax(np.abs(wall_normal[k])))
+            if abs(abs(wall_normal[k][axis]) - 1.0) > 1e-9:
+                return None
+            return math.pi * float(wall_radius[k]) ** 2 * float(hi[axis] - lo[axis])
+    return float(np.prod(hi - lo))
+
+
+def solid_fraction_bounds(radius, wall_kind, wall_normal, wall_radius, wall_particle,
+                          wall_overlap, lo, hi):
+    """(phi with the caps beyond the walls cut off, phi with every sphere whole), or None:
+    the two ways generators count the spheres' volume over the domain's."""
+    volume = domain_volume(wall_kind, wall_normal, wall_radius, lo, hi)
+    if volume is None or not volume > 0:
+        return None
+    whole = float(np.sum(4.0 / 3.0 * math.pi * radius ** 3))
+    h = np.clip(wall_overlap, 0.0, None)
+    caps = float(np.sum(math.pi * h ** 2 * (3.0 * radius[wall_particle] - h) / 3.0))
+    return (whole - caps) / volume, whole / volume
+
+
+def _check_solid_fraction(path, phi, position, radius, wall_kind, wall_normal, wall_radius,
+                          wall_particle, wall_overlap, lo, hi):
+    bounds = solid_fraction_bounds(radius, wall_kind, wall_normal, wall_radius, wall_particle,
+                                   wall_overlap, lo, hi)
+    if bounds is None:
+        return
+    cut, whole = bounds
+    if whole > 1.0 + SOLID_FRACTION_RTOL and cut > 1.0 + SOLID_FRACTION_RTOL:
+        _fail(path, "particles/radius",
+              f"the spheres' volume is {cut:.4g} times the domain's; expected a solid fraction "
+              "<= 1 (overlapping spheres, or a domain smaller than the packing?)")
+    if not (cut * (1.0 - SOLID_FRACTION_RTOL) <= phi <= whole * (1.0 + SOLID_FRACTION_RTOL)):
+        what = f"{cut:.6g}" if abs(whole - cut) <= 1e-12 * whole else \
+            f"{cut:.6g} (caps beyond the walls cut off) ... {whole:.6g} (spheres whole)"
+        _fail(path, "solid_fraction",
+              f"root attribute is {phi:.6g}, but the particles fill {what} of the domain "
+              f"({_domain_words(wall_kind)}); expected the spheres' volume over the domain's "
+              f"(within {SOLID_FRACTION_RTOL:g})")
+
+
+def _domain_words(wall_kind):
+    if "sphere" in wall_kind:
+        return "the sphere wall's ball"
+    if "cylinder" in wall_kind:
+        return "the cylinder wall times the domain's length along its axis"
+    return "domain/lo .. domain/hi"
+
+
 def _check_index(path, name, index, n, what):
     if index.size and (index.min() < 0 or index.max() >= n):
         bad = int(np.flatnonzero((index < 0) | (index >= n))[0])
@@ -341,14 +541,21 @@ def _check_pairs(path, pair, n):
 # ----------------------------------------------------------------------------- writing
 
 def write_packing(path, packing: Packing) -> None:
-    """Write ``packing`` to ``path`` (via a temporary name, then renamed)."""
+    """Write ``packing`` to ``path`` (built in memory, written under a temporary name, then
+    renamed; an OSError leaves nothing behind)."""
+    from .atomic import write_bytes_atomic
+    write_bytes_atomic(path, packing_image(packing))
+
+
+def packing_image(packing: Packing):
+    """The bytes of ``packing``'s file (a buffer), built in memory."""
     walls = [dict(name=nm, kind=kd, point=pt, normal=nr, radius=rd)
              for nm, kd, pt, nr, rd in zip(packing.wall_name, packing.wall_kind,
                                            packing.wall_point, packing.wall_normal,
                                            packing.wall_radius)]
     attrs = {k: v for k, v in packing.attrs.items() if k not in ("format", "format_version")}
-    packing_h5.write_packing(
-        path, packing.position, packing.radius, packing.phase, packing.pair, packing.overlap,
+    return packing_h5.packing_image(
+        packing.position, packing.radius, packing.phase, packing.pair, packing.overlap,
         packing.normal_force, packing.branch, walls, packing.wall_particle, packing.wall_index,
         packing.wall_overlap, packing.wall_normal_force, packing.domain_lo, packing.domain_hi,
         packing.periodic, attrs, contact_radius=packing.contact_radius,

@@ -7,25 +7,28 @@ tdem's dependencies (numba, ...) are absent. ``thermal_kernel.packing`` wraps it
 side and holds the reader, which validates every file.
 The format is specified in ``docs/packing-format.md``.
 
-The file is written to ``<path>.tmp`` and renamed (:func:`thermal_kernel.atomic.replacing`), so a
-killed run never leaves a half-written ``packing.h5``, and a failed write removes its temporary
-file. HDF5 writes the file itself (not built in memory): the bytes stay those of h5py's own file
-driver.
+The file is built in memory (:func:`packing_image`, h5py on an ``io.BytesIO``) and written at
+once with plain file I/O to ``<path>.tmp``, then renamed
+(:func:`thermal_kernel.atomic.write_bytes_atomic`): a killed run never leaves a half-written
+``packing.h5``, and a failed write (a full or read-only disk) raises one ``OSError`` and removes
+its temporary file. HDF5's own writer on a full disk printed a cascade of tracebacks and then
+crashed the interpreter (issue 28: SIGSEGV under ``tdem import`` and ``tdem_yade.dump``).
 """
+import io
 import os
 
 import h5py
 import numpy as np
 
 if __package__:
-    from .atomic import replacing
+    from .atomic import write_bytes_atomic
 else:       # loaded by file path inside YADE (yade_scripts/tdem_dump.py): the sibling file, alike
     import importlib.util as _util
     _spec = _util.spec_from_file_location(
         "tdem_atomic", os.path.join(os.path.dirname(os.path.abspath(__file__)), "atomic.py"))
     _atomic = _util.module_from_spec(_spec)
     _spec.loader.exec_module(_atomic)
-    replacing = _atomic.replacing
+    write_bytes_atomic = _atomic.write_bytes_atomic
 
 FORMAT = "tdem-packing"
 FORMAT_VERSION = 1
@@ -33,11 +36,18 @@ FORMAT_VERSION = 1
 WALL_KINDS = ("plane", "cylinder", "sphere")
 
 
-def write_packing(path, position, radius, phase, pair, overlap, normal_force, branch,
+def write_packing(path, *args, **kwargs):
+    """Write one packing to ``path`` (arguments: :func:`packing_image`): built in memory, then
+    written at once under a temporary name and renamed. An ``OSError`` (full disk, read-only
+    folder) propagates, naming ``path``, with nothing left behind."""
+    write_bytes_atomic(path, packing_image(*args, **kwargs))
+
+
+def packing_image(position, radius, phase, pair, overlap, normal_force, branch,
                   walls, wall_particle, wall_index, wall_overlap, wall_normal_force,
                   domain_lo, domain_hi, periodic, attrs, contact_radius=None,
                   wall_contact_radius=None, yade_id=None):
-    """Write one packing.
+    """The bytes of one packing file.
 
     walls: list of dicts with keys name, kind ('plane'|'cylinder'|'sphere'), point (3,) (a point
     of the plane, of the cylinder's axis, or the sphere's centre), normal (3,) (the axis for a
@@ -62,7 +72,8 @@ def write_packing(path, position, radius, phase, pair, overlap, normal_force, br
     if contact_radius is not None:
         contact_radius = np.asarray(contact_radius, dtype=np.float64)[order]
 
-    with replacing(path) as tmp, h5py.File(tmp, "w") as f:
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as f:
         f.attrs["format"] = FORMAT
         f.attrs["format_version"] = FORMAT_VERSION
         for key, value in attrs.items():
@@ -107,3 +118,4 @@ def write_packing(path, position, radius, phase, pair, overlap, normal_force, br
         d.attrs["lo"] = np.asarray(domain_lo, dtype=np.float64).reshape(3)
         d.attrs["hi"] = np.asarray(domain_hi, dtype=np.float64).reshape(3)
         d.attrs["periodic"] = np.asarray(periodic, dtype=bool).reshape(3)
+    return buffer.getbuffer()
