@@ -211,8 +211,8 @@ def cloud_shrink(shape):
 
 def relaxed_params(p):
     """The parameters of what YADE relaxes: the domain itself, or for method = "tiled" a
-    periodic cell of cell_particles spheres."""
-    if p["method"] == "tiled":
+    periodic cell of cell_particles spheres (also for method = "shell", which copies it)."""
+    if p["method"] in ("tiled", "shell"):
         return dict(p, shape="periodic", n_particles=p["cell_particles"])
     return p
 

@@ -32,11 +32,13 @@ if __name__ == "__main__":       # run by YADE (yade -x): the package yade_scrip
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0]))))
 
 from yade_scripts import params as P  # noqa: E402
+from yade_scripts import shell  # noqa: E402
 from yade_scripts.dense_geometry import (  # noqa: E402
     CLOUD_SOLID_FRACTION, FREE_GROWTH_SOLID_FRACTION, WALL_YOUNG_FACTOR, CloudError, Container,
     assign_phases, icosphere, make_cloud, relaxed_contacts, relaxed_params, relaxed_wall_contacts,
     solid_fractions, stiffness_stages, tile_cell)
 from yade_scripts.tdem_dump import write_packing  # noqa: E402
+from yade_scripts.tiling import carve  # noqa: E402
 
 # YADE's names, bound by import_yade() when the script runs: importing this file needs no YADE.
 O = geom = utils = Matrix3 = None
@@ -44,6 +46,7 @@ FrictMat = ForceResetter = InsertionSortCollider = Bo1_Sphere_Aabb = Bo1_Wall_Aa
 Bo1_Facet_Aabb = InteractionLoop = Ig2_Sphere_Sphere_ScGeom = Ig2_Wall_Sphere_ScGeom = None
 Ig2_Facet_Sphere_ScGeom = Ip2_FrictMat_FrictMat_MindlinPhys = None
 Law2_ScGeom_MindlinPhys_Mindlin = NewtonIntegrator = Sphere = GlobalStiffnessTimeStepper = None
+Vector3 = None
 
 
 def import_yade():
@@ -52,7 +55,7 @@ def import_yade():
         Bo1_Sphere_Aabb, Bo1_Wall_Aabb, Bo1_Facet_Aabb, InteractionLoop, \
         Ig2_Sphere_Sphere_ScGeom, Ig2_Wall_Sphere_ScGeom, Ig2_Facet_Sphere_ScGeom, \
         Ip2_FrictMat_FrictMat_MindlinPhys, Law2_ScGeom_MindlinPhys_Mindlin, NewtonIntegrator, \
-        Sphere, GlobalStiffnessTimeStepper
+        Sphere, GlobalStiffnessTimeStepper, Vector3
     from yade import O, geom, utils
     from yade.wrapper import (FrictMat, ForceResetter, InsertionSortCollider,
                               Bo1_Sphere_Aabb, Bo1_Wall_Aabb, Bo1_Facet_Aabb, InteractionLoop,
@@ -60,7 +63,7 @@ def import_yade():
                               Ig2_Facet_Sphere_ScGeom, Ip2_FrictMat_FrictMat_MindlinPhys,
                               Law2_ScGeom_MindlinPhys_Mindlin, NewtonIntegrator, Sphere,
                               GlobalStiffnessTimeStepper)
-    from yade.minieigenHP import Matrix3
+    from yade.minieigenHP import Matrix3, Vector3
 
 
 def fail(message, code=2):
@@ -139,6 +142,32 @@ def mean_stress(box):
     return -(stress[0, 0] + stress[1, 1] + stress[2, 2]) / 3.0
 
 
+def set_young(mats, young, young_now):
+    """Raise the modulus of the materials (spheres, plane walls, facets) and of every existing
+    contact from young_now to young (the stiffening stages)."""
+    factor = young / young_now
+    for m, scale in zip(mats, (1.0, WALL_YOUNG_FACTOR["plane"], WALL_YOUNG_FACTOR["facet"])):
+        O.materials[m].young = young * scale
+    for i in O.interactions:
+        if i.isReal:
+            i.phys.kno *= factor
+            i.phys.kso *= factor
+
+
+def friction_on(mats, tan_phi):
+    """Frictionless compaction gives the densest random packing, but at the real modulus its
+    last relaxation crawls (the unbalanced-force ratio hovers at a few 1e-3 for minutes: floppy
+    modes). Once the frictionless packing is at the target stress at the real modulus
+    (unbalanced < 1e-2), the material's friction is switched on, at rest: the contacts are kept
+    (switched on earlier, while the radii still shrink, it opened contacts: Z 3.9 and 17 %
+    rattlers) and the tangential springs damp the floppy modes."""
+    for m in mats:
+        O.materials[m].frictionAngle = math.atan(tan_phi)
+    for i in O.interactions:
+        if i.isReal:
+            i.phys.tangensOfFrictionAngle = tan_phi
+
+
 def compress(p, centres, radii, box):
     """Fixed container; the radii grow (or shrink) uniformly until the mean stress equals the
     confining pressure and the unbalanced-force ratio is below the target, at each stiffness
@@ -165,30 +194,11 @@ def compress(p, centres, radii, box):
                 # Hertz constant uses the current radii, then scale them stage by stage
                 O.interactions.clear()
                 collider.doSort = True
-            factor = young / young_now
-            for m, scale in zip(mats, (1.0, WALL_YOUNG_FACTOR["plane"],
-                                       WALL_YOUNG_FACTOR["facet"])):
-                O.materials[m].young = young * scale
-            for i in O.interactions:
-                if i.isReal:
-                    i.phys.kno *= factor
-                    i.phys.kso *= factor
+            set_young(mats, young, young_now)
             young_now = young
         final = k == len(stages) - 1
         if final and friction_stage:
-            # Frictionless compaction gives the densest random packing, but at the real
-            # modulus its last relaxation crawls (the unbalanced-force ratio hovers at a few
-            # 1e-3 for minutes: floppy modes). Once the frictionless packing is at the target
-            # stress at the real modulus (unbalanced < 1e-2), the material's friction is
-            # switched on, at rest: the contacts are kept (switched on earlier, while the radii
-            # still shrink, it opened contacts: Z 3.9 and 17 % rattlers) and the tangential
-            # springs damp the floppy modes.
-            tan_phi = p["friction"]
-            for m in mats:
-                O.materials[m].frictionAngle = math.atan(tan_phi)
-            for i in O.interactions:
-                if i.isReal:
-                    i.phys.tangensOfFrictionAngle = tan_phi
+            friction_on(mats, p["friction"])
         label = ", friction on" if final and friction_stage else ""
         unbalanced_target = p["unbalanced_force_target"] if final else \
             max(p["unbalanced_force_target"], 1e-2)
@@ -435,6 +445,234 @@ def tiled_state(p, state):
                 sphere_ids=None), cell_info
 
 
+# groupMask bits of method = "shell" (YADE's collider pairs two bodies whose masks share a bit,
+# unless both have the same mask sharing a bit with avoidSelfInteractionMask): walls 1, free
+# shell 3, frozen band 6 -> wall-shell, shell-shell and shell-band pairs only.
+SHELL_MASK, FROZEN_MASK, FROZEN_ONLY = 3, 6, 4
+
+
+def wall_geometry(box, walls, wall_of_body):
+    """Per wall: its bodies, and per body the unit vector along which the wall moves inward
+    (a plane's normal; for a facet of the cylinder's mantle or of the spherical container, the
+    direction from its centroid towards the axis or the centre)."""
+    bodies = {w: [] for w in range(len(walls))}
+    for b, w in wall_of_body.items():
+        bodies[w].append(b)
+    inward = {}
+    for w, wall in enumerate(walls):
+        for b in bodies[w]:
+            if wall["kind"] == "plane":
+                inward[b] = np.asarray(wall["normal"], dtype=float)
+                continue
+            c = np.array([O.bodies[b].state.pos[j] for j in range(3)]) - box.centre
+            if wall["kind"] == "cylinder":
+                c[2] = 0.0
+            inward[b] = -c / np.linalg.norm(c)
+    return bodies, inward
+
+
+def wall_extent(box, walls, bodies, start):
+    """(lo, hi, radius) of the domain the walls enclose now: the planes' positions, and the
+    curved wall's radius from how far its first facet has moved from ``start``."""
+    lo, hi = np.zeros(3), box.size.copy()
+    radius = float(box.radius)
+    for w, wall in enumerate(walls):
+        b = bodies[w][0]
+        pos = np.array([O.bodies[b].state.pos[j] for j in range(3)])
+        if wall["kind"] == "plane":
+            axis = int(np.argmax(np.abs(wall["normal"])))
+            (lo if wall["normal"][axis] > 0 else hi)[axis] = pos[axis]
+        else:
+            radius = float(box.radius) - float(np.linalg.norm(pos - start[b]))
+    if box.shape in ("cylinder", "sphere"):
+        axes = [0, 1] if box.shape == "cylinder" else [0, 1, 2]
+        lo[axes] = box.centre[axes] - radius
+        hi[axes] = box.centre[axes] + radius
+    return lo, hi, radius
+
+
+def wall_stresses(box, walls, bodies, inward, lo, hi, radius):
+    """Normal stress of each wall, Pa: the spheres' force on its bodies along the outward
+    direction over its area now."""
+    size = hi - lo
+    out = np.zeros(len(walls))
+    for w, wall in enumerate(walls):
+        push = sum(-np.dot([O.forces.f(b)[j] for j in range(3)], inward[b]) for b in bodies[w])
+        if wall["kind"] == "plane":
+            axis = int(np.argmax(np.abs(wall["normal"])))
+            area = np.pi * radius ** 2 if box.shape == "cylinder" else \
+                float(np.prod(np.delete(size, axis)))
+        elif wall["kind"] == "cylinder":
+            area = 2.0 * np.pi * radius * size[2]
+        else:
+            area = 4.0 * np.pi * radius ** 2
+        out[w] = push / area
+    return out
+
+
+def press_shell(p, box, centres, radii, frozen):
+    """method = "shell": the free shell and its frozen band in YADE, the walls on the carved
+    surface pressed onto the shell until each carries the confining pressure (a servo per wall,
+    the compliance of a column of shell_diameters contacts in Hertz's law), through the direct
+    path's stages (softened modulus, tenfold stiffening, friction on at the real modulus). The
+    radii never change. Returns the pressed state of these spheres (indices into centres)."""
+    stages = stiffness_stages(p)
+    mats, sphere_ids, wall_of_body, collider = build_scene(p, centres, radii, box, stages[0])
+    for k, b in enumerate(sphere_ids):
+        body = O.bodies[int(b)]
+        body.groupMask = FROZEN_MASK if frozen[k] else SHELL_MASK
+        if frozen[k]:
+            body.dynamic = False
+    collider.avoidSelfInteractionMask = FROZEN_ONLY
+    walls = box.walls()
+    bodies, inward = wall_geometry(box, walls, wall_of_body)
+    start = {b: np.array([O.bodies[b].state.pos[j] for j in range(3)]) for b in wall_of_body}
+    p_target = p["confining_pressure_pa"]
+    r_mean = float(np.mean(radii))
+    layers = float(p["shell_diameters"])
+    every = 50
+    t0 = time.time()
+    last = -10.0
+    young_now = stages[0]
+    friction_stage = p["friction"] != p["compaction_friction"]
+    if friction_stage:
+        stages = stages + [stages[-1]]
+    for k, young in enumerate(stages):
+        if young != young_now:
+            set_young(mats, young, young_now)
+            young_now = young
+        final = k == len(stages) - 1
+        if final and friction_stage:
+            friction_on(mats, p["friction"])
+        label = ", friction on" if final and friction_stage else ""
+        unbalanced_target = p["unbalanced_force_target"] if final else \
+            max(p["unbalanced_force_target"], 1e-2)
+        e_star = young / (2.0 * (1.0 - p["poisson"] ** 2))
+        overlap_scale = (p_target / e_star) ** (2.0 / 3.0)   # typical delta/R at the target
+        # a wall moves at most this far per control interval: free, up to 1 % of a radius;
+        # pressing, a few overlaps of its column of contacts
+        max_move = r_mean * min(1e-2, 2.0 * layers * overlap_scale)
+        settled = 0
+        while True:
+            O.run(every, True)
+            lo, hi, radius = wall_extent(box, walls, bodies, start)
+            ratio = wall_stresses(box, walls, bodies, inward, lo, hi, radius) / p_target
+            unbalanced = utils.unbalancedForce()
+            if np.all(np.abs(ratio - 1.0) < p["pressure_tolerance"]) and \
+                    unbalanced < unbalanced_target:
+                settled += 1
+            else:
+                settled = 0
+            if settled >= 2:
+                break
+            # Hertz: a column of `layers` contacts of overlap ~ overlap_scale r shortens by
+            # layers r overlap_scale ((p_t/p)^(2/3) - 1) to bring its stress from p to p_t
+            move = np.where(ratio > 0, 0.5 * layers * overlap_scale * r_mean
+                            * (np.maximum(ratio, 1e-12) ** (-2.0 / 3.0) - 1.0), max_move)
+            move = np.clip(move, -max_move, max_move) if settled == 0 else 0.0 * move
+            for w in range(len(walls)):
+                for b in bodies[w]:
+                    v = inward[b] * (move[w] / (every * O.dt))
+                    O.bodies[b].state.vel = Vector3(*(float(x) for x in v))
+            now = time.time() - t0
+            if now - last > 3.0:
+                last = now
+                log(f"shell: E {young:.3g} Pa ({k + 1}/{len(stages)}{label}), step {O.iter}, "
+                    f"wall stress/target {ratio.min():.3f} ... {ratio.max():.3f}, "
+                    f"unbalanced {unbalanced:.3g}, {now:.0f} s")
+            if now > p["max_seconds"]:
+                fail(f"max_seconds: the shell was not pressed after {now:.0f} s (wall "
+                     f"stress/target {ratio.min():.3f} ... {ratio.max():.3f}, unbalanced "
+                     f"{unbalanced:.3g})", code=3)
+        for b in wall_of_body:
+            O.bodies[b].state.vel = Vector3(0, 0, 0)
+        log(f"shell: E {young:.3g} Pa ({k + 1}/{len(stages)}{label}) relaxed at step {O.iter}: "
+            f"wall stress/target {ratio.min():.4f} ... {ratio.max():.4f}, unbalanced "
+            f"{unbalanced:.3g}, {time.time() - t0:.0f} s")
+    steps = O.iter
+    unbalanced = utils.unbalancedForce()
+    pressure = float(np.mean(ratio)) * p_target
+    # the dump's contacts: YADE's forces of exactly the final geometry (as in the direct path)
+    O.interactions.clear()
+    collider.doSort = True
+    O.engines[-1].dead = True
+    O.step()
+    lo, hi, radius = wall_extent(box, walls, bodies, start)
+    pressure_normal = float(np.mean(wall_stresses(box, walls, bodies, inward, lo, hi, radius)))
+    index_of = {int(b): k for k, b in enumerate(sphere_ids)}
+    position = np.array([[O.bodies[int(b)].state.pos[j] for j in range(3)] for b in sphere_ids])
+    force, wall_touch = {}, {}
+    for i in O.interactions:
+        if not i.isReal:
+            continue
+        a, b = i.id1, i.id2
+        if a in index_of and b in index_of:
+            force[tuple(sorted((index_of[a], index_of[b])))] = i.phys.normalForce.norm()
+        else:
+            particle, body = (index_of[b], a) if b in index_of else (index_of[a], b)
+            key = (particle, wall_of_body[body])
+            depth = i.geom.penetrationDepth
+            if key not in wall_touch or depth > wall_touch[key][0]:
+                wall_touch[key] = (depth, i.phys.normalForce.norm())
+    return dict(position=position, lo=lo, hi=hi, radius=radius, force=force,
+                wall_touch=wall_touch, steps=int(steps), seconds=time.time() - t0,
+                unbalanced=float(unbalanced), pressure=pressure,
+                pressure_normal=pressure_normal)
+
+
+def shell_state(p, state):
+    """method = "shell": tile and carve as method = "tiled" (keeping only the spheres wholly
+    inside), then press walls onto a shell of shell_diameters mean diameters (press_shell);
+    returns the state of the pressed domain and the tiling's and shell's attributes."""
+    carved, cell_info = tiled_state(p, state)
+    box, position, radius = carved["box"], carved["position"], carved["radius"]
+    shell_m = p["shell_diameters"] * 2.0 * float(radius.mean())
+    band_m = shell.frozen_band_m(radius, p["gap_tolerance"])
+    whole, free, band = shell.split(box, position, radius, shell_m, band_m)
+    _, rows, pair = carve(whole, carved["pair"])
+    kept = (pair,) + tuple(carved[k][rows] for k in ("branch", "overlap", "normal_force",
+                                                     "contact_radius"))
+    position, radius, free, band = position[whole], radius[whole], free[whole], band[whole]
+    sub = np.flatnonzero(free | band)
+    log(f"shell: {int((~whole).sum())} spheres cut by the surface removed; {int(free.sum())} "
+        f"free in a shell of {shell_m:.4g} m ({p['shell_diameters']:g} mean diameters), "
+        f"{int(band.sum())} frozen behind it ({band_m:.4g} m), {len(radius) - len(sub)} "
+        f"interior spheres stay as tiled")
+    pressed = press_shell(p, box, position[sub], radius[sub], band[sub])
+    position = position.copy()
+    position[sub] = pressed["position"]
+    position -= pressed["lo"]
+    new_box = shell.pressed_box(box.shape, pressed["lo"], pressed["hi"], pressed["radius"])
+    s_pair, s_branch, s_overlap, s_force, s_radius, n_untracked = relaxed_contacts(
+        position[sub], radius[sub], p["gap_tolerance"], None, pressed["force"])
+    pair, branch, overlap, normal_force, contact_radius = shell.merge_contacts(
+        free, kept, (sub[s_pair], s_branch, s_overlap, s_force, s_radius))
+    walls = new_box.walls()
+    wall_particle, wall_index, wall_overlap, wall_force = relaxed_wall_contacts(
+        new_box, walls, position[sub], radius[sub], p["wall_gap_tolerance"],
+        pressed["wall_touch"])
+    info = dict(cell_info, shell_diameters=float(p["shell_diameters"]),
+                shell_thickness_m=shell_m, frozen_band_m=band_m,
+                shell_free_particles=int(free.sum()), shell_frozen_particles=int(band.sum()),
+                shell_cut_particles_removed=int((~whole).sum()),
+                shell_steps=pressed["steps"], shell_seconds=pressed["seconds"],
+                cell_steps=int(state["compress_steps"]),
+                carved_size_m=np.asarray(box.size, dtype=float))
+    log(f"shell: pressed in {pressed['seconds']:.1f} s, {pressed['steps']} DEM steps: domain "
+        f"{new_box.size[0]:.5g} x {new_box.size[1]:.5g} x {new_box.size[2]:.5g} m (carved "
+        f"{box.size[0]:.5g} x {box.size[1]:.5g} x {box.size[2]:.5g}), wall stress "
+        f"{pressed['pressure']:.4g} Pa, unbalanced {pressed['unbalanced']:.3g}")
+    return dict(state, box=new_box, position=position, radius=radius, pair=pair, branch=branch,
+                overlap=overlap, normal_force=normal_force, contact_radius=contact_radius,
+                walls=walls, wall_particle=sub[wall_particle], wall_index=wall_index,
+                wall_overlap=wall_overlap, wall_force=wall_force, periodic=False,
+                n=len(radius), sphere_ids=None, unbalanced=pressed["unbalanced"],
+                pressure=pressed["pressure"], pressure_normal=pressed["pressure_normal"],
+                compress_seconds=state["compress_seconds"] + pressed["seconds"],
+                compress_steps=int(state["compress_steps"]) + pressed["steps"],
+                n_untracked=n_untracked), info
+
+
 def domain_attrs(p, state, phi, phi_bulk, n_dispersed, cell_info, t0):
     """The root attributes of packing.h5."""
     n, pair = state["n"], state["pair"]
@@ -459,7 +697,7 @@ def domain_attrs(p, state, phi, phi_bulk, n_dispersed, cell_info, t0):
         "sphere_facet_level": p["sphere_facet_level"],
         "wall_contact_model": "Hertz with R* = r and E* = E / (2 (1 - nu^2)): a flat wall of "
                               "the particles' material (curved walls: facets, locally flat)"
-        if p["method"] == "direct" else
+        if p["method"] in ("direct", "shell") else
         "cut surface of a tiled periodic packing: spheres within (1 + wall_gap_tolerance) r "
         "of it, overlap = r - distance, no force (nothing was pressed against them)",
         "method": p["method"], "time_step": p["time_step"], "cell_packing": p["cell_packing"],
@@ -475,11 +713,19 @@ def domain_attrs(p, state, phi, phi_bulk, n_dispersed, cell_info, t0):
     }
 
 
+METHOD_LINE = {
+    "direct": "the whole domain relaxed with its walls",
+    "tiled": "copies of a relaxed periodic cell, carved: cut faces, no walls",
+    "shell": "copies of a relaxed periodic cell, carved, walls pressed onto a shell along them",
+}
+
+
 def main():
     import_yade()
     p = read_params()
     t0 = time.time()
-    tiled = p["method"] == "tiled"
+    tiled = p["method"] in ("tiled", "shell")       # both copy a relaxed periodic cell
+    log(f"method: {p['method']} ({METHOD_LINE[p['method']]})")
     # build and relax (or read a relaxed cell)
     if tiled and p["cell_packing"]:
         state = read_cell_packing(p)
@@ -489,7 +735,7 @@ def main():
     if tiled:
         if not p["cell_packing"]:
             write_cell(p, state)
-        state, cell_info = tiled_state(p, state)
+        state, cell_info = (shell_state if p["method"] == "shell" else tiled_state)(p, state)
     # measure
     position, radius, box, periodic = (state[k] for k in ("position", "radius", "box",
                                                            "periodic"))

@@ -49,17 +49,24 @@ PARAMS = {
     "stiffen_factor": dict(kind="float", default=10.0, minimum=1.5,
                            help="factor by which E is raised per stage from the softened start "
                                 "to young_pa, -"),
-    "method": dict(kind="str", default="direct", choices=["direct", "tiled"],
+    "method": dict(kind="str", default="auto", choices=["auto", "direct", "tiled", "shell"],
                    help="direct: relax all n_particles in the domain with its walls; tiled: "
                         "relax a periodic cell of cell_particles spheres, copy it side by side "
                         "and carve the domain out of the copies (no walls pressed on the "
-                        "spheres; periodicity length = the cell)"),
+                        "spheres; periodicity length = the cell); shell: as tiled, then walls "
+                        "pressed onto a shell of shell_diameters along them (the interior "
+                        "stays as tiled); auto: direct up to 20,000 spheres (and for a "
+                        "periodic domain), shell above"),
+    "shell_diameters": dict(kind="float", default=4.0, minimum=1.0,
+                            help="shell: thickness of the shell relaxed against the walls, in "
+                                 "mean diameters"),
     "cell_particles": dict(kind="int", default=10000, minimum=20,
-                           help="tiled: spheres in the periodic cell that is copied"),
+                           help="tiled, shell: spheres in the periodic cell that is copied"),
     "cell_packing": dict(kind="str", default="",
-                         help="tiled: a periodic packing.h5 made earlier (shape \"periodic\", "
-                              "same young_pa, poisson, confining_pressure_pa, gap_tolerance) to "
-                              "copy instead of relaxing a new cell; its seed and radii are kept"),
+                         help="tiled, shell: a periodic packing.h5 made earlier (shape "
+                              "\"periodic\", same young_pa, poisson, confining_pressure_pa, "
+                              "gap_tolerance) to copy instead of relaxing a new cell; its seed "
+                              "and radii are kept"),
     "damping": dict(kind="float", default=0.5, minimum=0.0,
                     help="YADE's non-viscous (local) damping of the compression, 0..1"),
     "unbalanced_force_target": dict(kind="float", default=1e-3, minimum=1e-9,
@@ -98,6 +105,14 @@ PARAMS = {
 }
 
 
+def finish(p):
+    """Resolve method = "auto" to the method it stands for (yade_scripts/shell.py
+    resolve_method: direct up to AUTO_SHELL_ABOVE spheres and for periodic domains, shell
+    above), so that params.json and the packing name the method used."""
+    from .shell import resolve_method
+    p["method"] = resolve_method(p["shape"], p["method"], p["n_particles"])
+
+
 def check(p):
     """Cross-field checks of resolved dense parameters: ValueError('key: ...') for the first
     that fails. The domain check draws the seeded radii and sizes the domain exactly as the
@@ -107,15 +122,16 @@ def check(p):
                 or "centre" not in inc or "radius" not in inc:
             raise ValueError(f"inclusions[{k}]: expected {{centre = [fx, fy, fz], radius = f, "
                              "phase = id}")
-    tiled = p["method"] == "tiled"
+    tiled = p["method"] in ("tiled", "shell")       # both copy a relaxed periodic cell
     if not tiled and p["cell_packing"]:
-        raise ValueError("cell_packing: only used with method = \"tiled\"")
+        raise ValueError("cell_packing: only used with method = \"tiled\" or \"shell\"")
     if tiled and p["shape"] == "periodic":
-        raise ValueError("method: \"tiled\" carves a box, cylinder or sphere out of copies of a "
-                         "periodic cell; for a periodic domain use method = \"direct\"")
+        raise ValueError(f"method: \"{p['method']}\" carves a box, cylinder or sphere out of "
+                         "copies of a periodic cell; for a periodic domain use method = "
+                         "\"direct\"")
     if tiled and not p["cell_packing"] and p["n_particles"] < p["cell_particles"]:
         raise ValueError(f"cell_particles: expected at most n_particles ({p['n_particles']}) for "
-                         f"method = \"tiled\", got {p['cell_particles']}")
+                         f"method = \"{p['method']}\", got {p['cell_particles']}")
     if not (tiled and p["cell_packing"]):       # YADE relaxes a cloud: can it be made?
         from . import dense_geometry
         dense_geometry.cloud_domain(dense_geometry.relaxed_params(p),

@@ -115,6 +115,9 @@ def resolve_and_check(generator, table):
     """Defaults filled in, every key checked, then the cross-field checks: what ``tdem pack``
     and the YADE scripts run on a parameter table."""
     p = resolve(load_schema(generator), table)
+    finish = getattr(schema_module(generator), "finish", None)
+    if finish is not None:      # values that stand for others (dense: method = "auto")
+        finish(p)
     check(generator, p)
     return p
 

@@ -1,0 +1,91 @@
+"""method = "shell" (issue 24): a walled domain from a tiled periodic cell, relaxed only near
+its walls. numpy only (runs under YADE and in the tests); the YADE part is
+``dense_packing.press_shell``.
+
+The tiled path (tiling.py) fills the domain with copies of a relaxed periodic cell and carves it:
+its faces are cut surfaces, a different material at the boundary from a packing pressed into a
+container (looser, layered, with real wall forces). Here the carved domain keeps only the spheres
+that lie wholly inside it, so plane walls (or the container's facets) can be put on its surface;
+the spheres within ``shell_diameters`` mean diameters of the surface (the shell) are free, the
+next ``FROZEN_DIAMETERS`` (the frozen band) are held where the cell put them as the shell's inner
+boundary, and the interior does not enter YADE at all. YADE then presses the walls onto the shell
+to the confining pressure (servo-controlled walls, the direct path's softened-modulus stages), so
+the cost grows with the surface, not the volume. Contacts between two spheres that did not move
+keep the cell's values; every contact of a shell sphere and every wall contact is YADE's.
+"""
+import numpy as np
+
+from .dense_geometry import Container
+
+# The frozen band must hold every sphere a shell sphere can touch: two of the largest diameters
+# (a Gaussian σ/μ 0.3 truncated at 2σ has r_max = 1.6 r_mean, so 3.2 mean diameters) with the
+# neighbour criterion's margin; it is sized from the actual radii (frozen_band_m).
+FROZEN_MARGIN = 1.2
+
+# Above this many spheres a walled domain (box, cylinder, sphere) with method = "auto" is made by
+# the shell path; at or below it by the direct relaxation (~4 min at 1e4 on one YADE thread).
+AUTO_SHELL_ABOVE = 20000
+
+
+def resolve_method(shape, method, n_particles):
+    """The method "auto" stands for: direct for a periodic domain and for walled domains of at
+    most AUTO_SHELL_ABOVE spheres, shell above; any other method is kept."""
+    if method != "auto":
+        return method
+    if shape == "periodic" or n_particles <= AUTO_SHELL_ABOVE:
+        return "direct"
+    return "shell"
+
+
+def boundary_distance(box, position):
+    """Distance of each centre to the nearest wall of the domain (positive inside)."""
+    return np.min([box.distance_to_wall(w, position) for w in box.walls()], axis=0)
+
+
+def frozen_band_m(radius, gap_tolerance):
+    """Thickness of the frozen band: a shell sphere's reach (its diameter plus a neighbour's,
+    with the neighbour criterion's margin) for the largest spheres."""
+    return 2.0 * float(np.max(radius)) * (1.0 + gap_tolerance) * FROZEN_MARGIN
+
+
+def split(box, position, radius, shell_m, band_m):
+    """(whole, shell, band): spheres wholly inside the domain (the only ones kept: a wall can
+    then sit on its surface), and among them those of the free shell (centre within shell_m of
+    the surface) and of the frozen band behind it (the next band_m)."""
+    distance = boundary_distance(box, position)
+    whole = distance >= radius
+    shell = whole & (distance < shell_m)
+    band = whole & ~shell & (distance < shell_m + band_m)
+    return whole, shell, band
+
+
+def merge_contacts(moved, kept, new):
+    """The contacts of the pressed domain: ``kept`` = (pair, *columns) of the tiled domain,
+    whose rows between two spheres that did not move stay as they are; ``new`` = (pair,
+    *columns) from YADE's state of the free and frozen spheres, in global indices, whose rows
+    touching a moved sphere replace the rest. Returns (pair, *columns)."""
+    pair_k, pair_n = kept[0], new[0]
+    stay = ~(moved[pair_k[:, 0]] | moved[pair_k[:, 1]])
+    fresh = moved[pair_n[:, 0]] | moved[pair_n[:, 1]]
+    return tuple(np.concatenate([a[stay], b[fresh]]) for a, b in zip(kept, new))
+
+
+def pressed_box(shape, lo, hi, radius_m=float("nan")):
+    """The Container of the pressed domain between wall positions lo and hi (the box's walls,
+    or the cylinder's caps and mantle radius, the sphere's radius): the domain is what the
+    walls enclose after pressing, not the size the cell was carved to."""
+    size = np.asarray(hi, dtype=float) - np.asarray(lo, dtype=float)
+    if shape == "box":
+        box = Container("box", float(np.prod(size)), size / size.max())
+        box.size = size.copy()
+    elif shape == "cylinder":
+        box = Container("cylinder", float(np.pi * radius_m ** 2 * size[2]),
+                        [1.0, 1.0, size[2] / (2 * radius_m)])
+        box.radius = float(radius_m)
+        box.size = np.array([2 * radius_m, 2 * radius_m, size[2]])
+    else:
+        box = Container("sphere", float(4.0 / 3.0 * np.pi * radius_m ** 3), [1.0, 1.0, 1.0])
+        box.radius = float(radius_m)
+        box.size = np.full(3, 2 * radius_m)
+    box.centre = box.size / 2
+    return box
