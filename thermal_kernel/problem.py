@@ -79,10 +79,12 @@ def build_problem(scene: Scene, packing: Packing):
     choice = choose_neighbours(scene, packing)
     keep = None if choice is None else choice.keep
     contacts, particles = build_law_inputs(scene, packing, keep)
-    conductance = np.asarray(law.conductance(contacts, params), dtype=np.float64)
+    with np.errstate(all="ignore"):     # a value out of range is said below, in one line
+        conductance = np.asarray(law.conductance(contacts, params), dtype=np.float64)
+        capacity = np.asarray(law.capacity(particles, params), dtype=np.float64)
     if keep is not None:
         conductance = np.where(keep, conductance, 0.0)
-    capacity = np.asarray(law.capacity(particles, params), dtype=np.float64)
+    _check_law_output(scene, law, conductance, capacity)
 
     young, poisson = mechanical_properties(scene, packing)
     ctx = BuildContext(scene=scene, packing=packing, law=law, params=params,
@@ -91,6 +93,7 @@ def build_problem(scene: Scene, packing: Packing):
     rows = Rows()
     for index, b in enumerate(scene.boundaries):
         b.contribute(ctx, index, rows)
+    _check_rows(scene, packing, rows)
 
     fixed_particle = _cat(rows.fixed_p, np.int64)
     fixed_temperature = _cat(rows.fixed_t, np.float64)
@@ -128,6 +131,77 @@ def build_problem(scene: Scene, packing: Packing):
     info = {"law_params": params, "particles_on_two_temperature_boundaries": n_shared,
             "neighbours": choice}
     return problem, info
+
+
+def _scene_inputs(scene: Scene, keys) -> str:
+    """The scene's own values of ``keys`` ([material] and every phase, then [law_params]) as
+    ``material.density = 1e-320, ...``: what a law's non-finite output came from."""
+    out = []
+    for phase, m in sorted(scene.materials.items()):
+        where = "material" if phase == 0 else f"material.{phase}"
+        out += [f"{where}.{k} = {getattr(m, k):g}" for k in keys if hasattr(m, k)]
+    if "young_pa" in keys and not math.isnan(scene.young_pa):
+        out.append(f"material.young_pa = {scene.young_pa:g}")
+    if "poisson" in keys and not math.isnan(scene.poisson):
+        out.append(f"material.poisson = {scene.poisson:g}")
+    out += [f"law_params.{k} = {v!r}" for k, v in sorted(scene.law_params.items())]
+    return ", ".join(out)
+
+
+def _check_law_output(scene: Scene, law, conductance, capacity) -> None:
+    """A law's H and C computed from the scene's numbers, refused in one line naming the scene
+    keys they came from (not the solvers' arrays) when a value is out of floating-point range:
+    H not finite or < 0, C not finite or <= 0."""
+    bad = ~np.isfinite(capacity) | (capacity <= 0)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise SceneError(
+            f"{scene.path}: {_scene_inputs(scene, ('density', 'heat_capacity'))}: law "
+            f"{law.name!r} gives a heat capacity C = {capacity[k]:g} J/K for {int(bad.sum())} "
+            f"of {capacity.size} particles (first: particle {k}); expected numbers whose "
+            "product rho c_p V is finite and > 0")
+    bad = ~np.isfinite(conductance) | (conductance < 0)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise SceneError(
+            f"{scene.path}: "
+            f"{_scene_inputs(scene, ('conductivity', 'young_pa', 'poisson'))}: law "
+            f"{law.name!r} gives a conductance H = {conductance[k]:g} W/K for "
+            f"{int(bad.sum())} of {conductance.size} contacts (first: contact {k}); expected "
+            "numbers for which the law's H is finite and >= 0")
+
+
+def _check_rows(scene: Scene, packing: Packing, rows) -> None:
+    """What the boundaries' rows cannot mean, refused in one line: a temperature boundary whose
+    particles are all held already by one listed before it (it would hold nothing: "the first
+    listed wins" applies to shared edges, not to a whole wall), and a flux whose particles are
+    all held (its power would go straight into the held temperature, heating nothing)."""
+    held = np.zeros(packing.n_particles, bool)
+    held_by = np.full(packing.n_particles, -1)
+    for p, b in zip(rows.fixed_p, rows.fixed_b):
+        index = int(b[0]) if b.size else -1
+        if p.size and held[p].all():
+            first = int(held_by[p[0]])
+            raise SceneError(
+                f"{scene.path}: boundary[{index}].on: every particle of "
+                f"{scene.boundaries[index].on!r} is already held by boundary[{first}] "
+                f"({scene.boundaries[first].name!r}, listed first), so "
+                f"{scene.boundaries[index].name!r} would hold nothing; expected one temperature "
+                "boundary per wall or face")
+        fresh = p[~held[p]]
+        held[fresh] = True
+        held_by[fresh] = index
+    for p, b in zip(rows.pow_p, rows.pow_b):
+        index = int(b[0]) if b.size else -1
+        if p.size and held[p].all():
+            first = int(held_by[p[0]])
+            bnd = scene.boundaries[index]
+            raise SceneError(
+                f"{scene.path}: boundary[{index}].on: every sphere of {bnd.on!r} is held at a "
+                f"temperature by boundary[{first}] ({scene.boundaries[first].name!r}): a "
+                f"{bnd.kind} there would pass straight into that held temperature and heat "
+                "nothing; expected a face whose spheres are free (or no temperature boundary "
+                "on it)")
 
 
 def _cat(parts, dtype):

@@ -41,6 +41,9 @@ def parse_boundary(t) -> BoundaryKind:
     kind = t.string("kind", choices=tuple(BOUNDARIES))
     cls = BOUNDARIES[kind]
     b = cls.parse(t)
+    if not b.name.strip():
+        t.fail("name", f"expected a non-empty name (it labels the boundary in the outputs), "
+                       f"got {b.name!r}")
     if t.table:                       # the first leftover key, as _Table.done() reports it
         key = min(t.table)
         owners = [k for k, c in BOUNDARIES.items() if c is not cls and key in keys(c)]

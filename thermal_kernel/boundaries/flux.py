@@ -4,8 +4,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-import numpy as np
-
 from .base import FACES, BoundaryKind, BuildContext, Rows, members
 
 
@@ -13,10 +11,12 @@ from .base import FACES, BoundaryKind, BuildContext, Rows, members
 class FluxBoundary(BoundaryKind):
     """A constant heat flux q = ``value`` (W/m^2, > 0 into the packing) through a domain face.
 
-    The total power q A (W), A the area of the face of the domain's box, enters the spheres
+    The total power q A (W), A the bed's section normal to the face (pi R^2 for a cylinder
+    wall along that axis, else the face of the domain's box), enters the spheres
     that reach the face, shared in proportion to their cross-sections:
-    P_p = q A r_p^2 / sum_f r_f^2. Constant in time; the maximum principle does not apply to a
-    scene with non-zero flux.
+    P_p = q A r_p^2 / sum_f r_f^2. Constant in time; the maximum principle's bounds widen by
+    what it can add (thermal_kernel.solvers.max_principle_bounds). A flux on a face whose
+    spheres are all held by a temperature boundary is refused (it would heat nothing).
 
     Keys: ``on`` (a domain face xmin..zmax of a non-periodic axis), ``value`` (W/m^2, any
     sign), ``name`` (default ``flux:<on>``).
@@ -39,10 +39,19 @@ class FluxBoundary(BoundaryKind):
         rows.power(index, p, self.value * area * share / share.sum())
 
     def face_area(self, ctx: BuildContext, where: str) -> float:
-        """A (m^2): the face ``on`` of the domain's box."""
+        """A (m^2): the bed's section normal to the face's axis -- pi R^2 for a cylinder wall
+        along that axis, else the face of the domain's box (the section
+        :func:`~thermal_kernel.calibrate.cross_section` gives calibrate and post). A packing
+        whose section varies along the axis (a sphere container, a cylinder across it) has
+        no such area: refused."""
+        from ..calibrate import cross_section, section_problem
         if self.on not in FACES:
             raise ctx.error(f"{where}.on", f"a flux boundary needs a domain face "
                                            f"({', '.join(FACES)}), got {self.on!r}")
         axis, _ = FACES[self.on]
-        ext = np.delete(ctx.packing.domain_hi - ctx.packing.domain_lo, axis)
-        return float(ext[0] * ext[1])
+        problem = section_problem(ctx.packing, axis)
+        if problem is not None:
+            raise ctx.error(f"{where}.on", f"no face area for a flux on {self.on!r} of "
+                                           f"{ctx.packing.path}: {problem}; expected a face "
+                                           "whose section is a box face or a cylinder's disc")
+        return cross_section(ctx.packing, axis)

@@ -1,12 +1,14 @@
 """``kind = "source"``: a volumetric heat source in a region moving at constant velocity."""
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
+from ..laws.base import sphere_volume
 from .base import BoundaryKind, BuildContext, Rows
 
 SOURCE_SHAPES = ("cylinder", "sphere", "box")
@@ -19,11 +21,23 @@ class SourceBoundary(BoundaryKind):
     ``start_time`` and ``stop_time`` (s) (000, Table 4: a cylinder of radius 4 mm, depth 2 mm
     moving at 3.3 mm/s across a sheet).
 
-    A particle whose centre is inside the region at the mid-time of a step receives
-    S_p = q C_p / (rho_p c_p) (W): q times the continuum volume it represents — V_p for the
-    granular laws, V_p / f_vl (Terreros), V_p / phi (Haddad) — so the source heats the
-    continuum at q whatever the law (:class:`MovingSource`). At most one source per scene;
-    one that never holds a particle centre while it is on within the run is refused.
+    Definition (the same for every law): q is a power per unit of **bulk** volume -- the
+    continuum the packing stands for, as in 000's sheet, where q heats the sheet's volume. Each
+    particle stands for the bulk volume V_p / phi (phi the packing's ``solid_fraction``) and
+    receives S_p = q V_p / phi (W) while its centre is in the region. The total power is thus
+    q x (the bulk volume of the particles whose centres are in the region), on average
+    q x V(region within the bed); where the local solid fraction differs from the bed's mean
+    phi (a region deep in a bed whose mean phi includes the looser wall layer) it differs by
+    phi_local / phi. The law's capacity rule (V_p, V_p / f_vl for Terreros, V_p / phi for
+    Haddad) decides how much the heat raises the temperatures, never how much heat enters.
+
+    In time the power is integrated exactly over each step: a particle receives
+    S_p tau_p / dt over a step of length dt, tau_p the time its centre spends in the region
+    during the step (:class:`MovingSource`), so the energy delivered does not depend on the
+    time step, also when the source crosses particles within one step. A periodic packing
+    wraps the region across its periodic faces. At most one source per scene; a value of 0,
+    and a source that never holds a particle centre while it is on within the run, are
+    refused.
 
     Keys: ``value`` (W/m^3), ``shape`` (cylinder | sphere | box, default cylinder),
     ``centre_m`` (m, at t = 0), ``radius_m`` (m, cylinder and sphere), ``depth_m`` (m,
@@ -58,6 +72,9 @@ class SourceBoundary(BoundaryKind):
             velocity_m_s=t.vector("velocity_m_s", (0.0, 0.0, 0.0)),
             start_time=t.number("start_time", default=0.0, minimum=0.0),
             stop_time=t.number("stop_time", default=math.inf))
+        if b.value == 0:
+            t.fail("value", "expected a power density != 0 W/m^3 (a source of 0 heats nothing: "
+                            "leave the [[boundary]] out)")
         if b.stop_time <= b.start_time:
             t.fail("stop_time", f"expected a time after start_time = {b.start_time:g} s, got "
                                 f"{b.stop_time:g} s (the source would never be on)")
@@ -74,10 +91,32 @@ class SourceBoundary(BoundaryKind):
 
     def term(self, ctx: BuildContext, index: int) -> MovingSource:
         """The source's power S(t0, t1) (W per particle), refused if it heats nothing."""
-        self.check_reaches(ctx, index)
-        particles = ctx.particles
-        return MovingSource(self, ctx.packing.position,
-                            ctx.capacity_j_k / (particles.density * particles.heat_capacity))
+        src = self.moving(ctx, index)
+        self.check_reaches(ctx, index, src)
+        return src
+
+    def moving(self, ctx: BuildContext, index: int) -> MovingSource:
+        """The :class:`MovingSource` on the packing: each particle stands for V_p / phi of
+        bulk (phi the packing's solid fraction), whatever the law."""
+        packing = ctx.packing
+        phi = float(ctx.particles.solid_fraction)
+        if not 0.0 < phi <= 1.0:
+            raise ctx.error(f"boundary[{index}].value", f"the source's power is q x the bulk "
+                            f"volume V_p / phi each particle stands for, and {packing.path}'s "
+                            f"solid_fraction is {phi!r}; expected a packing with 0 < "
+                            "solid_fraction <= 1")
+        length = np.asarray(packing.domain_hi, float) - np.asarray(packing.domain_lo, float)
+        src = MovingSource(self, packing.position, sphere_volume(packing.radius) / phi,
+                           periodic=packing.periodic, length=length)
+        for k in np.flatnonzero(src.wrap):
+            if 2 * src.half[k] > length[k]:
+                key = 'half_size_m' if self.shape == 'box' else 'radius_m'
+                raise ctx.error(f"boundary[{index}].{key}",
+                                f"the {self.shape} source spans {2 * src.half[k]:g} m along "
+                                f"{'xyz'[k]}, more than the periodic cell of {packing.path} "
+                                f"({length[k]:g} m): it would overlap its own periodic image; "
+                                "expected a region narrower than the cell")
+        return src
 
     def window(self, scene) -> tuple[float, float]:
         """The times (t0, t1) over which the source can act in the run: its [start_time,
@@ -88,9 +127,10 @@ class SourceBoundary(BoundaryKind):
             end = self.stop_time if math.isfinite(self.stop_time) else self.start_time
         return max(self.start_time, 0.0), min(self.stop_time, end)
 
-    def check_reaches(self, ctx: BuildContext, index: int) -> None:
+    def check_reaches(self, ctx: BuildContext, index: int, src: MovingSource) -> None:
         """A source whose region never holds a particle centre while it is on heats nothing:
-        refused (one line) rather than run as a silent no-op."""
+        refused (one line) rather than run as a silent no-op. (A moving source on a periodic
+        axis is followed over at most 256 half-cells of travel.)"""
         where = f"boundary[{index}]"
         scene, packing = ctx.scene, ctx.packing
         t0, t1 = self.window(scene)
@@ -98,8 +138,11 @@ class SourceBoundary(BoundaryKind):
             raise ctx.error(f"{where}.start_time", f"the source starts at t = {t0:g} s, after "
                             f"the run ends (end_time = {scene.solver.end_time:g} s); expected "
                             "a start within the run")
-        first, last = source_time_intervals(self, packing.position, t0, t1)
-        if not np.any(first <= last):
+        if t1 > t0:
+            reaches = np.any(src.time_inside(t0, t1, max_pieces=256) > 0)
+        else:
+            reaches = np.any(src.inside(t0))
+        if not reaches:
             moving = any(self.velocity_m_s)
             when = (f"between t = {t0:g} and {t1:g} s" if moving or t1 > t0
                     else f"at t = {t0:g} s")
@@ -161,26 +204,82 @@ def source_time_intervals(b: SourceBoundary, position, t0, t1):
     return first, last
 
 
+def _half_extent(b: SourceBoundary) -> np.ndarray:
+    """(3,) the region's half-extent along x, y, z (inf where it is unbounded)."""
+    if b.shape == "sphere":
+        return np.full(3, float(b.radius_m))
+    if b.shape == "box":
+        return np.asarray(b.half_size_m, dtype=float)
+    a = np.abs(np.asarray(b.axis, dtype=float))
+    a = a / np.linalg.norm(a)
+    out = np.empty(3)
+    for k in range(3):
+        along = a[k] * b.depth_m / 2 if a[k] > 0 else 0.0
+        out[k] = along + b.radius_m * math.sqrt(max(0.0, 1.0 - a[k] ** 2))
+    return out
+
+
+def _invariant_axes(b: SourceBoundary) -> np.ndarray:
+    """(3,) bool: the region is unchanged by a shift along the axis (an endless cylinder along
+    x, y or z): no periodic image is needed there."""
+    if b.shape != "cylinder" or math.isfinite(b.depth_m):
+        return np.zeros(3, bool)
+    a = np.abs(np.asarray(b.axis, dtype=float))
+    a = a / np.linalg.norm(a)
+    return a == 1.0
+
+
 class MovingSource:
-    """The power of a :class:`SourceBoundary` (q W/m^3 in a region moving at constant
-    velocity) as the solvers' ``source(t0, t1) -> (N,) W``.
+    """The power of a :class:`SourceBoundary` as the solvers' ``source(t0, t1) -> (N,) W``: the
+    mean power over the step [t0, t1] (``t0 == t1``: the power at that instant).
 
-    A particle whose centre is inside the region receives q times the continuum volume it
-    represents, C_i / (rho c_p) — V_i for the granular laws, V_i / f_vl (Terreros) or V_i / phi
-    (Haddad) — so the source heats the continuum at q whatever the law. ``source(t0, t1)`` is the
-    power at the mid-time of the step."""
+    Particle p receives q V_p / phi while its centre is in the region (phi the packing's solid
+    fraction: V_p / phi is the bulk volume the particle stands for, the same for every law).
+    Over a step it receives q V_p / phi x tau_p / (t1 - t0), tau_p the exact time its centre
+    spends in the region within the step and within [start_time, stop_time]: the region is
+    convex and moves at constant velocity, so tau_p is one interval (slabs give linear bounds,
+    discs and balls a quadratic; :func:`source_time_intervals`). The energy delivered is
+    therefore the same for any time step (a source crossing a particle within one step still
+    heats it), and the temperatures see the power spread over the step.
 
-    def __init__(self, boundary, position, represented_volume_m3):
+    Periodic axes (``periodic``, cell lengths ``length``): a centre is in the region when one of
+    its periodic images is (minimum image, and the images one cell away over the step; a step
+    that moves the source more than half a cell is cut into pieces that do not). A region wider
+    than the cell along a periodic axis would overlap its own image: refused by
+    :meth:`SourceBoundary.term`."""
+
+    def __init__(self, boundary, position, represented_volume_m3, periodic=(False,) * 3,
+                 length=(math.inf,) * 3):
         self.b = boundary
-        self.position = position
-        self.volume = represented_volume_m3
+        self.position = np.asarray(position, dtype=float)
+        self.volume = np.asarray(represented_volume_m3, dtype=float)
         axis = np.asarray(boundary.axis, dtype=float)
         self.axis = axis / np.linalg.norm(axis)
+        self.velocity = np.asarray(boundary.velocity_m_s, dtype=float)
+        self.half = _half_extent(boundary)
+        invariant = _invariant_axes(boundary)
+        self.periodic = np.asarray(periodic, bool).copy()
+        self.length = np.asarray(length, dtype=float)
+        self.wrap = self.periodic & ~invariant       # axes along which images are needed
+        self._still_mask = None
+
+    # ------------------------------------------------------------------ geometry
+    def centre(self, t):
+        return np.asarray(self.b.centre_m, dtype=float) + self.velocity * t
+
+    def offsets(self, t, idx=None):
+        """Centre - source centre at time t, the minimum image along the periodic axes."""
+        x = self.position if idx is None else self.position[idx]
+        d = x - self.centre(t)
+        if self.periodic.any():
+            L = self.length[self.periodic]
+            d[:, self.periodic] -= L * np.round(d[:, self.periodic] / L)
+        return d
 
     def inside(self, t):
+        """(N,) bool: the centre (or a periodic image of it) is in the region at time t."""
         b = self.b
-        centre = np.asarray(b.centre_m) + np.asarray(b.velocity_m_s) * t
-        d = self.position - centre
+        d = self.offsets(t)
         if b.shape == "sphere":
             return np.einsum("ij,ij->i", d, d) <= b.radius_m ** 2
         if b.shape == "box":
@@ -189,8 +288,73 @@ class MovingSource:
         radial2 = np.einsum("ij,ij->i", d, d) - along ** 2
         return (radial2 <= b.radius_m ** 2) & (np.abs(along) <= b.depth_m / 2)
 
+    def time_inside(self, t0, t1, max_pieces=None):
+        """(N,) s: the time each centre spends in the region within [t0, t1] and within the
+        source's [start_time, stop_time]. ``max_pieces``: at most that many pieces of half a
+        cell's travel on a periodic axis (the rest of the interval is left out; for the
+        reach check only)."""
+        n = self.position.shape[0]
+        a, z = max(float(t0), self.b.start_time), min(float(t1), self.b.stop_time)
+        if not z > a:
+            return np.zeros(n)
+        if not self.velocity.any():                  # a still source: one mask, cached
+            if self._still_mask is None:
+                self._still_mask = self.inside(0.0)
+            return np.where(self._still_mask, z - a, 0.0)
+        pieces = 1
+        if self.wrap.any():
+            travel = np.abs(self.velocity[self.wrap]) * (z - a)
+            pieces = max(1, int(np.max(np.ceil(travel / (0.5 * self.length[self.wrap])))))
+            if max_pieces is not None and pieces > max_pieces:
+                z = a + (z - a) * max_pieces / pieces
+                pieces = max_pieces
+        out = np.zeros(n)
+        edges = np.linspace(a, z, pieces + 1)
+        for s0, s1 in zip(edges[:-1], edges[1:]):
+            self._add_piece(out, s0, s1)
+        return out
+
+    def _add_piece(self, out, s0, s1):
+        """Add to ``out`` the time in [s0, s1] (the source moving less than half a cell)."""
+        h = s1 - s0
+        c0 = self.centre(s0)
+        # candidates: the (periodic) distance to the middle of the region's path over the
+        # piece within its half-extent plus half the travel, on every axis
+        d = self.offsets(s0)
+        m = d - 0.5 * self.velocity * h
+        if self.wrap.any():
+            L = self.length[self.wrap]
+            m[:, self.wrap] -= L * np.round(m[:, self.wrap] / L)
+        near = np.all(np.abs(m) <= self.half + 0.5 * np.abs(self.velocity) * h, axis=1)
+        idx = np.flatnonzero(near)
+        if idx.size == 0:
+            return
+        moved = dataclasses.replace(self.b, centre_m=tuple(c0))
+        shifts = [np.zeros(3)]
+        for k in np.flatnonzero(self.wrap):
+            shifts = [s + e * self.length[k] * np.eye(3)[k] for s in shifts for e in (-1, 0, 1)]
+        base = c0 + d[idx]
+        for s in shifts:
+            first, last = source_time_intervals(moved, base + s, 0.0, h)
+            out[idx] += np.clip(last - first, 0.0, None)
+
+    # ------------------------------------------------------------------ the solvers' term
     def __call__(self, t0, t1):
-        t = 0.5 * (t0 + t1)
-        if t < self.b.start_time or t > self.b.stop_time:
+        t0, t1 = float(t0), float(t1)
+        if t1 > t0:
+            return self.b.value * self.volume * (self.time_inside(t0, t1) / (t1 - t0))
+        if t0 < self.b.start_time or t0 > self.b.stop_time:
             return np.zeros(self.position.shape[0])
-        return np.where(self.inside(t), self.b.value * self.volume, 0.0)
+        return np.where(self.inside(t0), self.b.value * self.volume, 0.0)
+
+    def max_rise_k(self, capacity_j_k, free, t):
+        """(up, down) K: the most the source alone can raise / lower a free particle's
+        temperature by time ``t`` (from 0): max_p q V_p / (phi C_p) times the time it is on
+        (the bound :func:`~thermal_kernel.solvers.check_physics` widens the maximum principle
+        by)."""
+        on = max(0.0, min(float(t), self.b.stop_time) - self.b.start_time)
+        c = np.asarray(capacity_j_k, dtype=float)[free]
+        if c.size == 0 or on == 0.0:
+            return 0.0, 0.0
+        rate = float(np.max(abs(self.b.value) * self.volume[free] / c))
+        return (rate * on, 0.0) if self.b.value > 0 else (0.0, rate * on)

@@ -200,76 +200,147 @@ class blas_threads:
         return False
 
 
-# Every run's physics checks (thermal_kernel/run.py): a temperature outside the range of the
-# initial and boundary temperatures by more than MAX_PRINCIPLE_RTOL x that range (heat sources
-# and prescribed power off), or an energy-ledger residual above LEDGER_RTOL x the energy moved,
-# flags the output. Measured: plain Crank-Nicolson on the 300-sphere bed at dt = 5 s overshoots
-# by 0.48 of the span; the default "rannacher" scheme by at most 5.0e-3 at dt = 40 dt_max (0
-# at dt <= 20 dt_max); the ledger closes to ~1e-15 (explicit) and ~1e-12 (implicit).
+# Every run's physics checks (thermal_kernel/run.py): a temperature outside the maximum
+# principle's bounds by more than MAX_PRINCIPLE_RTOL x their span, or an energy-ledger residual
+# above LEDGER_RTOL x the energy moved, flags the output. Measured: plain Crank-Nicolson on the
+# 300-sphere bed at dt = 5 s overshoots by 0.48 of the span; the default "rannacher" scheme by
+# at most 5.0e-3 at dt = 40 dt_max (0 at dt <= 20 dt_max); the ledger closes to ~1e-15
+# (explicit) and ~1e-12 (implicit).
 MAX_PRINCIPLE_RTOL = 1e-3
 LEDGER_RTOL = 1e-6
+# Temperatures a solid can have: below 0 K none (flag "below_absolute_zero": a heat sink or a
+# negative flux drove the linear model through absolute zero), above TEMPERATURE_MAX_K none
+# either (flag "above_physical_range": the highest melting point known is ~4,300 K and tungsten
+# boils at 5,930 K; constant material properties mean nothing there).
+TEMPERATURE_MAX_K = 1.0e4
 
 
 @dataclass(frozen=True)
 class PhysicsCheck:
-    flags: tuple                 # "max_principle", "energy_ledger" (violations only)
+    flags: tuple                 # "max_principle", "energy_ledger", "below_absolute_zero",
+    #                              "above_physical_range" (violations only)
     messages: tuple              # one line per violation
-    max_principle_checked: bool  # False when a source or prescribed power is on
-    bounds_k: tuple              # (lo, hi) of initial and boundary temperatures (NaN if unchecked)
+    max_principle_checked: bool  # the plain principle: no source and no prescribed power (with
+    #                              them the bounds are widened by what they can add, and checked)
+    bounds_k: tuple              # (lo, hi) at the last output time (+-inf when unbounded)
     overshoot_relative: float    # worst excursion outside the bounds / span (0 inside)
     ledger_relative: float       # worst |ledger residual| / energy moved
 
 
+def max_principle_bounds(net: Network, T0, times) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) (K,) arrays: the bounds every temperature at ``times`` (from t = 0) must lie in.
+
+    [lo0, hi0] is the range of the initial, held and exchange-wall temperatures; a prescribed
+    power P_p (fluxes) and the source S_p(t) widen it by what they can add at most:
+    hi(t) = hi0 + t max_p P_p^+ / C_p + (the source's largest rise by t), lo(t) alike with the
+    negative parts (comparison principle: hi0 + r t, r >= max_p P_p / C_p, is a supersolution
+    of C dT/dt = -(L + G) T + G Tw + P; the explicit update with dt <= dt_max and backward
+    Euler keep it too). A source that cannot bound its rise (no ``max_rise_k``) leaves the
+    bounds infinite."""
+    prob = net.problem
+    T0 = np.broadcast_to(np.asarray(T0, dtype=np.float64), (net.n,))
+    vals = [T0]
+    if net.fixed_particle.size:
+        vals.append(net.held_temperature_k[net.fixed_particle])
+    if net.exchange_particle.size:
+        vals.append(np.asarray(net.exchange_row_temperature_k, dtype=np.float64))
+    allv = np.concatenate(vals)
+    lo0, hi0 = float(allv.min()), float(allv.max())
+    times = np.asarray(times, dtype=np.float64)
+    free = net.free
+    c = net.capacity_j_k[free]
+    pw = np.asarray(net.power_w, dtype=np.float64)[free]
+    up = float(np.max(np.clip(pw, 0, None) / c, initial=0.0))
+    down = float(np.max(np.clip(-pw, 0, None) / c, initial=0.0))
+    with np.errstate(invalid="ignore", over="ignore"):
+        hi = hi0 + np.where(up > 0, up * times, 0.0)
+        lo = lo0 - np.where(down > 0, down * times, 0.0)
+    if prob.source is not None:
+        rise = getattr(prob.source, "max_rise_k", None)
+        for k, t in enumerate(times):
+            if rise is None:
+                lo[k], hi[k] = -math.inf, math.inf
+                continue
+            r_up, r_down = rise(net.capacity_j_k, free, float(t))
+            hi[k] += r_up
+            lo[k] -= r_down
+    return lo, hi
+
+
 def check_physics(net: Network, T0, result: ThermalResult, rtol: float = MAX_PRINCIPLE_RTOL,
                   ledger_rtol: float = LEDGER_RTOL) -> PhysicsCheck:
-    """The maximum principle and the energy ledger of ``result`` (a run from ``T0``).
+    """The maximum principle, the physical range and the energy ledger of ``result`` (a run
+    from ``T0`` at t = 0).
 
-    Maximum principle (checked when the problem has no source and no non-zero prescribed
-    power): every recorded temperature lies in [lo, hi], the range of the initial temperatures,
-    the held temperatures and the exchange walls' temperatures, to ``rtol`` x (hi - lo) (plus
-    1e-12 relative round-off). Ledger: transient runs, max |ledger residual| <= ``ledger_rtol``
-    x the largest energy moved (stored change, boundary and source energies); a steady solve,
+    Maximum principle: every recorded temperature lies in :func:`max_principle_bounds` (the
+    range of the initial, held and exchange-wall temperatures, widened by what the fluxes and
+    the source can add by then) to ``rtol`` x the span (plus 1e-12 relative round-off).
+    Physical range: no temperature below 0 K, none above :data:`TEMPERATURE_MAX_K` (flags
+    whatever the bounds). Ledger: transient runs, max |ledger residual| <= ``ledger_rtol`` x
+    the largest energy moved (stored change, boundary and source energies); a steady solve,
     its heat balance (sum of boundary flows) <= ``ledger_rtol`` x the flows."""
-    prob = net.problem
     flags, messages = [], []
     T = np.asarray(result.temperature_k, dtype=np.float64)
-    T0 = np.broadcast_to(np.asarray(T0, dtype=np.float64), (net.n,))
     lo = hi = math.nan
     overshoot = 0.0
-    checked = prob.source is None and not np.any(np.asarray(net.power_w) != 0)
-    if checked:
-        vals = [T0]
-        if net.fixed_particle.size:
-            vals.append(net.held_temperature_k[net.fixed_particle])
-        if net.exchange_particle.size:
-            vals.append(np.asarray(net.exchange_row_temperature_k, dtype=np.float64))
-        allv = np.concatenate(vals) if vals else np.zeros(0)
-        if allv.size and T.size:
-            lo, hi = float(allv.min()), float(allv.max())
-            span = hi - lo
-            tol = rtol * span + 1e-12 * max(abs(lo), abs(hi))
-            below, above = lo - float(np.nanmin(T)), float(np.nanmax(T)) - hi
-            excess = max(below, above, 0.0)
-            overshoot = excess / span if span > 0 else (math.inf if excess > tol else 0.0)
-            if excess > tol:
-                k, p = np.unravel_index(np.nanargmax(T) if above >= below else np.nanargmin(T),
-                                        T.shape)
-                flags.append("max_principle")
-                messages.append(
-                    f"max_principle: T = {T[k, p]:.6g} K at particle {p}, t = "
-                    f"{float(result.times[k]):.6g} s, outside [{lo:.6g}, {hi:.6g}] K (initial and "
-                    f"boundary temperatures) by {overshoot:.2g} of the span ({result.method}, "
-                    f"dt = {result.dt:.4g} s: reduce dt; docs/solvers.md, stiff modes)")
+    # the plain principle (no power, no source): what max_principle_checked has always meant
+    checked = net.problem.source is None and not np.any(np.asarray(net.power_w) != 0)
+    if T.size:
+        los, his = max_principle_bounds(net, T0, result.times)
+        lo, hi = float(los[-1]), float(his[-1])
+        widened = bool(np.any(np.isfinite(los) | np.isfinite(his)))
+        with np.errstate(invalid="ignore", over="ignore"):
+            span = his - los
+            span = np.where(np.isfinite(span), span, max(float(np.ptp(T[np.isfinite(T)]))
+                                                         if np.isfinite(T).any() else 0.0, 0.0))
+            tol = rtol * span + 1e-12 * np.maximum(np.abs(np.where(np.isfinite(los), los, 0)),
+                                                   np.abs(np.where(np.isfinite(his), his, 0)))
+            below = los[:, None] - T
+            above = T - his[:, None]
+            excess = np.fmax(np.fmax(below, above), 0.0)
+            bad = excess > tol[:, None]
+        if widened and np.any(bad):
+            rel = np.where(span[:, None] > 0, excess / np.where(span > 0, span, 1.0)[:, None],
+                           np.where(bad, math.inf, 0.0))
+            k, p = np.unravel_index(int(np.nanargmax(np.where(bad, rel, -1.0))), T.shape)
+            overshoot = float(rel[k, p])
+            flags.append("max_principle")
+            messages.append(
+                f"max_principle: T = {T[k, p]:.6g} K at particle {p}, t = "
+                f"{float(result.times[k]):.6g} s, outside [{los[k]:.6g}, {his[k]:.6g}] K (initial "
+                "and boundary temperatures, widened by what fluxes and sources can add) by "
+                f"{overshoot:.2g} of the span ({result.method}, dt = {result.dt:.4g} s: reduce "
+                "dt; docs/solvers.md, stiff modes)")
+        elif widened:
+            with np.errstate(invalid="ignore"):
+                ok = span > 0
+                overshoot = float(np.max(np.where(ok[:, None], excess / np.where(ok, span, 1.0)[
+                    :, None], 0.0), initial=0.0))
+        tmin, tmax = float(np.nanmin(T)), float(np.nanmax(T))
+        if tmin < 0.0:
+            k, p = np.unravel_index(int(np.nanargmin(T)), T.shape)
+            flags.append("below_absolute_zero")
+            messages.append(f"below_absolute_zero: T = {tmin:.6g} K at particle {p}, t = "
+                            f"{float(result.times[k]):.6g} s: no temperature is below 0 K (a "
+                            "heat sink or a negative flux larger than the bed can give)")
+        if tmax > TEMPERATURE_MAX_K:
+            k, p = np.unravel_index(int(np.nanargmax(T)), T.shape)
+            flags.append("above_physical_range")
+            messages.append(f"above_physical_range: T = {tmax:.6g} K at particle {p}, t = "
+                            f"{float(result.times[k]):.6g} s, above {TEMPERATURE_MAX_K:g} K "
+                            "(no solid there: the constant properties mean nothing)")
     if result.method == "steady":
         bal = abs(float(result.info.get("heat_balance_relative", 0.0)))
         ledger = bal if math.isfinite(bal) else math.inf
     else:
-        resid = np.abs(result.ledger_residual_j())
-        scale = max(float(np.nanmax(np.abs(result.stored_energy_j), initial=0.0)),
-                    float(np.nanmax(np.abs(result.boundary_energy_j).sum(axis=1), initial=0.0)),
-                    float(np.nanmax(np.abs(result.source_energy_j), initial=0.0)), 1e-300)
-        ledger = float(np.nanmax(resid, initial=0.0)) / scale if resid.size else 0.0
-        if not np.all(np.isfinite(resid)):
+        with np.errstate(invalid="ignore", over="ignore"):
+            resid = np.abs(result.ledger_residual_j())
+            scale = max(float(np.nanmax(np.abs(result.stored_energy_j), initial=0.0)),
+                        float(np.nanmax(np.abs(result.boundary_energy_j).sum(axis=1),
+                                        initial=0.0)),
+                        float(np.nanmax(np.abs(result.source_energy_j), initial=0.0)), 1e-300)
+            ledger = float(np.nanmax(resid, initial=0.0)) / scale if resid.size else 0.0
+        if not np.all(np.isfinite(resid)) or not math.isfinite(ledger):
             ledger = math.inf
     if ledger > ledger_rtol:
         flags.append("energy_ledger")
@@ -291,5 +362,5 @@ from .implicit import run_implicit  # noqa: E402
 from .steady import solve_steady  # noqa: E402
 
 __all__ = ["run_explicit", "run_implicit", "solve_steady", "explicit_step_reference",
-           "check_physics", "PhysicsCheck",
+           "check_physics", "max_principle_bounds", "PhysicsCheck", "TEMPERATURE_MAX_K",
            "ThermalResult", "SolverState", "UnstableTimeStepError"]
