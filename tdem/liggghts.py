@@ -170,8 +170,9 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
     """Read the dumps, build the packing, write it (validated) to ``out``; return (packing,
     stats line items)."""
     from thermal_kernel import contact_check
-    from thermal_kernel.atomic import replacing
-    from thermal_kernel.packing import Packing, PackingError, read_packing, write_packing
+    from thermal_kernel.atomic import write_bytes_atomic
+    from thermal_kernel.packing import (OVERLAP_RTOL, Packing, PackingError, packing_image,
+                                        read_packing_image)
 
     for key, value, low, high in (("--young", young, 0, math.inf),
                                   ("--poisson", poisson, -1, 0.5)):
@@ -180,7 +181,17 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
                             "values of your input's fix property/global)")
         if not (math.isfinite(value) and low < value < high):
             raise UserError(f"{key}: expected a number in ({low}, {high}), got {value!r}")
+    if density is not None and not (math.isfinite(density) and density > 0):
+        raise UserError(f"--density: expected a density > 0 in kg/m^3, got {density!r}")
+    if pressure is not None and not (math.isfinite(pressure) and pressure >= 0):
+        raise UserError(f"--pressure-pa: expected a pressure >= 0 in Pa, got {pressure!r} (leave "
+                        "it out to measure it from the walls' forces)")
     out = Path(out)
+    for what, given in (("atoms", atoms_path), ("pairs", pairs_path), ("walls", walls_path)):
+        if given is not None and out.exists() and Path(given).exists() \
+                and out.resolve() == Path(given).resolve():
+            raise UserError(f"{out}: -o: is the {what} dump given as input; expected a new "
+                            "file name for the packing (the dump would be overwritten)")
     if out.suffix.lower() != ".h5":
         raise UserError(f"{out}: -o: expected a file name ending in .h5")
     if out.is_dir() or not out.parent.is_dir():
@@ -214,6 +225,9 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
     n = d.shape[0]
     if n == 0:
         raise UserError(f"{atoms_path}: ITEM: ATOMS: no atoms at timestep {a.timestep}")
+    _integers(atoms_path, "id", d[:, col["id"]], "atom id")
+    if "type" in col:
+        _integers(atoms_path, "type", d[:, col["type"]], "atom type")
     order = np.argsort(d[:, col["id"]], kind="stable")
     d = d[order]
     ids = d[:, col["id"]].astype(np.int64)
@@ -225,7 +239,13 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
     radius = d[:, col["radius"]].copy()
     if np.any(radius <= 0):
         raise UserError(f"{atoms_path}: radius: atom {int(ids[np.argmin(radius)])} has radius "
-                        f"{radius.min()!r}; expected > 0")
+                        f"{float(radius.min())!r} m; expected > 0")
+    box_size = float(np.max(a.bounds[:, 1] - a.bounds[:, 0]))
+    if np.any(radius > box_size):
+        k = int(np.argmax(radius))
+        raise UserError(f"{atoms_path}: radius: atom {int(ids[k])} has radius {radius[k]:.6g} m, "
+                        f"larger than the dump's box (BOX BOUNDS, largest extent {box_size:.6g} "
+                        "m); expected spheres that fit in the simulation box")
     types = d[:, col["type"]].astype(np.int64) if "type" in col else np.ones(n, np.int64)
     phase = np.searchsorted(np.unique(types), types).astype(np.int32)
     inferred = []
@@ -246,6 +266,8 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
 
     # --- pairs ----------------------------------------------------------------------------
     cols = _columns(p, pairs_path, PAIR_COLUMNS, PAIR_HINT)
+    _integers(pairs_path, "id1/id2 (columns 1-2)", np.concatenate([cols["id1"], cols["id2"]]),
+              "atom id")
     i_id, j_id = cols["id1"].astype(np.int64), cols["id2"].astype(np.int64)
     unknown = [x for x in np.concatenate([i_id, j_id]) if int(x) not in index]
     if unknown:
@@ -280,6 +302,20 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
         branch[:, ax] -= period[ax] * np.round(branch[:, ax] / period[ax])
     geo = radius[i] + radius[j] - np.linalg.norm(branch, axis=1)
     diff = float(np.abs(geo - delta).max()) if len(delta) else 0.0
+    # the overlap LIGGGHTS states must be the one of the dumped spheres (the default 6-digit
+    # dump format costs ~1e-5 of a radius; the reader's tolerance is OVERLAP_RTOL of it)
+    r_min = np.minimum(radius[i], radius[j])
+    tol = OVERLAP_RTOL * r_min + 1e-12 * (np.abs(position).max() + r_min)
+    off = np.abs(geo - delta) > tol
+    if off.any():
+        c = int(np.flatnonzero(off)[0])
+        raise UserError(f"{pairs_path}: delta (column 7): pair ({int(ids[i[c]])}, "
+                        f"{int(ids[j[c]])}) has delta {delta[c]:.6g} m, but the atoms' centres "
+                        f"are {np.linalg.norm(branch[c]):.6g} m apart (r_i + r_j - distance = "
+                        f"{geo[c]:.6g} m); expected the overlap of the two atoms of "
+                        f"{Path(atoms_path).name} (within {OVERLAP_RTOL:g} of the smaller radius)")
+    _unlisted_overlaps(atoms_path, pairs_path, position, radius, ids, i, j, periodic, lo_box,
+                       period)
 
     # --- walls ------------------------------------------------------------------------------
     wall_names = [s[0] for s in wall_spec]
@@ -291,6 +327,8 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
     merged = 0
     if w is not None:
         wc = _columns(w, walls_path, WALL_COLUMNS, WALL_HINT)
+        _integers(walls_path, "mesh (column 1)", wc["mesh"], "mesh id")
+        _integers(walls_path, "atom (column 3)", wc["atom"], "atom id")
         mesh = wc["mesh"].astype(np.int64)
         if mesh.size and (mesh.min() < 0 or mesh.max() >= len(wall_spec)):
             bad = int(mesh[(mesh < 0) | (mesh >= len(wall_spec))][0])
@@ -323,18 +361,37 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
         if periodic[axis]:
             raise UserError(f"--walls: {name}: a wall normal to {'xyz'[axis]}, a periodic axis "
                             f"of the dump (BOX BOUNDS {a.boundary[axis]})")
-        if coord is None:
-            rows = w_wall == k
-            if rows.any():
-                q = w_part[rows]
-                coord = float(np.median(position[q, axis] - sign * (radius[q] - w_over[rows])))
+        rows = np.flatnonzero(w_wall == k) if w is not None else np.zeros(0, np.int64)
+        if rows.size:        # where each contact of the walls dump puts the wall
+            q = w_part[rows]
+            implied = position[q, axis] - sign * (radius[q] - w_over[rows])
+            median = float(np.median(implied))
+            tol = OVERLAP_RTOL * radius[q] + 1e-12 * (np.abs(position).max() + radius[q])
+            if coord is not None and abs(median - coord) > float(np.median(tol)):
+                raise UserError(
+                    f"--walls: {name}={coord:g} contradicts {walls_path}: its "
+                    f"{rows.size} contacts with mesh {k} put the wall at {'xyz'[axis]} = "
+                    f"{median:.9g} m (x -+ (r - delta), median); expected the wall where the "
+                    f"dump's contacts are (leave '={coord:g}' out to take it from them)")
+            if coord is None:
+                coord = median
                 inferred.append(f"wall {name}: {'xyz'[axis]} = {coord:.9g} m from its "
-                                f"{int(rows.sum())} contacts (x -+ (r - delta))")
-            else:
-                ext = position[:, axis] - sign * radius
-                coord = float(ext.min() if sign > 0 else ext.max())
-                inferred.append(f"wall {name}: {'xyz'[axis]} = {coord:.9g} m from the spheres' "
-                                "extreme (no contact)")
+                                f"{int(rows.size)} contacts (x -+ (r - delta))")
+            off = np.abs(implied - coord) > tol
+            if off.any():
+                c = int(np.flatnonzero(off)[0])
+                dist = sign * (position[q[c], axis] - coord)
+                raise UserError(
+                    f"{walls_path}: atom (column 3): atom {int(ids[q[c]])} touches {name} "
+                    f"(mesh {k}, delta {w_over[rows[c]]:.6g} m), but its centre is "
+                    f"{dist:.6g} m from the wall at {'xyz'[axis]} = {coord:.9g} m (radius "
+                    f"{radius[q[c]]:.6g} m); expected contacts on atoms at the wall (r - "
+                    f"distance = delta, within {OVERLAP_RTOL:g} of the radius)")
+        if coord is None:
+            ext = position[:, axis] - sign * radius
+            coord = float(ext.min() if sign > 0 else ext.max())
+            inferred.append(f"wall {name}: {'xyz'[axis]} = {coord:.9g} m from the spheres' "
+                            "extreme (no contact)")
         point = np.zeros(3)
         point[axis] = coord
         wall_point.append(point)
@@ -432,14 +489,68 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
         wall_overlap=w_over, wall_normal_force=w_force, domain_lo=lo, domain_hi=hi,
         periodic=periodic, attrs=attrs, contact_radius=np.sqrt(r_star * delta),
         wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)), yade_id=None)
-    # written under a temporary name, validated by the reader, then renamed: a packing the
-    # reader refuses is never left at `out` (nor its temporary file)
-    with replacing(out, keep_suffix=True) as tmp:
-        write_packing(tmp, packing)
-        try:
-            read_packing(tmp)
-        except PackingError as e:
-            raise UserError(str(e).replace(str(tmp), str(out))
-                            + " (the LIGGGHTS dumps describe an impossible packing; nothing "
-                              "written)") from None
+    # built in memory and validated by the reader before anything is written; then written at
+    # once under a temporary name and renamed (an OSError, e.g. a full disk, leaves no file)
+    image = packing_image(packing)
+    try:
+        read_packing_image(image, out)
+    except PackingError as e:
+        raise UserError(f"{e} (the LIGGGHTS dumps describe an impossible packing; nothing "
+                        "written)") from None
+    write_bytes_atomic(out, image)
     return packing
+
+
+def _integers(path, column, values, what):
+    """Ids and types are integers: 26.5 is refused, not truncated to 26."""
+    bad = np.flatnonzero(values != np.round(values))
+    if bad.size:
+        raise UserError(f"{path}: {column}: {what} {values[bad[0]]:g} (row {int(bad[0])}) is not "
+                        "an integer; expected integer ids")
+
+
+# An overlap the pairs dump does not list, beyond this fraction of the smaller radius, is
+# refused: at `run 0` LIGGGHTS lists every pair in contact, and no DEM step moves a sphere by
+# 1 % of its radius, so such an overlap is two atoms in one place (a copy, a merged file).
+UNLISTED_OVERLAP_RTOL = 1e-2
+
+
+def _unlisted_overlaps(atoms_path, pairs_path, position, radius, ids, i, j, periodic, lo_box,
+                       period):
+    from scipy.spatial import cKDTree
+    if len(radius) < 2:
+        return
+    x = position.copy()
+    box = None
+    if periodic.any():
+        # cKDTree's periodic box: periodic axes wrapped into [0, period), the others unbounded
+        box = np.where(periodic, period, 0.0)
+        x[:, periodic] = np.mod(x[:, periodic] - lo_box[periodic], period[periodic])
+        x[x >= np.where(periodic, period, np.inf)] = 0.0
+        if np.any(2 * 2 * radius.max() > period[periodic]):
+            return              # a cell thinner than two diameters: minimum image is ambiguous
+    tree = cKDTree(x, boxsize=box)
+    cand = tree.query_pairs(2.0 * float(radius.max()), output_type="ndarray").astype(np.int64)
+    if not cand.size:
+        return
+    cand.sort(axis=1)
+    a, b = cand[:, 0], cand[:, 1]
+    d = x[b] - x[a]
+    if box is not None:
+        for ax in np.flatnonzero(periodic):
+            d[:, ax] -= period[ax] * np.round(d[:, ax] / period[ax])
+    over = radius[a] + radius[b] - np.linalg.norm(d, axis=1)
+    deep = over > UNLISTED_OVERLAP_RTOL * np.minimum(radius[a], radius[b])
+    if not deep.any():
+        return
+    n = len(radius)
+    listed = set((np.minimum(i, j) * n + np.maximum(i, j)).tolist())
+    for k in np.flatnonzero(deep)[np.argsort(-over[deep] / np.minimum(radius[a], radius[b])[deep],
+                                             kind="stable")]:        # the deepest first
+        if int(a[k] * n + b[k]) not in listed:
+            raise UserError(
+                f"{atoms_path}: x y z radius: atoms {int(ids[a[k]])} and {int(ids[b[k]])} "
+                f"overlap by {over[k]:.6g} m (centres {np.linalg.norm(d[k]):.6g} m apart, radii "
+                f"{radius[a[k]]:.6g} and {radius[b[k]]:.6g} m), but {Path(pairs_path).name} "
+                "lists no contact between them; expected every overlapping pair in the pairs "
+                "dump (two atoms in one place?)")
