@@ -60,7 +60,8 @@ def write_thermal(path, *, times, temperatures, boundary_heat_flow_w, boundary_e
     temperatures = np.asarray(temperatures, dtype=np.float64)
     if not np.all(np.isfinite(temperatures)):
         raise FloatingPointError(f"{path}: temperature: non-finite values; not written")
-    stored = (temperatures - np.asarray(initial_temperature_k)[None, :]) @ capacity_j_k
+    with np.errstate(over="ignore", invalid="ignore"):   # a flagged run's huge values
+        stored = (temperatures - np.asarray(initial_temperature_k)[None, :]) @ capacity_j_k
 
     def fill(f):
         f.create_dataset("time", data=np.asarray(times, dtype=np.float64))

@@ -1,6 +1,7 @@
 """Running a scene: packing + law -> network -> solver -> ``thermal.h5``."""
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -20,7 +21,7 @@ from .problem import build_problem
 from .scene import Scene, SceneError
 from .solvers import UnstableTimeStepError, check_physics
 from .solvers.explicit import run_explicit
-from .solvers.implicit import run_implicit
+from .solvers.implicit import run_implicit, scheme_name
 from .solvers.steady import solve_steady
 
 
@@ -32,13 +33,14 @@ class RunSummary:
     scene: Scene
 
 
-def _progress_bar(total_steps, end_time, quiet):
-    """A tqdm bar over steps showing simulated time; None when quiet."""
+def _progress_bar(total_steps, end_time, quiet, label="explicit"):
+    """A tqdm bar over steps showing simulated time, labelled with the method; None when
+    quiet."""
     if quiet:
         return None, None
     from tqdm import tqdm
     bar = tqdm(total=total_steps, unit="step", unit_scale=True, dynamic_ncols=True,
-               mininterval=0.5, desc="explicit")
+               mininterval=0.5, desc=label)
 
     def progress(done, n_total, t):
         bar.total = n_total
@@ -132,17 +134,53 @@ def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = F
     default filled in), the time step used, ``run_args`` (how the run was started: the CLI's
     arguments, JSON) and the packing's path and content hash."""
     try:
-        with output_lock(scene.output):
+        with _sigterm_as_interrupt(), output_lock(scene.output):
             return _run_scene(scene, packing_path, quiet=quiet, threads=threads,
                               checkpoint_every=checkpoint_every, resume=resume,
                               run_args=run_args)
     except OutputBusyError as e:
         raise SceneError(str(e)) from None
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         ckpt = checkpoint_path(scene.output)
-        raise KeyboardInterrupt(f"{scene.output} not written" + (
-            f"; checkpoint {ckpt} kept (--resume continues from it)" if ckpt.exists()
-            else "")) from None
+        kind = type(e) if isinstance(e, Terminated) else KeyboardInterrupt
+        raise kind(("terminated (SIGTERM): " if kind is Terminated else "") +
+                   f"{scene.output} not written" + (
+                       f"; checkpoint {ckpt} kept (--resume continues from it)"
+                       if ckpt.exists() else "")) from None
+
+
+class Terminated(KeyboardInterrupt):
+    """The run was ended by SIGTERM (``kill``, a batch system's time limit): cleaned up as for
+    Ctrl-C -- the lock removed, no output or temporary file left, a checkpoint kept -- and
+    reported in one line (the command line's exit code for it is 128 + SIGTERM = 143 by
+    convention)."""
+    exit_code = 143
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """For the block, SIGTERM raises :class:`Terminated` in the main thread (between two kernel
+    calls, ~0.1 s apart) instead of killing the process on the spot, which left the output's
+    lock file behind. Only where Python allows it (the main thread) and nobody else handles
+    SIGTERM already (a handler of the caller wins); restored after."""
+    import signal
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.getsignal(signal.SIGTERM)
+    if old not in (signal.SIG_DFL, None):
+        yield
+        return
+
+    def handler(signum, frame):
+        raise Terminated("terminated (SIGTERM)")
+
+    signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
 
 
 def _check_step_count(scene, dt, what):
@@ -193,7 +231,9 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
             if resumed[0].time_s >= solver.output_times[-1]:
                 raise SceneError(f"{checkpoint_path(scene.output)}: --resume: the checkpoint "
                                  "already holds every output time (delete it to run again)")
-        bar, progress = _progress_bar(0, solver.end_time, quiet)
+        label = "explicit" if solver.method == "explicit" else scheme_name(solver.scheme,
+                                                                          solver.theta)
+        bar, progress = _progress_bar(0, solver.end_time, quiet, label)
         try:
             result, ckpt = _run_with_checkpoints(net, T0, scene, threads, progress,
                                                  checkpoint_every, resumed, packing.n_particles,
@@ -232,10 +272,18 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
         "ledger_residual_relative": float(check.ledger_relative),
         "check_messages": "\n".join(check.messages),
     }
+    boundary_energy, source_energy = result.boundary_energy_j, result.source_energy_j
+    if result.method == "steady":
+        # a steady solve has no time, hence no energy crossed: no rows (never a NaN); its
+        # balance is boundary_heat_flow (and the attribute ledger_residual_relative)
+        attrs["energies"] = ("none: a steady solve has no time (boundary_energy and "
+                             "source_energy have no rows; boundary_heat_flow holds the balance)")
+        boundary_energy = np.zeros((0, len(result.boundary_names)))
+        source_energy = np.zeros(0)
     out = write_thermal(scene.output, times=result.times, temperatures=result.temperature_k,
                         boundary_heat_flow_w=result.boundary_heat_flow_w,
-                        boundary_energy_j=result.boundary_energy_j,
-                        source_energy_j=result.source_energy_j,
+                        boundary_energy_j=boundary_energy,
+                        source_energy_j=source_energy,
                         capacity_j_k=net.capacity_j_k, initial_temperature_k=T0,
                         boundary_names=result.boundary_names, attrs=attrs)
     if ckpt is not None and ckpt.exists():
@@ -250,10 +298,16 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
 
 def _print_summary(result, out):
     last = result.temperature_k[-1]
-    print(f"  {result.method}: dt = {result.dt:.4g} s (bound {result.dt_max:.4g} s, paper "
-          f"estimate {result.dt_paper:.4g} s), {result.steps} steps, "
-          f"{result.wall_seconds:.3g} s, {result.contact_updates_per_second:.3g} "
-          "contact-updates/s", flush=True)
+    steady = result.method == "steady"
+    if steady:
+        print(f"  steady: one solve ({result.info.get('linear_solver', '?')}, "
+              f"{result.info.get('unknowns', 0)} unknowns), {result.wall_seconds:.3g} s",
+              flush=True)
+    else:
+        print(f"  {result.method}: dt = {result.dt:.4g} s (bound {result.dt_max:.4g} s, paper "
+              f"estimate {result.dt_paper:.4g} s), {result.steps} steps, "
+              f"{result.wall_seconds:.3g} s, {result.contact_updates_per_second:.3g} "
+              "contact-updates/s", flush=True)
     if result.flags:
         print(f"  flags: {', '.join(result.flags)}")
     print(f"  T at t = {result.times[-1]:.4g} s: min {last.min():.6g} K, mean {last.mean():.6g} K,"
@@ -261,9 +315,17 @@ def _print_summary(result, out):
     flows = ", ".join(f"{n} {q:+.4g} W" for n, q in zip(result.boundary_names,
                                                          result.boundary_heat_flow_w[-1]))
     print(f"  heat in through boundaries: {flows or 'none'}")
-    resid = result.ledger_residual_j()[-1]
-    scale = max(np.abs(result.boundary_energy_j[-1]).max(initial=0.0),
-                abs(result.stored_energy_j[-1]), 1e-300)
-    print(f"  energy ledger: stored {result.stored_energy_j[-1]:+.6g} J, residual "
-          f"{resid:+.3g} J ({abs(resid) / scale:.2g} relative)")
+    if steady:
+        bal = float(result.info.get("heat_balance_w", 0.0))
+        rel = float(result.info.get("heat_balance_relative", 0.0))
+        print(f"  heat balance: sum of the boundary flows {bal:+.3g} W ({abs(rel):.2g} "
+              "relative)")
+    else:
+        with np.errstate(over="ignore", invalid="ignore"):
+            resid = result.ledger_residual_j()[-1]
+            scale = max(np.abs(result.boundary_energy_j[-1]).max(initial=0.0),
+                        abs(result.stored_energy_j[-1]), 1e-300)
+            rel = abs(resid) / scale
+        print(f"  energy ledger: stored {result.stored_energy_j[-1]:+.6g} J, residual "
+              f"{resid:+.3g} J ({rel:.2g} relative)")
     print(f"  wrote {out}", flush=True)

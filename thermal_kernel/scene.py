@@ -17,6 +17,12 @@ class SceneError(ValueError):
     """A bad scene file; ``str(e)`` is one line naming the file and the key."""
 
 
+# The highest temperature a scene may give and a run may reach without a flag (K): no solid
+# remains one above it (the highest melting point known is ~4,300 K, tungsten boils at
+# 5,930 K), so a model of solid spheres with constant properties means nothing there.
+TEMPERATURE_MAX_K = 1.0e4
+
+
 METHODS = ("explicit", "implicit", "steady")
 # implicit time schemes (thermal_kernel/solvers/implicit.py); "auto": theta = 0.5 -> the default
 # second-order scheme "rannacher" (Crank-Nicolson with backward-Euler start-up), else "theta"
@@ -260,6 +266,9 @@ def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Sce
 
     init = top.sub("initial", required=True)
     initial_temperature = init.number("temperature", positive=True)
+    if initial_temperature > TEMPERATURE_MAX_K:
+        init.fail("temperature", f"expected a temperature in (0, {TEMPERATURE_MAX_K:g}] K (no "
+                                 f"solid above), got {initial_temperature!r}")
     init.done()
 
     from .boundaries import parse_boundary     # each kind parses its own table
@@ -307,6 +316,17 @@ def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Sce
     if solver.theta > 1.0:
         sol.fail("theta", f"expected 0.5 <= theta <= 1, got {solver.theta}")
     scheme, startup = _scheme(sol, method, solver.theta, theta_given)
+    if startup and method == "implicit" and sol_has_times(end_time, dt):
+        from .solvers import interval_steps
+        steps, t_prev = 0, 0.0
+        for t in output_times:
+            steps += interval_steps(t_prev, t, dt)[0]
+            t_prev = t
+        if startup >= steps:
+            sol.fail("startup_steps", f"{startup} start-up steps, and the run has {steps} "
+                                      f"steps of dt = {dt:g} s: the whole run would be "
+                                      f"backward-Euler half steps (first order), not {scheme}; "
+                                      f"expected fewer than {steps}")
     solver = dataclasses.replace(solver, scheme=scheme, startup_steps=startup)
     if solver.safety > 1.0 and not solver.allow_unstable:
         sol.fail("safety", f"expected a number <= 1 (the bound is exact), got {solver.safety}")
@@ -332,6 +352,11 @@ def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Sce
                  materials=materials, young_pa=young, poisson=poisson,
                  initial_temperature=initial_temperature, boundaries=tuple(boundaries),
                  solver=solver, output=output, neighbours=neighbours, text=text)
+
+
+def sol_has_times(end_time: float, dt: float) -> bool:
+    """A transient with a time step: its step count is known from the scene."""
+    return math.isfinite(end_time) and math.isfinite(dt) and dt > 0
 
 
 def _neighbours(t: _Table | None) -> NeighbourCriterion | None:

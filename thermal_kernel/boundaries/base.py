@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..scene import SceneError
+from ..scene import TEMPERATURE_MAX_K, SceneError
 
 FACES = {"xmin": (0, -1), "xmax": (0, +1), "ymin": (1, -1), "ymax": (1, +1),
          "zmin": (2, -1), "zmax": (2, +1)}
@@ -128,8 +128,11 @@ def members(ctx: BuildContext, on: str, where: str) -> np.ndarray:
 
 
 def read_temperature(t, key: str = "value") -> float:
-    """A required absolute temperature (K) > 0."""
+    """A required absolute temperature (K) in (0, TEMPERATURE_MAX_K]."""
     value = t.number(key)
     if value <= 0:
         t.fail(key, f"expected a temperature > 0 K, got {value!r}")
+    if value > TEMPERATURE_MAX_K:
+        t.fail(key, f"expected a temperature in (0, {TEMPERATURE_MAX_K:g}] K (no solid above), "
+                    f"got {value!r}")
     return value

@@ -17,6 +17,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..network import Network, ThermalProblem, assemble
+from ..scene import TEMPERATURE_MAX_K   # one home: scenes refuse temperatures above it
 
 
 class UnstableTimeStepError(ValueError):
@@ -212,7 +213,6 @@ LEDGER_RTOL = 1e-6
 # negative flux drove the linear model through absolute zero), above TEMPERATURE_MAX_K none
 # either (flag "above_physical_range": the highest melting point known is ~4,300 K and tungsten
 # boils at 5,930 K; constant material properties mean nothing there).
-TEMPERATURE_MAX_K = 1.0e4
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,10 @@ lambda_max(C^-1 (L + G)) lies in [max D/C, 2 max D/C], the stability (boundednes
 """
 from __future__ import annotations
 
+import contextlib
 import math
+import signal
+import threading
 import time
 
 import numba
@@ -146,8 +149,8 @@ class _Arrays:
             # with an exception set", the KeyboardInterrupt down its chain: give that back
             cause, seen = e, 0
             while cause is not None and seen < 8:
-                if isinstance(cause, KeyboardInterrupt):
-                    raise KeyboardInterrupt from None
+                if isinstance(cause, KeyboardInterrupt):   # its own kind (Terminated too)
+                    raise cause.with_traceback(None) from None
                 cause, seen = cause.__cause__ or cause.__context__, seen + 1
             raise
 
@@ -156,6 +159,22 @@ class _Arrays:
                         self.inv_c, self.held, self.g, self.rhs, self.fixed_p, self.fixed_b,
                         self.ex_p, self.ex_g, self.ex_t, self.ex_b, self.held_b, self.const_b,
                         ta, tb, energy, self.held_out, self.flows)
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """SIGINT and SIGTERM held back for the block (the JIT compilation or cache load of the
+    kernel: an exception raised inside numba's compiler left it unable to run, and a
+    traceback); delivered, and handled as usual, when the block ends. Main thread only."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _unsigned(a: np.ndarray) -> np.ndarray:
@@ -246,7 +265,8 @@ def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
     if threads is not None:
         numba.set_num_threads(int(threads))
     ta, tb = T, np.empty_like(T)
-    arr.advance(0, dt if math.isfinite(dt) else 1.0, ta, tb, energy)   # compile outside timing
+    with _signals_deferred():          # a signal inside numba's compiler leaves it broken
+        arr.advance(0, dt if math.isfinite(dt) else 1.0, ta, tb, energy)  # compile, untimed
     step_seconds = 0.0
     done = 0
     wall0 = time.perf_counter()
