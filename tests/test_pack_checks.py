@@ -43,6 +43,12 @@ DENSE = [
     ('method = "tiled"\nn_particles = 50000\ncell_particles = 20\naspect = [1.0, 1.0, 0.1]',
      "cell_particles"),
     ("aspect = [1.0, 1.0]", "aspect"),
+    # issue 28 (round 3): caught by YADE's numpy late, or not at all
+    ('method = "tiled"\ncell_particles = 20\nn_particles = 1000000000000', "n_particles"),
+    ('method = "tiled"\ncell_particles = 20\naspect = [1.0, 1.0]', "aspect"),
+    ('method = "tiled"\ncell_particles = 20\nn_particles = 21', "n_particles"),
+    ('method = "shell"\ncell_particles = 20\nn_particles = 21', "n_particles"),
+    ('method = "shell"\nshape = "periodic"', "method"),
     # facets sagging more than the smallest cloud sphere: one would start outside them
     ('shape = "sphere"\nsphere_facet_level = 1', "sphere_facet_level"),
 ]

@@ -132,7 +132,63 @@ def check(p):
     if tiled and not p["cell_packing"] and p["n_particles"] < p["cell_particles"]:
         raise ValueError(f"cell_particles: expected at most n_particles ({p['n_particles']}) for "
                          f"method = \"{p['method']}\", got {p['cell_particles']}")
+    if len(p["aspect"]) != 3:
+        raise ValueError(f"aspect: expected 3 numbers (x, y, z), got {len(p['aspect'])}: "
+                         f"{p['aspect']}")
+    check_memory(p)
+    if tiled:
+        check_carved_domain(p)
     if not (tiled and p["cell_packing"]):       # YADE relaxes a cloud: can it be made?
         from . import dense_geometry
         dense_geometry.cloud_domain(dense_geometry.relaxed_params(p),
                                     "cell_particles" if tiled else "n_particles")
+
+
+# Peak resident memory per sphere of the tiled and shell paths (the 8e6 box: 5.7 GB, ~700 bytes a
+# sphere, docs/packings.md), with a margin: a request that cannot fit is refused before YADE.
+BYTES_PER_SPHERE = 1000
+
+
+def check_memory(p):
+    """n_particles: refused when the packing cannot fit in this machine's memory."""
+    import os
+    try:
+        physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return
+    need = BYTES_PER_SPHERE * float(p["n_particles"])
+    if need > physical:
+        raise ValueError(f"n_particles: {p['n_particles']:.4g} spheres need about "
+                         f"{need / 1e9:.3g} GB, this machine has {physical / 1e9:.3g} GB; "
+                         f"expected at most {physical / BYTES_PER_SPHERE:.3g}")
+
+
+def _mean_cube_over_cubed_mean(p):
+    """E[r^3] / E[r]^3 of the radius distribution (Gaussian: 1 + 3 s^2; uniform: 1 + s^2)."""
+    if p["radius_distribution"] == "gaussian":
+        return 1.0 + 3.0 * p["radius_sigma_over_mean"] ** 2
+    return 1.0 + p["radius_spread"] ** 2
+
+
+def check_carved_domain(p):
+    """tiled, shell: the carved domain must be at least four mean diameters across (as the
+    direct path's domain): a smaller one is a handful of spheres cut out of the cell whose
+    solid fraction means nothing (21 spheres from a 400-sphere cell gave phi 0.78). The size
+    in mean diameters depends only on n_particles, the distribution's shape, the cell's solid
+    fraction (~0.65) and the aspect, not on the radii's scale."""
+    import math
+    import numpy as np
+    aspect = np.asarray(p["aspect"], dtype=float)
+    volume_d3 = p["n_particles"] * math.pi / 6.0 * _mean_cube_over_cubed_mean(p) / 0.65
+    if p["shape"] == "box":
+        smallest = (volume_d3 / aspect.prod()) ** (1.0 / 3.0) * aspect.min()
+    elif p["shape"] == "cylinder":
+        ratio = aspect[2] / aspect[0]
+        radius = (volume_d3 / (2.0 * math.pi * ratio)) ** (1.0 / 3.0)
+        smallest = min(2.0 * radius, 2.0 * radius * ratio)
+    else:
+        smallest = 2.0 * (3.0 * volume_d3 / (4.0 * math.pi)) ** (1.0 / 3.0)
+    if smallest < 4.0:
+        raise ValueError(f"n_particles: a {p['shape']} of {p['n_particles']} spheres is "
+                         f"{smallest:.2g} mean diameters across; method = \"{p['method']}\" "
+                         "expected at least 4 (more spheres, or method = \"direct\")")
