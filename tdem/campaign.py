@@ -12,8 +12,11 @@ Steps, each kept so that an interrupted campaign resumes where it stopped:
    (``<out>/packings/``); reused when ``params.json`` there equals the campaign's parameters and
    every ``packing_<p>Pa.h5`` exists;
 2. cases (pressure x law): the thermal scene runs on the packing (``<out>/cases/<p>Pa_<law>/
-   thermal.h5``) and is post-processed (``post/summary.json``); a case whose summary exists is
-   not recomputed;
+   thermal.h5``) and is post-processed (``post/summary.json``, which records the sha256 of the
+   case's resolved scene and of the packing file's bytes); a case whose summary exists is kept
+   when both hashes still match its inputs, recomputed (and said so) when either differs, and
+   post-processed again from its thermal.h5 when only ``n_bins`` changed. Every case is checked
+   on its packing (the walls its boundaries name, the law's inputs) before any case runs;
 3. ``results.csv`` (one row per case), ``gamma_p.png``/``tau_p.png`` (+ CSV) and ``report.md``
    with the power-law fits next to the paper's curves (003, Fig. 7 and 10) and the mean-field
    predictions; each case's ``flags`` (the attribute of its ``thermal.h5``: maximum principle,
@@ -23,8 +26,10 @@ Steps, each kept so that an interrupted campaign resumes where it stopped:
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import re
+import sys
 import time
 from pathlib import Path
 
@@ -63,19 +68,23 @@ def read_campaign(path: Path) -> tuple[dict, str]:
     if not (isinstance(n_bins, int) and n_bins >= 3):
         raise UserError(f"{path}: campaign.n_bins: expected an integer >= 3")
     seeds = camp.get("seeds")
+    from .pack import SEED_MAX
     if seeds is not None and not (
             isinstance(seeds, list) and seeds
-            and all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in seeds)
+            and all(isinstance(x, int) and not isinstance(x, bool) and 0 <= x <= SEED_MAX
+                    for x in seeds)
             and len(set(seeds)) == len(seeds)):
         raise UserError(f"{path}: campaign.seeds: expected a list of distinct integers >= 0 "
-                        f"(one packing series per seed), got {seeds!r}")
+                        f"and <= {SEED_MAX} (one packing series per seed; a seed is stored as "
+                        f"a 64-bit integer), got {seeds!r}")
     if "packing" in data:
         raise UserError(f"{path}: packing: a campaign builds its packings from [pack]")
     packings = camp.get("packings")
     if packings is not None:        # existing packing files instead of [pack] (tdem/imported.py)
         from .imported import campaign_packings
         packings = campaign_packings(path, packings, "pack" in data, seeds)
-    return dict(laws=laws, n_bins=n_bins, seeds=seeds, packings=packings), text
+    return dict(laws=laws, n_bins=n_bins, seeds=seeds, packings=packings,
+                has_pack="pack" in data), text
 
 
 def case_scenes(campaign_path: Path, conf: dict, text: str, out_dir: Path) -> dict:
@@ -189,7 +198,7 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
     seeds. ``jobs`` = 1: seed after seed, each series built and then its cases run (an
     interrupted campaign has whole seeds done); ``jobs`` > 1: the missing series are built first,
     ``jobs`` YADE processes at a time, then all the cases."""
-    from .pack import default_out_dir
+    from .pack import default_out_dir, read_pack_table
 
     campaign_path = Path(campaign_path)
     conf, text = read_campaign(campaign_path)
@@ -197,9 +206,49 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
         raise UserError(f"--jobs: expected a number of YADE series at a time >= 1, got {jobs}")
     out_dir = Path(out_dir) if out_dir else default_out_dir(campaign_path)
     scenes = check_case_scenes(campaign_path, conf, text, out_dir)   # before YADE builds
+    if conf["has_pack"]:                # [pack] checked before anything is made
+        generator, _ = read_pack_table(campaign_path)
+        if generator != "bed":
+            raise UserError(f"{campaign_path}: pack.generator: a pressure campaign needs the "
+                            "bed generator")
+    if conf["packings"] is not None:    # the listed files: every case checked on its packing
+        check_cases(campaign_path, scenes, conf["packings"])
     run_args = dict(command="campaign", campaign=str(campaign_path), out=str(out_dir),
                     threads=threads, repost=repost)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    made = _missing_folders(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        return _run_series(campaign_path, conf, scenes, out_dir, threads=threads,
+                           yade_threads=yade_threads, quiet=quiet, repost=repost, jobs=jobs,
+                           run_args=run_args)
+    except BaseException:
+        _remove_empty(made)             # a refused campaign leaves no empty --out behind
+        raise
+
+
+def _missing_folders(path: Path) -> list[Path]:
+    """``path`` and those of its parents that do not exist yet, innermost first."""
+    made, d = [], Path(path).absolute()
+    while not d.exists() and d != d.parent:
+        made.append(d)
+        d = d.parent
+    return made
+
+
+def _remove_empty(folders) -> None:
+    """Remove the folders (innermost first) this campaign made, those still empty."""
+    import contextlib
+    for d in folders:
+        for sub in sorted((x for x in d.rglob("*") if x.is_dir()), reverse=True) \
+                if d.is_dir() else ():
+            with contextlib.suppress(OSError):
+                sub.rmdir()
+        with contextlib.suppress(OSError):
+            d.rmdir()
+
+
+def _run_series(campaign_path, conf, scenes, out_dir, *, threads, yade_threads, quiet, repost,
+                jobs, run_args):
     start = time.time()
     seeds = conf["seeds"]
     series = [(None, out_dir)] if seeds is None else [(s, out_dir / f"seed_{s}") for s in seeds]
@@ -210,14 +259,19 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
                                                     quiet=True, seed=sd[0]), series))
     rows, k = [], 0
     for seed, sdir in series:
-        packings = conf["packings"] or build_packings(campaign_path, sdir, threads=yade_threads,
-                                                      quiet=quiet, seed=seed)
+        packings = conf["packings"]
+        if packings is None:
+            packings = build_packings(campaign_path, sdir, threads=yade_threads, quiet=quiet,
+                                      seed=seed)
+            check_cases(campaign_path, scenes, packings)
+        hashes = {p: file_sha256(p) for p in packings}
+        _say_duplicates(hashes)
         n_cases = len(series) * len(packings) * len(conf["laws"])
         for packing in packings:
             for law in conf["laws"]:
                 k += 1
                 summary = _run_case(scenes[law], conf, sdir, packing, repost, threads,
-                                    run_args,
+                                    run_args, packing_hash=hashes[packing],
                                     label=f"[{k}/{n_cases}] "
                                           + (f"seed {seed} " if seed is not None else ""))
                 if seed is not None:
@@ -226,53 +280,199 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
     return write_report(out_dir, campaign_path, conf, rows, time.time() - start)
 
 
-def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label):
+def check_cases(campaign_path: Path, scenes: dict, packings: list) -> None:
+    """Every case (packing x law) built as it will run, before any case runs: each packing read
+    by the validating reader, each boundary's wall or face found in it, the law's inputs made
+    (:func:`~thermal_kernel.problem.build_problem`, no solve). A packing without a wall the
+    scene holds was found only when its case ran, after the others (round 3)."""
+    from thermal_kernel.network import NetworkError
+    from thermal_kernel.packing import PackingError, read_packing
+    from thermal_kernel.problem import build_problem
+    from thermal_kernel.scene import SceneError
+    for path in packings:
+        try:
+            packing = read_packing(path)
+        except PackingError as e:
+            raise UserError(f"{e} (a packing of {campaign_path}; checked before any case "
+                            "runs)") from None
+        for law, base in scenes.items():
+            try:
+                build_problem(dataclasses.replace(base, packing=Path(path).resolve()), packing)
+            except (SceneError, PackingError, NetworkError) as e:
+                raise UserError(f"{e} (case {_case_name(path, law)}; every case is checked on "
+                                "its packing before any runs)") from None
+
+
+def _case_name(packing: Path, law: str) -> str:
+    return f"{Path(packing).stem.removeprefix('packing_')}_{law}"
+
+
+def file_sha256(path: Path) -> str:
+    """sha256 (hex) of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def scene_sha256(scene_json: str) -> str:
+    """sha256 (hex) of a case's resolved scene (:func:`~thermal_kernel.output.scene_to_json`)
+    without what names files (its path, packing, output): what the thermal run computes from.
+    The packing is hashed on its own (:func:`file_sha256`)."""
+    data = json.loads(scene_json)
+    for key in ("path", "packing", "output", "pack"):
+        data.pop(key, None)
+    return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
+
+
+def _say_duplicates(hashes: dict) -> None:
+    """A warning line for packing files of one series with the same bytes (the same bed twice:
+    its pressure counts once in the fits)."""
+    first = {}
+    for path, sha in hashes.items():
+        if sha in first:
+            print(f"tdem campaign: warning: {path} has the same content as {first[sha]}: the "
+                  "same bed twice (its pressure counts once in the fits over pressure)",
+                  file=sys.stderr, flush=True)
+        else:
+            first[sha] = path
+
+
+def _read_summary(path: Path) -> dict | None:
+    """A case's post/summary.json, or None when it is not a readable summary."""
+    try:
+        summary = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    return summary if isinstance(summary, dict) and "gamma" in summary else None
+
+
+def _stale(summary: dict, thermal_path: Path, packing: Path, inputs: dict) -> list[str]:
+    """What changed since the case ran: "scene", "packing file" (empty: it matches its
+    ``inputs``, {scene_sha256, packing_sha256}). A summary written before the hashes were
+    recorded is checked against its thermal.h5 (the scene it stored, the packing content hash
+    it stored)."""
+    if "scene_sha256" in summary and "packing_sha256" in summary:
+        same_scene = summary["scene_sha256"] == inputs["scene_sha256"]
+        same_packing = summary["packing_sha256"] == inputs["packing_sha256"]
+    else:
+        from thermal_kernel.checkpoint import packing_sha256
+        from thermal_kernel.output import ThermalFileError, read_thermal
+        from thermal_kernel.packing import PackingError, read_packing
+        from thermal_kernel.scene import SceneError
+        try:
+            run = read_thermal(thermal_path, data=False)
+            same_scene = bool(run.scene_json) and \
+                scene_sha256(run.scene_json) == inputs["scene_sha256"]
+            same_packing = packing_sha256(read_packing(packing)) == run.packing_sha256
+        except (ThermalFileError, SceneError, PackingError, ValueError):
+            return ["scene", "packing file"]    # nothing to check it against: not kept
+    return ([] if same_scene else ["scene"]) + ([] if same_packing else ["packing file"])
+
+
+def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label,
+              packing_hash=None):
     """One pressure x law case in ``series_dir/cases/<p>Pa_<law>/``: kept when its
-    ``post/summary.json`` exists (post-processed again, from its thermal.h5 alone, with
-    ``repost``), run otherwise: ``scene`` (the law's, :func:`case_scenes`) on ``packing``."""
-    from thermal_kernel.run import run_scene
-    from tdem_post.post_run import analyse, write_post
-    name = f"{packing.stem.removeprefix('packing_')}_{scene.law}"
+    ``post/summary.json`` exists and records the hashes of this case's scene and packing file
+    (post-processed again, from its thermal.h5 alone, with ``repost`` or another ``n_bins``);
+    run otherwise: ``scene`` (the law's, :func:`case_scenes`) on ``packing``. A case that ran
+    on other inputs is recomputed, and the line says which input changed."""
+    from thermal_kernel.output import scene_to_json
+    name = _case_name(packing, scene.law)
     case_dir = series_dir / "cases" / name
     summary_path = case_dir / "post" / "summary.json"
     thermal_path = case_dir / "thermal.h5"
-    if summary_path.exists() and repost and thermal_path.exists():
-        old = json.loads(summary_path.read_text())
-        t0 = time.time()
-        post = analyse(thermal_path, n_bins=conf["n_bins"])
-        summary = write_post(post)
-        for key in ("case_wall_seconds", "thermal_wall_seconds"):
-            summary[key] = old.get(key, float("nan"))
-        summary["flags"] = post.run.flags            # (analysed: the file is a complete run)
-        write_text_atomic(summary_path, json.dumps(summary, indent=1))
-        print(f"{label}{name}: thermal run kept, post-processed again: gamma "
-              f"{old['gamma']:.4g} -> {summary['gamma']:.4g} ({time.time() - t0:.1f} s)",
-              flush=True)
-    elif summary_path.exists():
-        summary = json.loads(summary_path.read_text())
+    inputs = dict(scene_sha256=scene_sha256(scene_to_json(scene)),
+                  packing_sha256=packing_hash or file_sha256(packing))
+    old = _read_summary(summary_path) if summary_path.exists() else None
+    why = None                      # why a case found done is recomputed
+    if summary_path.exists() and old is None:
+        why = "its post/summary.json is unreadable"
+    elif old is not None:
+        changed = _stale(old, thermal_path, packing, inputs)
+        if changed:
+            why = f"the {' and the '.join(changed)} changed since it ran"
+    if old is not None and why is None and (repost or old.get("n_bins") != conf["n_bins"]):
+        summary, why = _repost(old, thermal_path, conf, inputs, summary_path, label, name,
+                               repost)
+        if summary is not None:
+            return _with_target(summary, packing)
+    elif old is not None and why is None:
+        summary = old
         summary["flags"] = run_flags(thermal_path, summary.get("flags"))
         print(f"{label}{name}: done before (gamma {summary['gamma']:.4g}), kept"
               + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
-    else:
-        case_dir.mkdir(parents=True, exist_ok=True)
-        scene = case_scene(scene, packing, case_dir)
-        t0 = time.time()
-        result = run_scene(scene, packing, quiet=True, threads=threads,
-                           run_args=dict(run_args, case=name))
-        run_seconds = time.time() - t0
-        post = analyse(result.output, n_bins=conf["n_bins"])
-        summary = write_post(post)
-        summary["case_wall_seconds"] = time.time() - t0
-        summary["thermal_wall_seconds"] = run_seconds
-        summary["flags"] = post.run.flags
-        write_text_atomic(summary_path, json.dumps(summary, indent=1))
-        print(f"{label}{name}: gamma {summary['gamma']:.4g} "
-              f"[{summary['gamma_ci95'][0]:.4g}, {summary['gamma_ci95'][1]:.4g}], steady "
-              f"{summary['gamma_steady']:.4g}, tau {summary['tau_s']:.4g} s "
-              f"({summary['case_wall_seconds']:.1f} s)"
-              + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
+        return _with_target(summary, packing)
+    if summary_path.exists():       # stale: never left beside a new run
+        summary_path.unlink()
+    summary = _compute(scene, conf, case_dir, packing, threads, run_args, name, inputs,
+                       summary_path)
+    print(f"{label}{name}: gamma {summary['gamma']:.4g} "
+          f"[{summary['gamma_ci95'][0]:.4g}, {summary['gamma_ci95'][1]:.4g}], steady "
+          f"{summary['gamma_steady']:.4g}, tau {summary['tau_s']:.4g} s "
+          f"({summary['case_wall_seconds']:.1f} s)"
+          + (f"; flags: {summary['flags']}" if summary["flags"] else "")
+          + (f"; recomputed: {why}" if why else ""), flush=True)
+    return _with_target(summary, packing)
+
+
+def _with_target(summary: dict, packing: Path) -> dict:
     summary["pressure_target_pa"] = target_pressure(packing, summary["pressure_pa"])
     return summary
+
+
+def _compute(scene, conf, case_dir, packing, threads, run_args, name, inputs, summary_path):
+    """Run the case and post-process it; its summary (with ``inputs``, the hashes) written."""
+    from thermal_kernel.run import run_scene
+    from tdem_post.post_run import analyse, write_post
+    scene = case_scene(scene, packing, case_dir)
+    t0 = time.time()
+    result = run_scene(scene, packing, quiet=True, threads=threads,
+                       run_args=dict(run_args, case=name))
+    run_seconds = time.time() - t0
+    post = analyse(result.output, n_bins=conf["n_bins"])
+    summary = write_post(post)
+    summary["case_wall_seconds"] = time.time() - t0
+    summary["thermal_wall_seconds"] = run_seconds
+    summary["flags"] = post.run.flags
+    summary.update(inputs)
+    summary_path.parent.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(summary_path, json.dumps(summary, indent=1))
+    return summary
+
+
+def _repost(old, thermal_path, conf, inputs, summary_path, label, name, asked):
+    """Post-process a kept case's thermal.h5 again: (summary, None); (None, why) when the file
+    cannot be post-processed (missing, refused by its reader, a non-finite temperature): the
+    case is then recomputed."""
+    from thermal_kernel.network import NetworkError
+    from thermal_kernel.output import ThermalFileError
+    from thermal_kernel.packing import PackingError
+    from thermal_kernel.scene import SceneError
+    from tdem_post.post_run import analyse, write_post
+    t0 = time.time()
+    try:
+        post = analyse(thermal_path, n_bins=conf["n_bins"])
+        temperature = post.run.temperature
+        if temperature is not None and not np.isfinite(temperature).all():
+            raise ThermalFileError(f"{thermal_path}: temperature: expected finite values, got "
+                                   f"{int(np.size(temperature) - np.isfinite(temperature).sum())}"
+                                   " non-finite")
+    except (ThermalFileError, PackingError, SceneError, NetworkError) as e:
+        return None, f"its thermal.h5 could not be post-processed again ({e})"
+    summary = write_post(post)
+    for key in ("case_wall_seconds", "thermal_wall_seconds"):
+        summary[key] = old.get(key, float("nan"))
+    summary["flags"] = post.run.flags            # (analysed: the file is a complete run)
+    summary.update(inputs)
+    write_text_atomic(summary_path, json.dumps(summary, indent=1))
+    what = ("post-processed again" if asked else
+            f"n_bins {old.get('n_bins')} -> {conf['n_bins']}: post-processed again")
+    print(f"{label}{name}: thermal run kept, {what}: gamma "
+          f"{old['gamma']:.4g} -> {summary['gamma']:.4g} ({time.time() - t0:.1f} s)",
+          flush=True)
+    return summary, None
 
 
 def target_pressure(packing: Path, measured: float) -> float:
@@ -296,9 +496,31 @@ def run_flags(thermal_path: Path, fallback: str | None = None) -> str:
         return "unknown" if fallback is None else fallback
 
 
+def n_distinct(p) -> int:
+    """How many distinct pressures (relative difference above 1e-9) ``p`` holds: two copies
+    of one bed, or two beds at one pressure, are one point of a fit over pressure."""
+    p = np.sort(np.asarray(p, dtype=float))
+    return int(len(p) > 0) + int(np.sum(np.diff(p) > 1e-9 * np.abs(p[1:])))
+
+
+def _log_slope(p_bar, y):
+    """The log-log slope of y(p), or None when fewer than two pressures are distinct."""
+    if n_distinct(p_bar) < 2:
+        return None
+    return float(np.polyfit(np.log(p_bar), np.log(y), 1)[0])
+
+
+def _no_slope(p_bar) -> str:
+    n, m = n_distinct(p_bar), len(p_bar)
+    if m < 2:
+        return "not fitted: one pressure"
+    return f"not fitted: {m} cases at {n} distinct pressure{'' if n == 1 else 's'} (a slope " \
+        "needs two)"
+
+
 def _fit(p_bar, y):
     from tdem_post.fits import fit_power_law
-    if len(p_bar) < 4:
+    if n_distinct(p_bar) < 4:
         return None
     try:
         return fit_power_law(p_bar, y)
@@ -419,7 +641,8 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
         p_bar = g["pressure_pa"].to_numpy() / 1e5
         for what, fit in (("γ", f["gamma"]), ("τ", f["tau"])):
             if fit is None:
-                lines.append(f"- {law}: {what}(p) not fitted (fewer than 4 pressures)")
+                lines.append(f"- {law}: {what}(p) not fitted (fewer than 4 distinct "
+                             f"pressures: {n_distinct(p_bar)})")
             else:
                 lines.append(f"- {law}: {what}(p) = {fit.a:.4g} (±{fit.stderr[0]:.2g}) "
                              f"p^{fit.b:.4g} (±{fit.stderr[1]:.2g}) "
@@ -439,11 +662,11 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
             f"γ_aff / γ_steady = {ratios(g['gamma_affine'].to_numpy() / g['gamma_steady'])}; "
             f"3 ⟨n_z²⟩ = {ratios(3 * g['fabric_nz2'].to_numpy())}; "
             f"τ / τ_slab = {ratios(g['tau_s'].to_numpy() / g['tau_slab_s'].to_numpy())}")
-        trend = np.polyfit(np.log(p_bar), np.log(gamma), 1)[0] \
-            if len(p_bar) > 1 else float("nan")
-        lines.append(f"- {law}: log-log slope of γ(p) {trend:.3g} (the paper's curve falls, "
-                     f"slope −0.29 at low p; contact mechanics, ζ ∝ F_n^(1/3) ∝ p^(1/3), "
-                     "predicts a rising γ)")
+        trend = _log_slope(p_bar, gamma)
+        lines.append(f"- {law}: log-log slope of γ(p) "
+                     + (_no_slope(p_bar) if trend is None else f"{trend:.3g}")
+                     + " (the paper's curve falls, slope −0.29 at low p; contact mechanics, "
+                       "ζ ∝ F_n^(1/3) ∝ p^(1/3), predicts a rising γ)")
         # 003 App. A: tau_mid = L^2 rho_p c_p / (8 gamma_paper kappa_p); the paper's own fits
         # give tau gamma_paper = 0.0056-0.0067 s (docs/campaign.md)
         lines.append(f"- {law}: τ γ_paper (s) = {ratios(g['tau_s'].to_numpy() * g['gamma_paper'])}"
@@ -515,9 +738,10 @@ def _seed_summary(table, fits, seeds):
                              f"{len(b)} seeds (range {min(b):.4g} … {max(b):.4g}; per seed "
                              f"{per})")
             g = table[table.law == law]
-            slopes = [np.polyfit(np.log(x.pressure_pa / 1e5), np.log(x[key if key == "gamma"
-                                                                        else "tau_s"]), 1)[0]
-                      for _, x in g.groupby("seed") if len(x) > 1]
+            slopes = [_log_slope(x.pressure_pa.to_numpy() / 1e5,
+                                 x[key if key == "gamma" else "tau_s"].to_numpy())
+                      for _, x in g.groupby("seed")]
+            slopes = [b for b in slopes if b is not None]
             if slopes:
                 lines.append(f"- {law}: log-log slope of {what}(p) = {np.mean(slopes):.4g} ± "
                              f"{np.std(slopes, ddof=1) if len(slopes) > 1 else float('nan'):.2g}")

@@ -64,20 +64,16 @@ def _text_file(path, what):
 
 
 def _cmd_pack(args):
-    from .pack import build, build_seeds
+    from .pack import build, build_seeds, parse_seeds
     _text_file(args.scene, "scene")
     _positive(args, "threads")
     _positive(args, "jobs")
     out = _out_dir(args)
     if args.seeds is not None:
+        seeds = parse_seeds(args.seeds)
         if args.threads != 1:
             raise UserError("--threads: yade-batch runs each seed on one YADE thread "
                             "(deterministic); use --jobs for parallel seeds")
-        try:
-            seeds = [int(x) for x in args.seeds.split(",") if x.strip()]
-        except ValueError:
-            raise UserError(f"--seeds: expected comma-separated integers, got {args.seeds!r}") \
-                from None
         build_seeds(Path(args.scene), seeds, out, jobs=args.jobs, quiet=args.quiet)
         return
     build(Path(args.scene), out, threads=args.threads, quiet=args.quiet)

@@ -12,6 +12,27 @@ from thermal_kernel.scene import read_toml
 from . import yade
 from .errors import UserError
 
+# the largest seed: a packing stores its seed as a 64-bit integer (HDF5 attribute); a larger one
+# passed every check and failed when YADE wrote the file (round 3, pack:seeds_huge)
+SEED_MAX = 2**63 - 1
+
+
+def parse_seeds(text: str, flag: str = "--seeds") -> list[int]:
+    """``--seeds`` "1,2,5": distinct integers from 0 to SEED_MAX, refused in one line naming
+    the flag before YADE starts."""
+    try:
+        seeds = [int(x) for x in str(text).split(",") if x.strip()]
+    except ValueError:
+        raise UserError(f"{flag}: expected comma-separated integers, got {text!r}") from None
+    check_seeds(seeds, flag)
+    return seeds
+
+
+def check_seeds(seeds: list[int], flag: str = "--seeds") -> None:
+    if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0 or max(seeds) > SEED_MAX:
+        raise UserError(f"{flag}: expected distinct integers from 0 to {SEED_MAX} (a seed is "
+                        f"stored as a 64-bit integer), got {seeds}")
+
 
 def read_pack_table(scene_path: Path) -> tuple[str, dict]:
     """Return (generator, resolved params) of a scene's [pack] table; UserError names file+key."""
@@ -91,8 +112,7 @@ def build_seeds(scene_path: Path, seeds: list[int], out_dir: Path | None = None,
     thread each): ``<out>/seed_<s>/packing.h5``. Print each one's statistics."""
     generator, params = read_pack_table(scene_path)
     out_dir = Path(out_dir).resolve() if out_dir else default_out_dir(scene_path)
-    if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0:
-        raise UserError(f"--seeds: expected distinct seeds >= 0, got {seeds}")
+    check_seeds(seeds)
     if jobs < 1:
         raise UserError(f"--jobs: expected a number of parallel YADE jobs >= 1, got {jobs}")
     dirs = [out_dir / f"seed_{s}" for s in seeds]
