@@ -82,28 +82,144 @@ class DumpError(ValueError):
     """The scene cannot be represented in the format; the message is one line."""
 
 
-def dump(path, young_pa=None, poisson=None, density=None, walls="auto", wall_names=None,
-         pressure_pa=None, seed=0, gaps=False, attrs=None, quiet=False, exit_on_error=True):
-    """Write the current YADE scene (``O``) to ``path`` as a tdem packing; return a dict of
+# dump(path, *, ...): the keyword arguments and their defaults (checked by _arguments, so that a
+# wrong call is one line like every other refusal, not a Python traceback inside YADE)
+DEFAULTS = dict(young_pa=None, poisson=None, density=None, walls="auto", wall_names=None,
+                pressure_pa=None, seed=0, gaps=False, attrs=None, quiet=False,
+                exit_on_error=True)
+# root attributes dump() itself writes: attrs={...} may not replace them
+OWN_ATTRS = ("format", "format_version", "generator", "seed", "solid_fraction",
+             "mean_coordination", "pressure_pa", "young_pa", "poisson", "density", "source",
+             "yade_version", "yade_iteration", "yade_time_s", "yade_dt_s", "contact_law",
+             "contact_phys", "overlap_source", "overlap_vs_yade_max_m",
+             "tensile_contacts_clipped", "wall_interactions_merged", "inferred", "wall_seconds",
+             "force_law", "force_law_contacts", "force_law_ratio_median",
+             "force_law_mismatch_p95", "force_law_mismatch_max")
+# Two spheres overlapping by more than this fraction of the smaller radius without a YADE
+# interaction between them are refused: the collider pairs every overlap at the next step, and
+# no DEM step moves a sphere by 1 % of its radius; such an overlap is a scene that never ran
+# (O.run) or two spheres put in one place.
+UNLISTED_OVERLAP_RTOL = 1e-2
+
+
+def dump(*args, **kwargs):
+    """dump(path, *, young_pa=None, poisson=None, density=None, walls="auto", wall_names=None,
+    pressure_pa=None, seed=0, gaps=False, attrs=None, quiet=False, exit_on_error=True)
+
+    Write the current YADE scene (``O``) to ``path`` as a tdem packing; return a dict of
     the measured numbers (n_particles, n_contacts, solid_fraction, mean_coordination,
-    pressure_pa, inferred, force law check).
+    pressure_pa, inferred, force law check). ``path`` is the only positional argument.
 
     young_pa, poisson, density: the real material (Pa, -, kg/m^3) the thermal laws will use;
     when not given they are read from the spheres' material and recorded as inferred (a linear
     law's FrictMat ``poisson`` is k_s/k_n, not Poisson's ratio: give ``poisson`` then).
     walls: "auto" (Wall, Facet and Box bodies become planes) or "none".
     wall_names: {body id: name} to name the plane a body makes (e.g. a loading plate "plate").
-    pressure_pa: the confining pressure (Pa); measured when None (see the module docstring).
-    seed: the seed of your generator (recorded). attrs: extra root attributes to record.
+    pressure_pa: the confining pressure (Pa, >= 0; NaN: none); measured when None (see the
+    module docstring). seed: the integer seed of your generator (recorded). attrs: extra root
+    attributes to record ({name: number or string}; the names dump writes itself are refused).
+
+    A refusal prints one line ``tdem_yade: error: ...`` and exits with status 2, or, with
+    ``exit_on_error=False``, raises :class:`DumpError` (also for a wrong call).
     """
+    exit_on_error = kwargs.get("exit_on_error", True)
     try:
-        return _dump(str(path), young_pa, poisson, density, walls, dict(wall_names or {}),
-                     pressure_pa, seed, gaps, dict(attrs or {}), quiet)
+        path, kw = _arguments(args, kwargs)
+        exit_on_error = kw["exit_on_error"]
+        return _dump(path, kw["young_pa"], kw["poisson"], kw["density"], kw["walls"],
+                     kw["wall_names"], kw["pressure_pa"], kw["seed"], kw["gaps"], kw["attrs"],
+                     kw["quiet"])
     except DumpError as e:
-        if not exit_on_error:
+        if exit_on_error is False:
             raise
         print(f"tdem_yade: error: {e}", file=sys.stderr, flush=True)
         raise SystemExit(2) from None
+
+
+def _arguments(args, kwargs):
+    """(path, {argument: value}) of a dump() call, each argument's type checked; DumpError."""
+    if not args and "path" not in kwargs:
+        raise DumpError("dump(): missing the file name: dump('packing.h5', young_pa=..., "
+                        "poisson=...)")
+    if len(args) > 1:
+        raise DumpError(f"dump(): {len(args)} positional arguments; the file name is the only "
+                        "one, give the others by name (young_pa=..., poisson=..., ...)")
+    if args and "path" in kwargs:
+        raise DumpError("dump(): the file name given twice (positionally and as path=)")
+    kwargs = dict(kwargs)
+    path = args[0] if args else kwargs.pop("path")
+    unknown = sorted(k for k in kwargs if k not in DEFAULTS)
+    if unknown:
+        import difflib
+        close = difflib.get_close_matches(unknown[0], DEFAULTS, n=1)
+        raise DumpError(f"dump(): unknown argument {unknown[0]!r}"
+                        + (f" (did you mean {close[0]}?)" if close else "")
+                        + f"; expected {', '.join(DEFAULTS)}")
+    if not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise DumpError(f"dump(): the file name must be a string, got {path!r}")
+    path = os.fspath(path)
+    kw = dict(DEFAULTS, **kwargs)
+    for key in ("gaps", "quiet", "exit_on_error"):
+        if not isinstance(kw[key], (bool, np.bool_)):
+            raise DumpError(f"{path}: {key}: expected True or False, got {kw[key]!r}")
+    seed = kw["seed"]
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)):
+        raise DumpError(f"{path}: seed: expected an integer, got {seed!r}")
+    kw["seed"] = int(seed)
+    for key in ("young_pa", "poisson", "density", "pressure_pa"):
+        value = kw[key]
+        if value is None:
+            continue
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float,
+                                                                         np.integer,
+                                                                         np.floating)):
+            raise DumpError(f"{path}: {key}: expected a number, got {value!r}")
+        kw[key] = float(value)
+    pressure = kw["pressure_pa"]
+    if pressure is not None and not math.isnan(pressure) and not (math.isfinite(pressure)
+                                                                  and pressure >= 0):
+        raise DumpError(f"{path}: pressure_pa: expected a pressure >= 0 in Pa (or NaN: none), "
+                        f"got {pressure!r}")
+    names = kw["wall_names"]
+    if names is None:
+        names = {}
+    if not isinstance(names, dict):
+        raise DumpError(f"{path}: wall_names: expected a dict {{body id: name}} (e.g. "
+                        f"{{lid.id: 'plate'}}), got {type(names).__name__} {names!r}")
+    for body, name in names.items():
+        if isinstance(body, (bool, np.bool_)) or not isinstance(body, (int, np.integer)):
+            raise DumpError(f"{path}: wall_names: key {body!r}: expected a body id (an integer)")
+        if not isinstance(name, str) or not name.strip():
+            raise DumpError(f"{path}: wall_names[{body}]: expected a wall name (a non-empty "
+                            f"string), got {name!r}")
+    given = list(names.values())
+    dup = next((x for x in given if given.count(x) > 1), None)
+    if dup is not None:
+        raise DumpError(f"{path}: wall_names: the name {dup!r} is given to two bodies; expected "
+                        "one name per wall")
+    kw["wall_names"] = {int(b): str(x) for b, x in names.items()}
+    extra = kw["attrs"]
+    if extra is None:
+        extra = {}
+    if not isinstance(extra, dict):
+        raise DumpError(f"{path}: attrs: expected a dict {{name: value}}, got "
+                        f"{type(extra).__name__}")
+    checked = {}
+    for key, value in extra.items():
+        if not isinstance(key, str) or not key:
+            raise DumpError(f"{path}: attrs: key {key!r}: expected an attribute name (a string)")
+        if key in OWN_ATTRS:
+            raise DumpError(f"{path}: attrs[{key!r}]: an attribute dump() writes itself (from "
+                            "the scene or its own arguments); expected a new name for an extra "
+                            "attribute")
+        if isinstance(value, (np.generic,)):
+            value = value.item()
+        if not isinstance(value, (str, bool, int, float)):
+            raise DumpError(f"{path}: attrs[{key!r}]: a value of type "
+                            f"{type(value).__name__}; expected a number or a string")
+        checked[key] = value
+    kw["attrs"] = checked
+    return path, kw
 
 
 def _fail(path, what):
@@ -133,6 +249,20 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         _fail(path, f"the folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        _fail(path, f"the folder {folder} is not writable")
+    if walls_mode == "none" and wall_names:
+        _fail(path, "wall_names given with walls='none' (no wall is written)")
+    for body_id in wall_names:             # each named body must be a wall body of the scene
+        body = O.bodies[body_id] if 0 <= body_id < len(O.bodies) else None
+        if body is None:
+            _fail(path, f"wall_names: body {body_id}: no such body in the scene "
+                        f"({len(O.bodies)} bodies)")
+        shape = type(body.shape).__name__ if body.shape is not None else "None"
+        if shape not in WALL_SHAPES:
+            _fail(path, f"wall_names: body {body_id} is a {shape}, not a wall body "
+                        f"({', '.join(WALL_SHAPES)}); expected the id of a wall, e.g. "
+                        "{lid.id: 'plate'}")
 
     # --- bodies: spheres, wall bodies, refusals ------------------------------------------
     spheres, wall_bodies = [], []
@@ -164,6 +294,16 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
     index = {b.id: k for k, b in enumerate(spheres)}
     raw = np.array([_vec(b.state.pos) for b in spheres])
     radius = np.array([float(b.shape.radius) for b in spheres])
+    bad = np.flatnonzero(~np.all(np.isfinite(raw), axis=1))
+    if bad.size:
+        b = spheres[int(bad[0])]
+        _fail(path, f"body {b.id} has position {np.round(raw[bad[0]], 12).tolist()}: expected "
+                    "finite numbers (a sphere that left the simulation? NaN from a blown-up "
+                    "step?)")
+    bad = np.flatnonzero(~(np.isfinite(radius) & (radius > 0)))
+    if bad.size:
+        _fail(path, f"body {spheres[int(bad[0])].id} has radius {radius[bad[0]]!r}: expected a "
+                    "finite radius > 0")
     yade_id = np.array([b.id for b in spheres], dtype=np.int64)
     mat_ids = [b.material.id if b.material is not None else -1 for b in spheres]
     phase_of = {m: k for k, m in enumerate(sorted(set(mat_ids)))}
@@ -361,13 +501,31 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
     renumber = {old: new for new, old in enumerate(keep)}
     walls = [walls[k] for k in keep]
     w_wall = np.array([renumber[w] for w in w_wall], dtype=np.int32)
-    taken = set()
+    given_of, auto_of = [], []
     for k, w in enumerate(walls):
         ids = [w["body"]] + list(w.get("bodies", ()))
-        given = next((wall_names[b] for b in ids if b in wall_names), None)
+        given_of.append(next(((b, wall_names[b]) for b in ids if b in wall_names), None))
         axis = _axis_of(w["normal"])
-        name = given or (f"{'xyz'[axis]}{'min' if w['normal'][axis] > 0 else 'max'}"
-                         if axis is not None else f"plane_{k}")
+        auto_of.append(f"{'xyz'[axis]}{'min' if w['normal'][axis] > 0 else 'max'}"
+                       if axis is not None else f"plane_{k}")
+    named = {g[0] for g in given_of if g is not None}
+    for body_id in wall_names:
+        if body_id not in named:
+            _fail(path, f"wall_names: body {body_id} makes no wall of the file (its planes face "
+                        "no sphere); expected the id of a wall the spheres touch or face")
+    for k, g in enumerate(given_of):
+        if g is None:
+            continue
+        clash = next((m for m in range(len(walls)) if m != k and given_of[m] is None
+                      and auto_of[m] == g[1]), None)
+        if clash is not None:
+            _fail(path, f"wall_names: body {g[0]} named {g[1]!r}, the name of another wall "
+                        f"(the plane of body {walls[clash]['body']}, normal "
+                        f"{np.round(walls[clash]['normal'], 9).tolist()}); expected a name no "
+                        "other wall has")
+    taken = set()
+    for k, w in enumerate(walls):
+        name = given_of[k][1] if given_of[k] is not None else auto_of[k]
         base, j = name, 2
         while name in taken:
             name, j = f"{base}_{j}", j + 1
@@ -408,6 +566,10 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
         h = np.clip(w_over, 0.0, None)[bounding]
         v_solid -= float(np.sum(np.pi * h ** 2 * (3 * radius[w_part][bounding] - h) / 3.0))
     solid_fraction = v_solid / volume_cells
+    _unlisted_overlaps(path, position, radius, yade_id, pair, hsize if periodic else None)
+    if solid_fraction > 1.0:
+        _fail(path, f"the spheres' volume is {solid_fraction:.4g} times the domain's: a solid "
+                    "fraction above 1 (overlapping spheres, or a scene that never ran?)")
     touching = p_over > 0
     mean_z = 2.0 * int(touching.sum()) / n
 
@@ -421,10 +583,22 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
                         "young_pa=...")
         young_pa = float(mat.young)
         inferred.append(f"young_pa: the spheres' material young ({young_pa:.6g} Pa)")
+    laws = []
+    for e in O.engines:
+        if type(e).__name__ == "InteractionLoop":
+            laws += [type(f).__name__ for f in e.lawDispatcher.functors]
     if poisson is None:
-        if linear and not hertz:
-            _fail(path, "poisson: not given, and the contact law is linear (FrictMat "
-                        "'poisson' is k_s/k_n there, not Poisson's ratio); pass poisson=...")
+        # FrictMat's poisson is Poisson's ratio only under Hertz-Mindlin; under a linear law
+        # (Cundall-Strack, cohesive ...) it is k_s/k_n. Known from the interactions, or, before
+        # any contact exists, from the engines' contact laws.
+        mindlin = hertz > 0 if phys_kinds else any("Mindlin" in x for x in laws)
+        if linear or not mindlin:
+            what = ("linear (" + ", ".join(sorted(k for k in phys_kinds if k in LINEAR_PHYS))
+                    + ")") if linear else ("not Hertz-Mindlin (contact laws: "
+                                           + (", ".join(laws) or "none") + ")")
+            _fail(path, f"poisson: not given, and the contact law is {what}: FrictMat "
+                        "'poisson' is Poisson's ratio only for Hertz-Mindlin (k_s/k_n for a "
+                        "linear law); pass poisson=...")
         if mat is None or not hasattr(mat, "poisson"):
             _fail(path, "poisson: not given and the spheres' material has no 'poisson'; pass "
                         "poisson=...")
@@ -436,17 +610,27 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
                         "density=...")
         density = float(mat.density)
         inferred.append(f"density: the spheres' material density ({density:.6g} kg/m^3)")
-    for key, value in (("young_pa", young_pa), ("poisson", poisson), ("density", density)):
+    for key, value in (("young_pa", young_pa), ("density", density)):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
             _fail(path, f"{key}: expected a finite number > 0, got {value!r}")
+    if not (isinstance(poisson, (int, float)) and -1.0 < poisson < 0.5):
+        _fail(path, f"poisson: expected Poisson's ratio in (-1, 0.5), got {poisson!r}"
+                    + (" (the spheres' material)" if any(x.startswith("poisson:")
+                                                        for x in inferred) else ""))
 
     if pressure_pa is None:
         if periodic:
             from yade import utils
             s = utils.getStress()
             pressure_pa = -float(s[0, 0] + s[1, 1] + s[2, 2]) / 3.0
-            inferred.append("pressure_pa: -trace/3 of utils.getStress() (the cell's mean "
-                            "stress)")
+            if pressure_pa >= 0:
+                inferred.append("pressure_pa: -trace/3 of utils.getStress() (the cell's mean "
+                                "stress)")
+            else:
+                inferred.append(f"pressure_pa: NaN (the cell's mean stress is tensile: "
+                                f"-trace/3 of utils.getStress() = {pressure_pa:.6g} Pa; no "
+                                "confining pressure)")
+                pressure_pa = math.nan
         else:
             per_wall = {}
             for k, w in enumerate(walls):
@@ -483,10 +667,6 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
         law = {"force_law": "unknown (" + ", ".join(sorted(phys_kinds)) + "): not checked"
                if phys_kinds else "none (no contacts)", "force_law_contacts": 0}
 
-    laws = []
-    for e in O.engines:
-        if type(e).__name__ == "InteractionLoop":
-            laws += [type(f).__name__ for f in e.lawDispatcher.functors]
     over_diff = np.abs(np.concatenate([p_over - np.array(p_yade, float),
                                        w_over - np.array(w_yade, float)]))
     script = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "?"
@@ -514,13 +694,18 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
     if len(p_over):
         r_i, r_j = radius[pair[:, 0]], radius[pair[:, 1]]
         r_star = r_i * r_j / (r_i + r_j)
-    # (the writer renames a finished <path>.tmp; on any error it removes it)
-    _writer.write_packing(
-        path, position, radius, phase, pair, p_over, p_force, p_branch, wall_rows, w_part,
-        w_wall, w_over, w_force, lo, hi, (periodic,) * 3, out_attrs,
-        contact_radius=np.sqrt(r_star * np.clip(p_over, 0, None)),
-        wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)),
-        yade_id=yade_id)
+    # built in memory, then written at once under <path>.tmp and renamed: a full or read-only
+    # disk is one OSError (one line here), and no file is left
+    try:
+        image = _writer.packing_image(
+            position, radius, phase, pair, p_over, p_force, p_branch, wall_rows, w_part,
+            w_wall, w_over, w_force, lo, hi, (periodic,) * 3, out_attrs,
+            contact_radius=np.sqrt(r_star * np.clip(p_over, 0, None)),
+            wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)),
+            yade_id=yade_id)
+        _writer.write_bytes_atomic(path, image)
+    except OSError as e:
+        _fail(path, f"cannot write the file: {e.strerror or e}")
     summary = dict(n_particles=n, n_contacts=int(touching.sum()), n_wall_contacts=len(w_part),
                    walls=[w["name"] for w in walls], solid_fraction=solid_fraction,
                    mean_coordination=mean_z, pressure_pa=float(pressure_pa),
@@ -532,6 +717,45 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
               f"{solid_fraction:.4f}, Z {mean_z:.3f}, p {pressure_pa:.4g} Pa; force law {line}",
               flush=True)
     return summary
+
+
+def _unlisted_overlaps(path, position, radius, yade_id, pair, hsize):
+    """Refuse two spheres overlapping by more than UNLISTED_OVERLAP_RTOL of the smaller radius
+    with no YADE interaction between them (scipy's k-d tree; skipped without scipy)."""
+    try:
+        from scipy.spatial import cKDTree
+    except ImportError:        # Debian's YADE comes with python3-scipy; be safe without it
+        return
+    if len(radius) < 2:
+        return
+    box = None
+    if hsize is not None:
+        box = np.diag(hsize).copy()
+        if np.any(4.0 * radius.max() > box):
+            return             # a cell thinner than two diameters: the image is ambiguous
+    tree = cKDTree(position, boxsize=box)
+    cand = tree.query_pairs(2.0 * float(radius.max()), output_type="ndarray").astype(np.int64)
+    if not cand.size:
+        return
+    cand.sort(axis=1)
+    a, b = cand[:, 0], cand[:, 1]
+    d = position[b] - position[a]
+    if box is not None:
+        d -= box * np.round(d / box)
+    r_min = np.minimum(radius[a], radius[b])
+    over = radius[a] + radius[b] - np.linalg.norm(d, axis=1)
+    deep = np.flatnonzero(over > UNLISTED_OVERLAP_RTOL * r_min)
+    if not deep.size:
+        return
+    n = len(radius)
+    listed = set((pair[:, 0] * n + pair[:, 1]).tolist())
+    for k in deep[np.argsort(-over[deep] / r_min[deep], kind="stable")]:
+        if int(a[k] * n + b[k]) not in listed:
+            _fail(path, f"bodies {int(yade_id[a[k]])} and {int(yade_id[b[k]])} overlap by "
+                        f"{over[k]:.6g} m (radii {radius[a[k]]:.6g}, {radius[b[k]]:.6g} m) with "
+                        "no YADE interaction between them: the collider has not seen them (run "
+                        "at least one step, O.run(1, True), before dump) or they were put in "
+                        "one place")
 
 
 def _axis_of(normal):
