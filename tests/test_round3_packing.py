@@ -359,3 +359,142 @@ def test_the_round_trip_dumps_are_what_liggghts_writes(dumps):
     assert np.abs(geo - rows[:, 6]).max() < 1e-12
     assert math.isclose(np.linalg.norm(rows[:, 3:6], axis=1).sum(),
                         p.normal_force[p.overlap > 0].sum(), rel_tol=1e-12)
+
+
+# ----------------------------------------------------------------------------- tdem_yade.dump
+
+YADE_SCRIPT = r'''
+import errno, json, os, sys
+from yade import utils, geom
+from yade.wrapper import (Omega, FrictMat, ForceResetter, InsertionSortCollider, Bo1_Sphere_Aabb,
+                          Bo1_Facet_Aabb, Bo1_Wall_Aabb, InteractionLoop, Ig2_Sphere_Sphere_ScGeom,
+                          Ig2_Facet_Sphere_ScGeom, Ig2_Wall_Sphere_ScGeom,
+                          Ip2_FrictMat_FrictMat_MindlinPhys, Law2_ScGeom_MindlinPhys_Mindlin,
+                          Ip2_FrictMat_FrictMat_FrictPhys, Law2_ScGeom_FrictPhys_CundallStrack,
+                          NewtonIntegrator)
+sys.path.insert(0, os.environ["TDEM_YADE_PATH"])
+import tdem_yade
+O = Omega()
+out = sys.argv[1]
+P = os.path.join(out, "packing.h5")
+O.materials.append(FrictMat(young=5e7, poisson=0.3, density=2600, frictionAngle=0.4))
+L, r = 0.006, 0.0005
+O.bodies.append(utils.wall(0.0, axis=2))                                    # body 0: zmin
+O.bodies.append(geom.facetBox((L / 2, L / 2, L), (L / 2, L / 2, L), wallMask=15))
+spheres = [O.bodies.append(utils.sphere((x, y, 0.0006 + 0.0011 * k), r))
+           for x in (0.0015, 0.003, 0.0045) for y in (0.0015, 0.0045) for k in range(3)]
+def engines(linear):
+    ip, law = ((Ip2_FrictMat_FrictMat_FrictPhys(), Law2_ScGeom_FrictPhys_CundallStrack())
+               if linear else (Ip2_FrictMat_FrictMat_MindlinPhys(),
+                               Law2_ScGeom_MindlinPhys_Mindlin()))
+    O.engines = [ForceResetter(), InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Facet_Aabb(),
+                                                         Bo1_Wall_Aabb()]),
+                 InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Facet_Sphere_ScGeom(),
+                                  Ig2_Wall_Sphere_ScGeom()], [ip], [law]),
+                 NewtonIntegrator(gravity=(0, 0, -9.81), damping=0.4)]
+engines(False)
+O.dt = 0.5 * utils.PWaveTimeStep()
+O.run(1, True)
+kw = dict(young_pa=5e7, poisson=0.3, exit_on_error=False, quiet=True)
+result = {}
+def case(name, *args, **kwargs):
+    try:
+        tdem_yade.dump(*args, **kwargs)
+        result[name] = "written"
+    except tdem_yade.DumpError as e:
+        result[name] = str(e)
+    result[name + ":left"] = sorted(os.listdir(out))
+    if name == "ok":
+        os.replace(P, os.path.join(os.path.dirname(out), "ok.h5"))
+    for f in os.listdir(out):
+        os.remove(os.path.join(out, f))
+class Full:
+    def __init__(self, path, mode):
+        self.f = open(path, mode)
+    def __enter__(self):
+        return self
+    def __exit__(self, *exc):
+        self.f.close()
+    def write(self, data):
+        self.f.write(bytes(data)[:100])
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+case("ok", P, seed=3, **kw)
+case("poisson_0_7", P, young_pa=5e7, poisson=0.7, exit_on_error=False)
+case("wall_names_unknown_body", P, wall_names={9999: "plate"}, **kw)
+case("wall_names_sphere_body", P, wall_names={spheres[0]: "plate"}, **kw)
+case("wall_names_nonstring", P, wall_names={0: 5}, **kw)
+case("wall_names_dup", P, wall_names={0: "xmax"}, **kw)
+case("wall_names_list", P, wall_names=["plate"], **kw)
+case("pressure_negative", P, pressure_pa=-5.0, **kw)
+case("seed_text", P, seed="abc", **kw)
+case("attrs_override_format", P, attrs={"format": "junk"}, **kw)
+case("attrs_override_young", P, attrs={"young_pa": -1.0, "solid_fraction": 3.0}, **kw)
+case("attrs_object", P, attrs={"obj": object()}, **kw)
+case("positional_args", P, 5e7, 0.3, exit_on_error=False)
+case("unknown_kwarg", P, youngs=5e7, **kw)
+case("no_path", **kw)
+tdem_yade._writer._atomic.open = Full
+case("full_disk", P, **kw)
+del tdem_yade._writer._atomic.open
+engines(True)
+case("linear_no_poisson", P, young_pa=5e7, exit_on_error=False, quiet=True)
+engines(False)
+O.bodies.append(utils.sphere(tuple(O.bodies[spheres[0]].state.pos), r))
+case("overlapping_spheres", P, **kw)
+O.bodies[spheres[1]].state.pos = (float("nan"), 0, 0)
+case("nan_position", P, **kw)
+with open(os.path.join(os.path.dirname(out), "result.json"), "w") as f:
+    json.dump(result, f)
+'''
+
+YADE_CASES = {
+    "poisson_0_7": "poisson: expected Poisson's ratio in (-1, 0.5), got 0.7",
+    "wall_names_unknown_body": "wall_names: body 9999: no such body",
+    "wall_names_sphere_body": "is a Sphere, not a wall body",
+    "wall_names_nonstring": "wall_names[0]: expected a wall name",
+    "wall_names_dup": "wall_names: body 0 named 'xmax', the name of another wall",
+    "wall_names_list": "wall_names: expected a dict",
+    "pressure_negative": "pressure_pa: expected a pressure >= 0",
+    "seed_text": "seed: expected an integer, got 'abc'",
+    "attrs_override_format": "attrs['format']: an attribute dump() writes itself",
+    "attrs_override_young": "attrs['young_pa']: an attribute dump() writes itself",
+    "attrs_object": "attrs['obj']: a value of type object",
+    "positional_args": "dump(): 3 positional arguments; the file name is the only one",
+    "unknown_kwarg": "unknown argument 'youngs' (did you mean young_pa?)",
+    "no_path": "dump(): missing the file name",
+    "full_disk": "cannot write the file: No space left on device",
+    "linear_no_poisson": "poisson: not given, and the contact law is not Hertz-Mindlin",
+    "overlapping_spheres": "overlap by 0.001 m",
+    "nan_position": "has position [nan, 0.0, 0.0]: expected finite numbers",
+}
+
+
+@pytest.mark.yade
+def test_tdem_yade_dump_refusals_are_one_line(tmp_path):
+    """One small YADE scene (18 spheres, a floor, a facet box, one step), dump() called with each
+    bad argument or scene state (exit_on_error=False: the DumpError's one line): the message
+    names the argument, and nothing is left in the folder. The good call passes the reader."""
+    import subprocess
+
+    from tdem.yade import yade_environment
+    if shutil.which("yade", path=yade_environment()["PATH"]) is None:
+        pytest.skip("Debian's yade is not installed")
+    import json
+    script = tmp_path / "scene.py"
+    script.write_text(YADE_SCRIPT)
+    out = tmp_path / "out"
+    out.mkdir()
+    env = dict(yade_environment(), TDEM_YADE_PATH=str(Path(__file__).resolve().parent.parent
+                                                      / "yade_scripts"))
+    r = subprocess.run(["yade", "-n", "-j1", "-x", str(script), str(out)], cwd=tmp_path,
+                       env=env, capture_output=True, text=True, timeout=600,
+                       stdin=subprocess.DEVNULL)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    result = json.loads((tmp_path / "result.json").read_text())
+    assert result["ok"] == "written" and result["ok:left"] == ["packing.h5"]
+    ok = read_packing(tmp_path / "ok.h5")                   # the stricter reader takes it
+    assert ok.n_particles == 18 and 0 < ok.attrs["solid_fraction"] < 1
+    for case, words in YADE_CASES.items():
+        assert words in result[case], (case, result[case])
+        assert "\n" not in result[case]
+        assert result[case + ":left"] == [], (case, result[case + ":left"])
