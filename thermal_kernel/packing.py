@@ -391,8 +391,9 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
                             wall_kind, wall_point, wall_normal, wall_radius, wall_particle,
                             wall_index, wall_overlap, wall_normal_force):
     """Overlaps that contradict the geometry, forces on gaps: a contact's overlap is
-    r_i + r_j - |branch| (the branch is already checked against the centres), a wall contact's
-    is r - its centre's distance to the wall; a gap (overlap <= 0) carries no force."""
+    r_i + r_j - |branch| (the branch is already checked against the centres), a touching wall
+    contact's is r - its centre's distance to the wall; a gap (overlap <= 0) carries no force;
+    no two centres coincide."""
     scale = np.abs(position).max(initial=0.0)
     eps = 8 * np.finfo(float).eps * scale
     if pair.shape[0]:
@@ -424,7 +425,10 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
                                   position[wall_particle[rows]])
             geo = r[rows] - dist
             rtol = OVERLAP_RTOL if kind == "plane" else CURVED_WALL_RTOL
-            off = np.abs(wall_overlap[rows] - geo) > rtol * r[rows] + eps
+            # touching rows only: a row with overlap <= 0 is a near-wall neighbour without
+            # force (thermal_kernel.lattice writes 0 for its outer layers whatever the radius)
+            off = (wall_overlap[rows] > 0) & \
+                (np.abs(wall_overlap[rows] - geo) > rtol * r[rows] + eps)
             if off.any():
                 k = int(np.flatnonzero(off)[0])
                 c = int(rows[k])

@@ -45,8 +45,15 @@ with the given ``young_pa``/``poisson``, linear laws against k_n delta with YADE
 What it refuses, in one line (``tdem_yade: error: ...``, exit status 2; with
 ``exit_on_error=False`` a ``DumpError`` is raised instead): clumps, non-spherical particles,
 contact geometries other than ScGeom, sheared periodic cells, a wall with spheres on both sides,
-an empty scene. Standard library + numpy + h5py + yade only (Debian's Python); the file is
-written by the same single writer as tdem's generators (``thermal_kernel/packing_h5.py``).
+an empty scene; a wrong call (the file name is the only positional argument; an unknown
+argument is named); poisson outside (-1, 0.5), or not given under a law other than
+Hertz-Mindlin; a negative pressure; wall_names that are not {wall body id: new name}; attrs that
+would replace an attribute dump writes, or hold objects; a non-finite position; two spheres
+overlapping without a YADE interaction (a scene that never ran), a solid fraction above 1; an
+unwritable folder or a full disk (the file is built in memory and written at once; nothing is
+left). Standard library + numpy + h5py + yade (scipy for the overlap search, skipped without
+it) on Debian's Python; the file is written by the same single writer as tdem's generators
+(``thermal_kernel/packing_h5.py``).
 """
 import importlib.util
 import math
