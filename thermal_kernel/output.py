@@ -259,6 +259,7 @@ class ThermalRun:
     times: np.ndarray | None = None               # (K,) s; None with data=False
     temperature: np.ndarray | None = None         # (K, N) K
     initial_temperature: np.ndarray | None = None  # (N,) K
+    capacity: np.ndarray | None = None            # (N,) J/K: the law's C_p, as the run used it
 
 
 def _text(value):
@@ -266,8 +267,16 @@ def _text(value):
 
 
 def read_thermal(path, *, data: bool = True) -> ThermalRun:
-    """Read and check a run's ``thermal.h5`` (with ``data``: also its times and temperatures).
-    A missing or malformed field is a :class:`ThermalFileError` naming the file and field."""
+    """Read and check a run's ``thermal.h5`` (with ``data``: also its times, temperatures and
+    capacities). A missing, malformed or tampered field is a :class:`ThermalFileError` naming
+    the file and field (one line). Besides each field's presence, type and shape it checks
+    (always, also with ``data=False``; :func:`check_run_values`): dt > 0 (inf for a steady
+    solve), the output times finite (inf for a steady solve), >= 0 and strictly increasing,
+    the temperatures, initial temperatures and capacities finite (capacities > 0), the
+    temperatures within the run's own stored maximum-principle bounds when the run checked
+    them and within (0, TEMPERATURE_MAX_K] K -- unless the run's own flags say otherwise -- and,
+    in a version-2 file, that the stored scene text still parses and agrees with the resolved
+    scene (scene_json) on every key but the paths."""
     path = Path(path)
 
     def fail(field, what):
@@ -355,15 +364,20 @@ def read_thermal(path, *, data: bool = True) -> ThermalRun:
         if "boundary_names" not in f:
             fail("boundary_names", "missing")
         names = tuple(_text(s) for s in f["boundary_names"][()])
+        if "capacity" not in f or f["capacity"].shape != (n,):
+            fail("capacity", f"expected a dataset of shape ({n},) (J/K)")
+        run = dict(method=attr("method", str), dt=attr("dt", float), flags=attr("flags", str),
+                   wall_seconds=float(attrs.get("wall_seconds", math.nan)))
+        check_run_values(f, attrs, run["method"], run["dt"], run["flags"], fail)
         arrays = {}
         if data:
             arrays = dict(times=time[()], temperature=temperature[()],
-                          initial_temperature=f["initial_temperature"][()])
-        run = dict(method=attr("method", str), dt=attr("dt", float), flags=attr("flags", str),
-                   wall_seconds=float(attrs.get("wall_seconds", math.nan)))
+                          initial_temperature=f["initial_temperature"][()],
+                          capacity=f["capacity"][()])
         scene_path = attr("scene_path", str)
     if version >= 2:
         scene = dataclasses.replace(scene_from_json(scene_json, fail), text=scene_text)
+        _check_scene_text(path, scene_text, scene_path, scene_json, law, fail)
     else:           # the stored text, parsed as it was then
         from .scene import SceneError, load_scene
         try:
@@ -377,6 +391,126 @@ def read_thermal(path, *, data: bool = True) -> ThermalRun:
                       packing_path=Path(packing), packing_sha256=sha, law=law,
                       law_params=law_params, run_args=run_args, n_particles=n,
                       boundary_names=names, **run, **arrays)
+
+
+def _numeric(ds, field, fail):
+    if not np.issubdtype(ds.dtype, np.floating):
+        fail(field, f"expected floating-point values, got {ds.dtype}")
+
+
+def check_run_values(f, attrs, method, dt, flags, fail) -> None:
+    """The values of an open ``thermal.h5`` ``f`` against what a run can write (see
+    :func:`read_thermal`); ``fail(field, what)`` raises the caller's one-line error."""
+    from .solvers import MAX_PRINCIPLE_RTOL, TEMPERATURE_MAX_K
+    steady = method == "steady"
+    if steady:
+        if not (math.isinf(dt) and dt > 0) and not math.isnan(dt):
+            fail("dt", f"expected inf for a steady solve, got {dt!r}")
+    elif not (math.isfinite(dt) and dt > 0):
+        fail("dt", f"expected the run's time step, a finite number > 0 s, got {dt!r}")
+    time = f["time"]
+    _numeric(time, "time", fail)
+    t = time[()]
+    if steady:
+        if t.shape != (1,) or not (np.isinf(t[0]) and t[0] > 0):
+            fail("time", f"expected [inf] for a steady solve, got {t.tolist()[:4]}")
+    else:
+        if t.size == 0:
+            fail("time", "expected at least one output time")
+        if not np.all(np.isfinite(t)):
+            k = int(np.flatnonzero(~np.isfinite(t))[0])
+            fail("time", f"expected finite times, got {float(t[k])!r} at row {k}")
+        if t[0] < 0:
+            fail("time", f"expected times >= 0 s, got {float(t[0])!r} at row 0")
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            k = int(np.flatnonzero(np.diff(t) <= 0)[0])
+            fail("time", f"expected strictly increasing output times, got {float(t[k])!r} "
+                         f"then {float(t[k + 1])!r} at rows {k}, {k + 1}")
+    for key, positive in (("initial_temperature", True), ("capacity", True)):
+        ds = f[key]
+        _numeric(ds, key, fail)
+        v = ds[()]
+        bad = ~np.isfinite(v) | ((v <= 0) if positive else False)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            fail(key, f"expected finite values > 0, got {float(v[k])!r} at particle {k}")
+    flagged = set(filter(None, str(flags).split(",")))
+    temperature = f["temperature"]
+    _numeric(temperature, "temperature", fail)
+    lo, hi = 0.0, TEMPERATURE_MAX_K
+    why = f"the physical range (0, {TEMPERATURE_MAX_K:g}] K"
+    if "below_absolute_zero" in flagged:
+        lo = -math.inf
+    if "above_physical_range" in flagged:
+        hi = math.inf
+    bounds = attrs.get("max_principle_bounds_k")
+    if (int(attrs.get("max_principle_checked", 0) or 0) == 1 and "max_principle" not in flagged
+            and bounds is not None and np.shape(bounds) == (2,)
+            and np.all(np.isfinite(bounds))):
+        b_lo, b_hi = float(bounds[0]), float(bounds[1])
+        tol = MAX_PRINCIPLE_RTOL * (b_hi - b_lo) + 1e-12 * max(abs(b_lo), abs(b_hi))
+        lo, hi = max(lo, b_lo - tol), min(hi, b_hi + tol)
+        why = (f"the run's own maximum-principle bounds [{b_lo:.6g}, {b_hi:.6g}] K "
+               "(max_principle_bounds_k; the run was not flagged max_principle)")
+    rows = max(1, int(2 ** 24 // max(temperature.shape[1], 1)))     # ~128 MB at a time
+    for k0 in range(0, temperature.shape[0], rows):
+        block = temperature[k0:k0 + rows]
+        finite = np.isfinite(block)
+        if not finite.all():
+            k, p = np.argwhere(~finite)[0]
+            fail("temperature", f"expected finite temperatures, got {float(block[k, p])!r} at time "
+                                f"row {k0 + k}, particle {p} (a run writes none: the file was "
+                                "changed after the run)")
+        out = (block < lo) | (block > hi)
+        if out.any():
+            k, p = np.argwhere(out)[0]
+            fail("temperature", f"T = {block[k, p]:.6g} K at time row {k0 + k}, particle {p} "
+                                f"is outside {why}: the file was changed after the run")
+
+
+def _check_scene_text(path, text, scene_path, scene_json, law, fail) -> None:
+    """The stored scene text parses (a campaign's file: as its case scene, the run's law set)
+    and agrees with the resolved scene ``scene_json`` on every key but the paths (path,
+    packing, output: a run may be moved, its packing given on the command line)."""
+    import tomllib
+
+    from .scene import SceneError, load_scene
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        fail("scene", f"the stored scene text is not valid TOML ({e}); a run stores the "
+                      "scene it read: the file was changed after the run")
+    if "campaign" in data:             # a campaign's case: tdem.campaign.case_scenes
+        data = {k: v for k, v in data.items() if k not in ("pack", "campaign", "law")}
+        data = {"packing": "packing.h5", "law": law, **data}
+    try:
+        scene = load_scene(scene_path, out_dir=path.parent, text=text, data=data)
+    except SceneError as e:
+        fail("scene", f"the stored scene text no longer parses as a scene ({e})")
+    ignore = ("path", "packing", "output")
+    mine = {k: v for k, v in json.loads(scene_to_json(scene)).items() if k not in ignore}
+    theirs = json.loads(scene_json)
+    theirs = {k: v for k, v in theirs.items() if k not in ignore} if isinstance(
+        theirs, dict) else theirs
+    if mine != theirs:
+        where, a, b = _first_difference(mine, theirs)
+        fail("scene_json", f"the resolved scene says {where} = {b!r}, the stored scene text "
+                           f"{a!r}: the two were written together by the run, so the file was "
+                           "changed after it")
+
+
+def _first_difference(a, b, where=""):
+    """(key path, a's value, b's value) of the first place two JSON values differ."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b)):
+            if a.get(k, "<missing>") != b.get(k, "<missing>"):
+                return _first_difference(a.get(k, "<missing>"), b.get(k, "<missing>"),
+                                         f"{where}.{k}" if where else k)
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        for i, (x, y) in enumerate(zip(a, b)):
+            if x != y:
+                return _first_difference(x, y, f"{where}[{i}]")
+    return where or "scene", a, b
 
 
 def read_run_packing(run: ThermalRun, path=None):
