@@ -4,6 +4,8 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
+import signal
 import sys
 from pathlib import Path
 
@@ -505,25 +507,109 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# a value that starts with a minus sign: a negative number or a list of numbers
+_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf\b|nan\b)[\w.,+\-]*$", re.IGNORECASE)
+
+
+def _negative_values(argv: list[str]) -> list[str]:
+    """``--young -1e8`` as ``--young=-1e8``: argparse takes a word starting with '-' for an
+    option unless it is a plain negative number (-5, -.5), so ``-1e8`` or ``-1,2`` came out as
+    "expected one argument". Joined to its option, the value reaches the option's own check,
+    which refuses it in one line naming the flag."""
+    out: list[str] = []
+    for word in argv:
+        if (out and _NEGATIVE_VALUE.match(word) and out[-1].startswith("--")
+                and "=" not in out[-1] and len(out[-1]) > 2):
+            out[-1] = f"{out[-1]}={word}"
+        else:
+            out.append(word)
+    return out
+
+
+# the signals tdem turns into an interrupt (their cleanup is Ctrl-C's: nothing half-written, no
+# lock left), with the exit status of a process they end, 128 + the signal's number
+_SIGNALS = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated (SIGTERM)"}
+_received: list[int] = []
+
+
+def _on_signal(signum, frame):
+    """SIGINT and SIGTERM raise KeyboardInterrupt where the program is, so every cleanup path
+    of Ctrl-C runs for both (SIGTERM used to end a run at once: no message, the output's lock
+    file left). The signal is recorded: an interrupt swallowed on its way (by a finaliser,
+    "Exception ignored ...") still ends the command with the signal's status."""
+    _received.append(signum)
+    raise KeyboardInterrupt
+
+
+def _late_signal(signum, frame):
+    """After the command returned (its files written or refused): one line, the signal's
+    status, at once (a KeyboardInterrupt raised during the interpreter's shutdown was printed
+    as "Exception ignored ... KeyboardInterrupt" and the process exited 0)."""
+    try:
+        sys.stderr.write(f"tdem: {_SIGNALS.get(signum, 'interrupted')}\n")
+        sys.stderr.flush()
+    finally:
+        os._exit(128 + signum)
+
+
+def _install_signal_handlers(handler) -> dict:
+    """``handler`` for SIGINT and SIGTERM (not where the parent set them to be ignored, as
+    nohup does); returns the handlers it replaced."""
+    previous = {}
+    for signum in _SIGNALS:
+        old = signal.getsignal(signum)
+        if old is not signal.SIG_IGN:
+            previous[signum] = signal.signal(signum, handler)
+    return previous
+
+
 def main(argv=None) -> int:
+    """The ``tdem`` program (``argv`` None: the command line; the process ends after it) or a
+    call in-process with ``argv`` (tests: the signal handlers are put back on return)."""
+    import threading
     from thermal_kernel.network import NetworkError
     from thermal_kernel.output import ThermalFileError
     from thermal_kernel.packing import PackingError
     from thermal_kernel.scene import SceneError
     from .yade import YadeError
-    args = build_parser().parse_args(argv)
+    program = argv is None
+    args = build_parser().parse_args(_negative_values(
+        list(sys.argv[1:] if argv is None else argv)))
     # before any parallel kernel is compiled; a NUMBA_THREADING_LAYER* setting of the user wins
     prefer_openmp()
+    if threading.current_thread() is not threading.main_thread():   # no signals there
+        return _main(args, (UserError, PackingError, YadeError, SceneError, NetworkError,
+                            ThermalFileError))
+    _received.clear()
+    previous = _install_signal_handlers(_on_signal)
+    try:
+        try:
+            code = _main(args, (UserError, PackingError, YadeError, SceneError, NetworkError,
+                                ThermalFileError))
+        except KeyboardInterrupt:   # a second signal while the first one's line was printed
+            code = 0
+        if _received and code in (0, 1):    # an interrupt swallowed on its way (a finaliser)
+            print(f"tdem: {_SIGNALS[_received[-1]]}", file=sys.stderr, flush=True)
+        return 128 + _received[-1] if _received else code
+    finally:
+        if program:     # until the process has ended: one line and the signal's status
+            _install_signal_handlers(_late_signal)
+        else:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
+
+
+def _main(args, user_errors) -> int:
     try:
         code = args.func(args)      # None, or an exit code (validate: 1 if a case failed)
         sys.stdout.flush()          # a closed pipe shows here, not at exit
-    except (UserError, PackingError, YadeError, SceneError, NetworkError,
-            ThermalFileError) as e:
+    except user_errors as e:
         print(f"tdem: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as e:
-        print("tdem: interrupted" + (f": {e}" if str(e) else ""), file=sys.stderr)
-        return 130
+        signum = _received[-1] if _received else signal.SIGINT
+        print(f"tdem: {_SIGNALS[signum]}" + (f": {e}" if str(e) else ""), file=sys.stderr)
+        return 128 + signum
     except BrokenPipeError:         # `tdem info ... | head`: the reader has gone, exit quietly
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())

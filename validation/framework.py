@@ -26,6 +26,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from tdem.errors import UserError
 from thermal_kernel.atomic import write_text_atomic
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -213,18 +214,111 @@ def packing_built(name: str) -> bool:
     return (OUT / "packings" / name / "packing.h5").exists()
 
 
+class ResultError(UserError):
+    """A saved validation/results/caseN.json that is not a record :func:`save_result` writes
+    (truncated, empty, binary, a list, a field missing or of another type): one line naming the
+    file, the field and what was expected, and how to write it again."""
+
+
+def _shown(path: Path) -> str:
+    try:
+        return str(Path(path).relative_to(ROOT))
+    except ValueError:
+        return str(path)
+
+
+def _describe(value) -> str:
+    text = repr(value)
+    return f"{type(value).__name__} {text if len(text) <= 40 else text[:37] + '...'}"
+
+
+# the fields of a saved record and what each must be (save_result writes them)
+_STRINGS = ("our_n", "our_error", "wall_time", "verdict", "section_md")
+_OPTIONAL_STRINGS = ("command", "at_paper_n", "speed_vs_error")
+
+
+def check_record(number: int, record, path: Path) -> dict:
+    """``record`` if it is what :func:`save_result` writes for case ``number``, else
+    :class:`ResultError` in one line."""
+    def fail(field, expected, got):
+        raise ResultError(f"{_shown(path)}: {field}: expected {expected}, got {got}; the saved "
+                          f"result is unreadable (`tdem validate {number} --force` runs case "
+                          f"{number} again and rewrites it)")
+
+    if not isinstance(record, dict):
+        fail("(the file)", "a JSON object (info, result, run_seconds, finished)",
+             f"a JSON {type(record).__name__}")
+    for key, kind, what in (("info", dict, "an object"), ("result", dict, "an object"),
+                            ("finished", str, "a date as text")):
+        if key not in record:
+            fail(key, what, "nothing (missing)")
+        if not isinstance(record[key], kind):
+            fail(key, what, _describe(record[key]))
+    seconds = record.get("run_seconds")
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) \
+            or not seconds >= 0:
+        fail("run_seconds", "a number of seconds >= 0",
+             "nothing (missing)" if "run_seconds" not in record else _describe(seconds))
+    result = record["result"]
+    for key in _STRINGS + _OPTIONAL_STRINGS:
+        if key not in result:
+            if key in _STRINGS:
+                fail(f"result.{key}", "text", "nothing (missing)")
+        elif not isinstance(result[key], str):
+            fail(f"result.{key}", "text", _describe(result[key]))
+    if not isinstance(result.get("numbers", {}), dict):
+        fail("result.numbers", "an object", _describe(result["numbers"]))
+    if result.get("target_met") not in (None, True, False):
+        fail("result.target_met", "true, false or null", _describe(result["target_met"]))
+    info = record["info"]
+    fields = {f.name: f for f in dataclasses.fields(CaseInfo)}
+    for key, value in info.items():
+        if key not in fields:
+            fail(f"info.{key}", f"one of {', '.join(fields)}", "an unknown key")
+        kind = int if key == "number" else str
+        if isinstance(value, bool) or not isinstance(value, kind):
+            fail(f"info.{key}", "an integer" if kind is int else "text", _describe(value))
+    missing = [k for k, f in fields.items() if k not in info
+               and f.default is dataclasses.MISSING]
+    if missing:
+        fail(f"info.{missing[0]}", "a value", "nothing (missing)")
+    if info["number"] != number:
+        fail("info.number", str(number), _describe(info["number"]))
+    return record
+
+
 def load_result(number: int) -> dict | None:
-    """The saved record of case ``number`` (validation/results/caseN.json), or None."""
+    """The saved record of case ``number`` (validation/results/caseN.json), or None when there
+    is none; :class:`ResultError` (one line) when the file is not a readable record."""
     path = RESULTS / f"case{number}.json"
     if not path.exists():
         return None
-    return json.loads(path.read_text())
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as e:
+        raise ResultError(f"{_shown(path)}: expected JSON text (UTF-8), got byte "
+                          f"0x{e.object[e.start]:02x} at offset {e.start}; the saved result is "
+                          f"unreadable (`tdem validate {number} --force` runs case {number} "
+                          "again and rewrites it)") from None
+    except json.JSONDecodeError as e:
+        got = "an empty file" if not e.doc.strip() else f"{e.msg} at line {e.lineno} column " \
+                                                         f"{e.colno}"
+        raise ResultError(f"{_shown(path)}: expected a JSON object as tdem validate saves it, "
+                          f"got {got}; the saved result is unreadable (`tdem validate {number} "
+                          f"--force` runs case {number} again and rewrites it)") from None
+    except OSError as e:
+        raise ResultError(f"{_shown(path)}: {e.strerror or e}") from None
+    return check_record(number, record, path)
 
 
 def previous_numbers(number: int) -> dict:
-    """``numbers`` of the last saved run of case ``number`` ({} if none): a case re-measures what
-    it can and carries over, with their dates, the rows whose packings are not on this machine."""
-    record = load_result(number)
+    """``numbers`` of the last saved run of case ``number`` ({} if none, or if the saved file is
+    unreadable: nothing to carry over): a case re-measures what it can and carries over, with
+    their dates, the rows whose packings are not on this machine."""
+    try:
+        record = load_result(number)
+    except ResultError:
+        return {}
     return dict(record["result"].get("numbers", {})) if record else {}
 
 

@@ -38,7 +38,7 @@ from tdem.errors import UserError
 from thermal_kernel.atomic import write_text_atomic
 
 from . import framework
-from .framework import CaseInfo, Context, save_result
+from .framework import CaseInfo, Context, ResultError, save_result
 
 HERE = Path(__file__).resolve().parent
 DOC = framework.ROOT / "docs" / "validation.md"
@@ -120,20 +120,49 @@ def _one_line(e: BaseException) -> str:
 
 # ---------------------------------------------------------------- running
 def _status(number: int) -> str:
-    record = framework.load_result(number)
+    try:
+        record = framework.load_result(number)
+    except ResultError:
+        return f"RESULT UNREADABLE (`tdem validate {number} --force` runs it again)"
     if record is None:
         return "not yet measured"
     return f"done {record['finished']} ({record['run_seconds']:.0f} s)"
 
 
+def unreadable_results() -> dict:
+    """{case number: ResultError} of every saved validation/results/caseN.json that is not a
+    readable record (truncated, empty, binary, a list, a field missing or mistyped)."""
+    bad = {}
+    if framework.RESULTS.exists():
+        for p in framework.RESULTS.glob("case*.json"):
+            m = re.fullmatch(r"case(\d+)\.json", p.name)
+            if m:
+                try:
+                    framework.load_result(int(m.group(1)))
+                except ResultError as e:
+                    bad[int(m.group(1))] = e
+    return dict(sorted(bad.items()))
+
+
+def _refuse(bad: dict) -> None:
+    """One line for the first unreadable result (and how many more there are)."""
+    if bad:
+        first, *more = bad.values()
+        raise ResultError(f"{first}" + (f"; {len(more)} more saved result(s) unreadable: case "
+                                        + ", ".join(map(str, list(bad)[1:])) if more else ""))
+
+
 def list_cases(cases: dict) -> None:
+    """One line per case; an unreadable saved result is marked and then refused in one line
+    (exit 2)."""
     for n in sorted(set(KNOWN) | set(cases)):
         mod = cases.get(n)
         info = mod.CASE if mod is not None else KNOWN[n]
         where = ("no module yet" if mod is None else
                  f"validation/{Path(mod.path).name}: IMPORT ERROR" if isinstance(mod, Broken) else
                  f"validation/{Path(mod.__file__).name}")
-        print(f"case {n:>2}: {info.title} ({info.paper}) — {where}; {_status(n)}")
+        print(f"case {n:>2}: {info.title} ({info.paper}) — {where}; {_status(n)}", flush=True)
+    _refuse(unreadable_results())
 
 
 def run_cases(numbers: list[int], cases: dict, force: bool = False, quick: bool = False) -> int:
@@ -199,6 +228,10 @@ def validate(case_texts: list[str], force: bool = False, quick: bool = False,
         list_cases(cases)
         return 0
     numbers = _case_numbers(case_texts, cases)
+    if not quick:       # the document is assembled from every saved result: all readable,
+        # but for those this run writes again (--force), checked before any case runs
+        _refuse({n: e for n, e in unreadable_results().items()
+                 if not (force and n in numbers)})
     failed = run_cases(numbers, cases, force=force, quick=quick)
     if not quick:
         assemble(cases)
