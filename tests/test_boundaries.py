@@ -53,7 +53,9 @@ def chain(tmp_path, wall_overlap=0.0):
     e_star = E / (2.0 * (1.0 - NU ** 2))
     overlap = np.where(on_xmin, wall_overlap, 0.0)
     force = 4.0 / 3.0 * e_star * math.sqrt(R) * overlap ** 1.5
-    pk = dataclasses.replace(pk, wall_overlap=overlap, wall_normal_force=force)
+    point = pk.wall_point.copy()      # the xmin plane moved in by the overlap (r - distance)
+    point[pk.wall_name.index("xmin"), 0] = pk.position[:, 0].min() - (R - wall_overlap)
+    pk = dataclasses.replace(pk, wall_overlap=overlap, wall_normal_force=force, wall_point=point)
     path = tmp_path / "chain.h5"
     write_packing(path, pk)
     return path

@@ -12,15 +12,11 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .physical import TEMPERATURE_MAX_K
+
 
 class SceneError(ValueError):
     """A bad scene file; ``str(e)`` is one line naming the file and the key."""
-
-
-# The highest temperature a scene may give and a run may reach without a flag (K): no solid
-# remains one above it (the highest melting point known is ~4,300 K, tungsten boils at
-# 5,930 K), so a model of solid spheres with constant properties means nothing there.
-TEMPERATURE_MAX_K = 1.0e4
 
 
 METHODS = ("explicit", "implicit", "steady")

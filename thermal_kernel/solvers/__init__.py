@@ -17,7 +17,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..network import Network, ThermalProblem, assemble
-from ..scene import TEMPERATURE_MAX_K   # one home: scenes refuse temperatures above it
+from ..physical import TEMPERATURE_MAX_K   # one home: scenes refuse temperatures above it
 
 
 class UnstableTimeStepError(ValueError):
