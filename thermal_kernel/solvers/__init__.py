@@ -11,6 +11,7 @@ the ``state`` of a previous result, to resume. All return a :class:`ThermalResul
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -289,21 +290,24 @@ def check_physics(net: Network, T0, result: ThermalResult, rtol: float = MAX_PRI
         los, his = max_principle_bounds(net, T0, result.times)
         lo, hi = float(los[-1]), float(his[-1])
         widened = bool(np.any(np.isfinite(los) | np.isfinite(his)))
+        # per output row (no (K, N) temporaries: a big run's temperatures are gigabytes)
+        with warnings.catch_warnings():          # an all-NaN row: its min and max are NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            rmin, rmax = np.nanmin(T, axis=1), np.nanmax(T, axis=1)
         with np.errstate(invalid="ignore", over="ignore"):
             span = his - los
-            span = np.where(np.isfinite(span), span, max(float(np.ptp(T[np.isfinite(T)]))
-                                                         if np.isfinite(T).any() else 0.0, 0.0))
+            span = np.where(np.isfinite(span), span, np.fmax(rmax - rmin, 0.0))
             tol = rtol * span + 1e-12 * np.maximum(np.abs(np.where(np.isfinite(los), los, 0)),
                                                    np.abs(np.where(np.isfinite(his), his, 0)))
-            below = los[:, None] - T
-            above = T - his[:, None]
+            below, above = los - rmin, rmax - his
             excess = np.fmax(np.fmax(below, above), 0.0)
-            bad = excess > tol[:, None]
-        if widened and np.any(bad):
-            rel = np.where(span[:, None] > 0, excess / np.where(span > 0, span, 1.0)[:, None],
+            bad = excess > tol
+            rel = np.where(span > 0, excess / np.where(span > 0, span, 1.0),
                            np.where(bad, math.inf, 0.0))
-            k, p = np.unravel_index(int(np.nanargmax(np.where(bad, rel, -1.0))), T.shape)
-            overshoot = float(rel[k, p])
+        if widened and np.any(bad):
+            k = int(np.nanargmax(np.where(bad, rel, -1.0)))
+            p = int(np.nanargmax(T[k]) if above[k] >= below[k] else np.nanargmin(T[k]))
+            overshoot = float(rel[k])
             flags.append("max_principle")
             messages.append(
                 f"max_principle: T = {T[k, p]:.6g} K at particle {p}, t = "
@@ -312,19 +316,18 @@ def check_physics(net: Network, T0, result: ThermalResult, rtol: float = MAX_PRI
                 f"{overshoot:.2g} of the span ({result.method}, dt = {result.dt:.4g} s: reduce "
                 "dt; docs/solvers.md, stiff modes)")
         elif widened:
-            with np.errstate(invalid="ignore"):
-                ok = span > 0
-                overshoot = float(np.max(np.where(ok[:, None], excess / np.where(ok, span, 1.0)[
-                    :, None], 0.0), initial=0.0))
-        tmin, tmax = float(np.nanmin(T)), float(np.nanmax(T))
+            overshoot = float(np.nanmax(rel, initial=0.0))
+        tmin, tmax = float(np.nanmin(rmin)), float(np.nanmax(rmax))
         if tmin < 0.0:
-            k, p = np.unravel_index(int(np.nanargmin(T)), T.shape)
+            k = int(np.nanargmin(rmin))
+            p = int(np.nanargmin(T[k]))
             flags.append("below_absolute_zero")
             messages.append(f"below_absolute_zero: T = {tmin:.6g} K at particle {p}, t = "
                             f"{float(result.times[k]):.6g} s: no temperature is below 0 K (a "
                             "heat sink or a negative flux larger than the bed can give)")
         if tmax > TEMPERATURE_MAX_K:
-            k, p = np.unravel_index(int(np.nanargmax(T)), T.shape)
+            k = int(np.nanargmax(rmax))
+            p = int(np.nanargmax(T[k]))
             flags.append("above_physical_range")
             messages.append(f"above_physical_range: T = {tmax:.6g} K at particle {p}, t = "
                             f"{float(result.times[k]):.6g} s, above {TEMPERATURE_MAX_K:g} K "
