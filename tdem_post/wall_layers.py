@@ -103,7 +103,7 @@ def wall_layers(packing: Packing, depth_d: float = 5.0, slab_d: float = 0.1,
         z_touch_sum += np.bincount(layer[sel], weights=z_touch[sel], minlength=len(z_count))
         z_count += np.bincount(layer[sel], minlength=len(z_count))
         on_wall = packing.wall_index == w
-        carries = (packing.wall_force > 0) | (packing.wall_overlap > 0)
+        carries = (packing.wall_normal_force > 0) | (packing.wall_overlap > 0)
         wall_contacts += int(np.sum(on_wall & carries & central[packing.wall_particle]))
         wall_area += area
     centres = 0.5 * (edges[:-1] + edges[1:]) / d_mean

@@ -62,3 +62,46 @@ def test_pressed_box(shape):
         np.testing.assert_allclose(box.size, [1.0, 1.0, 1.0])
         assert box.volume == pytest.approx(4 / 3 * np.pi * 0.125)
     np.testing.assert_allclose(box.centre, box.size / 2)
+
+
+def _cubic_lattice(n=12, r=1e-3):
+    """A simple cubic lattice of n^3 touching spheres filling the box [0, 2 n r]^3 exactly, with
+    its six faces as plane walls touched by the outer layers (overlap 0, force 1 N)."""
+    from thermal_kernel.packing import Packing
+    from yade_scripts.neighbours import neighbour_pairs
+    g = (np.indices((n, n, n)).reshape(3, -1).T * 2 + 1) * r
+    radius = np.full(len(g), r)
+    pair, branch = neighbour_pairs(g, radius, 0.01)
+    names, particle, index = [], [], []
+    for axis in range(3):
+        for k, side in enumerate(("min", "max")):
+            w = len(names)
+            names.append("xyz"[axis] + side)
+            on = np.flatnonzero(np.isclose(g[:, axis], r if k == 0 else (2 * n - 1) * r))
+            particle.append(on)
+            index.append(np.full(len(on), w, np.int32))
+    particle, index = np.concatenate(particle), np.concatenate(index)
+    return Packing(position=g, radius=radius, phase=np.zeros(len(g), np.int32), pair=pair,
+                   overlap=2 * r - np.linalg.norm(branch, axis=1), normal_force=np.ones(len(pair)),
+                   branch=branch, wall_name=names, wall_kind=["plane"] * 6,
+                   wall_particle=particle, wall_index=index, wall_overlap=np.zeros(len(particle)),
+                   wall_normal_force=np.ones(len(particle)), domain_lo=np.zeros(3),
+                   domain_hi=np.full(3, 2 * n * r))
+
+
+def test_wall_layers_of_a_cubic_lattice():
+    """A simple cubic lattice: φ averaged over one period (a diameter) is π/6 exactly, φ at the
+    wall is 0 and at a layer's mid-plane π/4; the wall layer's spheres have 5 neighbours (the
+    wall is not one), deeper layers 6; one wall contact per d²."""
+    from tdem_post.wall_layers import wall_layers
+    layers = wall_layers(_cubic_lattice(), depth_d=3.0, slab_d=0.1, edge_margin_d=2.0,
+                         layer_d=1.0)
+    assert layers.walls_used == 6
+    np.testing.assert_allclose(layers.solid_fraction[:10].mean(), np.pi / 6, rtol=1e-12)
+    np.testing.assert_allclose(layers.solid_fraction[10:20].mean(), np.pi / 6, rtol=1e-12)
+    # slab 0.4-0.5 d and 0.5-0.6 d straddle the mid-plane: the exact segment average
+    x = np.array([0.4, 0.5]) * 2 - 1          # in radii, from the centre
+    expected = np.pi * ((x[1] - x[1] ** 3 / 3) - (x[0] - x[0] ** 3 / 3)) / (x[1] - x[0]) / 4
+    np.testing.assert_allclose(layers.solid_fraction[4], expected, rtol=1e-12)
+    np.testing.assert_allclose(layers.z_with_gaps, [5.0, 6.0, 6.0])
+    np.testing.assert_allclose(layers.wall_contacts_per_d2, 1.0)
