@@ -1,7 +1,6 @@
 """``kind = "source"``: a volumetric heat source in a region moving at constant velocity."""
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -160,7 +159,12 @@ def source_time_intervals(b: SourceBoundary, position, t0, t1):
     quadratic."""
     c0 = np.asarray(b.centre_m, dtype=float)
     v = np.asarray(b.velocity_m_s, dtype=float)
-    d0 = np.asarray(position, dtype=float) - c0
+    return _intervals(b, np.asarray(position, dtype=float) - c0, v, t0, t1)
+
+
+def _intervals(b: SourceBoundary, d0, v, t0, t1):
+    """:func:`source_time_intervals` for the offsets ``d0`` of the centres from the region's
+    centre at t = 0 and its velocity ``v``."""
     n = len(d0)
     first, last = np.full(n, float(t0)), np.full(n, float(t1))
 
@@ -309,6 +313,9 @@ class MovingSource:
                 z = a + (z - a) * max_pieces / pieces
                 pieces = max_pieces
         out = np.zeros(n)
+        if pieces == 1:
+            self._add_piece(out, a, z)
+            return out
         edges = np.linspace(a, z, pieces + 1)
         for s0, s1 in zip(edges[:-1], edges[1:]):
             self._add_piece(out, s0, s1)
@@ -317,7 +324,6 @@ class MovingSource:
     def _add_piece(self, out, s0, s1):
         """Add to ``out`` the time in [s0, s1] (the source moving less than half a cell)."""
         h = s1 - s0
-        c0 = self.centre(s0)
         # candidates: the (periodic) distance to the middle of the region's path over the
         # piece within its half-extent plus half the travel, on every axis
         d = self.offsets(s0)
@@ -329,13 +335,16 @@ class MovingSource:
         idx = np.flatnonzero(near)
         if idx.size == 0:
             return
-        moved = dataclasses.replace(self.b, centre_m=tuple(c0))
+        base = d[idx]
+        if not self.wrap.any():
+            first, last = _intervals(self.b, base, self.velocity, 0.0, h)
+            out[idx] += np.clip(last - first, 0.0, None)
+            return
         shifts = [np.zeros(3)]
         for k in np.flatnonzero(self.wrap):
             shifts = [s + e * self.length[k] * np.eye(3)[k] for s in shifts for e in (-1, 0, 1)]
-        base = c0 + d[idx]
         for s in shifts:
-            first, last = source_time_intervals(moved, base + s, 0.0, h)
+            first, last = _intervals(self.b, base + s, self.velocity, 0.0, h)
             out[idx] += np.clip(last - first, 0.0, None)
 
     # ------------------------------------------------------------------ the solvers' term
