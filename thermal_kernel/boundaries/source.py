@@ -325,17 +325,25 @@ class MovingSource:
         """Add to ``out`` the time in [s0, s1] (the source moving less than half a cell)."""
         h = s1 - s0
         # candidates: the (periodic) distance to the middle of the region's path over the
-        # piece within its half-extent plus half the travel, on every axis
-        d = self.offsets(s0)
-        m = d - 0.5 * self.velocity * h
-        if self.wrap.any():
-            L = self.length[self.wrap]
-            m[:, self.wrap] -= L * np.round(m[:, self.wrap] / L)
-        near = np.all(np.abs(m) <= self.half + 0.5 * np.abs(self.velocity) * h, axis=1)
-        idx = np.flatnonzero(near)
-        if idx.size == 0:
-            return
-        base = d[idx]
+        # piece within its half-extent plus half the travel, axis by axis on the shrinking set
+        # (one pass over every centre, then over the few left: the source is small)
+        reach = self.half + 0.5 * np.abs(self.velocity) * h
+        mid = self.centre(s0 + 0.5 * h)
+        idx = None
+        for k in np.argsort(reach):
+            if not np.isfinite(reach[k]):
+                continue
+            x = (self.position[:, k] if idx is None else self.position[idx, k]) - mid[k]
+            if self.periodic[k]:
+                x = x - self.length[k] * np.round(x / self.length[k])
+            keep = np.abs(x) <= reach[k]
+            idx = np.flatnonzero(keep) if idx is None else idx[keep]
+            if idx.size == 0:
+                return
+        if idx is None:
+            idx = np.arange(self.position.shape[0])
+        d = self.offsets(s0, idx)
+        base = d
         if not self.wrap.any():
             first, last = _intervals(self.b, base, self.velocity, 0.0, h)
             out[idx] += np.clip(last - first, 0.0, None)
