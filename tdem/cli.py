@@ -511,15 +511,27 @@ def build_parser() -> argparse.ArgumentParser:
 _NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf\b|nan\b)[\w.,+\-]*$", re.IGNORECASE)
 
 
-def _negative_values(argv: list[str]) -> list[str]:
+def _value_options(parser: argparse.ArgumentParser) -> set[str]:
+    """The long options of ``parser`` and its subcommands that take a value."""
+    options = set()
+    for action in parser._actions:          # (argparse has no public list of them)
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                options |= _value_options(sub)
+        elif action.nargs != 0:
+            options.update(o for o in action.option_strings if o.startswith("--"))
+    return options
+
+
+def _negative_values(argv: list[str], parser: argparse.ArgumentParser) -> list[str]:
     """``--young -1e8`` as ``--young=-1e8``: argparse takes a word starting with '-' for an
     option unless it is a plain negative number (-5, -.5), so ``-1e8`` or ``-1,2`` came out as
-    "expected one argument". Joined to its option, the value reaches the option's own check,
-    which refuses it in one line naming the flag."""
+    "expected one argument". Joined to its option (one that takes a value), the value reaches
+    the option's own check, which refuses it in one line naming the flag."""
+    takes_value = _value_options(parser)
     out: list[str] = []
     for word in argv:
-        if (out and _NEGATIVE_VALUE.match(word) and out[-1].startswith("--")
-                and "=" not in out[-1] and len(out[-1]) > 2):
+        if out and out[-1] in takes_value and _NEGATIVE_VALUE.match(word):
             out[-1] = f"{out[-1]}={word}"
         else:
             out.append(word)
@@ -573,8 +585,9 @@ def main(argv=None) -> int:
     from thermal_kernel.scene import SceneError
     from .yade import YadeError
     program = argv is None
-    args = build_parser().parse_args(_negative_values(
-        list(sys.argv[1:] if argv is None else argv)))
+    parser = build_parser()
+    args = parser.parse_args(_negative_values(list(sys.argv[1:] if argv is None else argv),
+                                              parser))
     # before any parallel kernel is compiled; a NUMBA_THREADING_LAYER* setting of the user wins
     prefer_openmp()
     if threading.current_thread() is not threading.main_thread():   # no signals there
