@@ -190,8 +190,10 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
                  quiet: bool = False, repost: bool = False, jobs: int = 1) -> dict:
     """Packings (YADE, ``yade_threads``; 1 keeps them bit-reproducible for a seed: YADE's
     parallel force summation order varies between runs), then thermal cases (numba, ``threads``).
-    Finished cases are kept; with ``repost`` their thermal runs are kept and post-processed anew
-    (after a change of the post-processing).
+    Finished cases are kept while they match their inputs (the hashes of the case's scene and
+    packing file, :func:`_run_case`; else recomputed, and said so); with ``repost`` their thermal
+    runs are kept and post-processed anew (after a change of the post-processing). A refused
+    campaign leaves no folder it made empty.
 
     With ``[campaign] seeds = [...]`` each seed has its own packing series and cases under
     ``<out>/seed_<s>/`` (``packings/``, ``cases/``) and the report gives mean +- sd over the
@@ -239,9 +241,10 @@ def _remove_empty(folders) -> None:
     """Remove the folders (innermost first) this campaign made, those still empty."""
     import contextlib
     for d in folders:
-        for sub in sorted((x for x in d.rglob("*") if x.is_dir()), reverse=True) \
-                if d.is_dir() else ():
-            with contextlib.suppress(OSError):
+        if not d.is_dir():
+            continue
+        for sub in sorted((x for x in d.rglob("*") if x.is_dir()), reverse=True):
+            with contextlib.suppress(OSError):      # (a folder with files stays)
                 sub.rmdir()
         with contextlib.suppress(OSError):
             d.rmdir()
