@@ -241,12 +241,13 @@ def check_record(number: int, record, path: Path) -> dict:
     """``record`` if it is what :func:`save_result` writes for case ``number``, else
     :class:`ResultError` in one line."""
     def fail(field, expected, got):
-        raise ResultError(f"{_shown(path)}: {field}: expected {expected}, got {got}; the saved "
-                          f"result is unreadable (`tdem validate {number} --force` runs case "
-                          f"{number} again and rewrites it)")
+        raise ResultError(f"{_shown(path)}: " + (f"{field}: " if field else "")
+                          + f"expected {expected}, got {got}; the saved result is unreadable "
+                          f"(`tdem validate {number} --force` runs case {number} again and "
+                          "rewrites it)")
 
     if not isinstance(record, dict):
-        fail("(the file)", "a JSON object (info, result, run_seconds, finished)",
+        fail(None, "a JSON object (info, result, run_seconds, finished)",
              f"a JSON {type(record).__name__}")
     for key, kind, what in (("info", dict, "an object"), ("result", dict, "an object"),
                             ("finished", str, "a date as text")):
@@ -301,8 +302,8 @@ def load_result(number: int) -> dict | None:
                           f"unreadable (`tdem validate {number} --force` runs case {number} "
                           "again and rewrites it)") from None
     except json.JSONDecodeError as e:
-        got = "an empty file" if not e.doc.strip() else f"{e.msg} at line {e.lineno} column " \
-                                                         f"{e.colno}"
+        got = "an empty file" if not e.doc.strip() else \
+            f"invalid JSON ({e.msg}, line {e.lineno} column {e.colno})"
         raise ResultError(f"{_shown(path)}: expected a JSON object as tdem validate saves it, "
                           f"got {got}; the saved result is unreadable (`tdem validate {number} "
                           f"--force` runs case {number} again and rewrites it)") from None
