@@ -15,9 +15,12 @@ Layout (SI units, documented in docs/solvers.md):
   scene_path, packing
   (path), packing_sha256 (content hash),
   tdem_version, git_hash, and the flags (comma-separated: the solver's, and ``max_principle`` /
-  ``energy_ledger`` when the run's physics checks fail, with max_principle_checked,
-  max_principle_bounds_k, max_principle_excess_relative, ledger_residual_relative and
-  check_messages; see docs/solvers.md).
+  ``energy_ledger`` / ``below_absolute_zero`` / ``above_physical_range`` when the run's physics
+  checks fail, with max_principle_checked (1: the plain principle, no flux and no source; with
+  them the bounds are widened by what they can add, and checked all the same),
+  max_principle_bounds_k (at the last output time), max_principle_excess_relative,
+  ledger_residual_relative and check_messages; see docs/solvers.md). A steady solve has no
+  time: its boundary_energy and source_energy have no rows (attribute ``energies`` says so).
 """
 from __future__ import annotations
 
