@@ -1,8 +1,9 @@
 """Post-processing of one thermal run of a bed between two held walls (003, sec. 4.3-4.4).
 
     analyse(thermal_h5, n_bins=10) -> PostResult      (compute: typed results, no file)
-    write_post(result) -> dict                         (figures, CSVs, summary.json)
+    write_post(result) -> dict                         (figures, CSVs, summary.json: all or none)
     post_run(thermal_h5, n_bins=10) -> dict            (both: the summary)
+    command(run, ...) -> int                           (``tdem post``: both, and the printed table)
 
 Each quantity has its compute function and typed result: slab_of -> Slab, profiles_of ->
 Profiles, fit_profiles -> GammaResult, steady_etc -> EffectiveConductivity
@@ -14,25 +15,47 @@ From ``thermal.h5`` alone (:func:`thermal_kernel.output.read_thermal`: the scene
 stored in the file, and the packing it names, checked against the content hash it stored):
 - binned profiles along the axis joining the two temperature boundaries (partial volumes),
   between the mean centre planes of the two held sets of spheres (the slab length L);
-- gamma = k_eff / k_p fitted to all profiles against the slab solution (003 App. A), with its
-  95 % interval and the rms residual; the bed's volumetric heat capacity is phi rho c_p (the heat
-  capacity of the bed per unit volume: the particles' capacity over the bed volume);
+- gamma = k_eff / k_p fitted to the profiles against the slab solution (003 App. A), with its
+  95 % interval and the rms residual. The slab's volumetric heat capacity is the run's own: the
+  capacities C_p the run stored (each law's rule: rho c_p V for the granular laws, rho c_p V /
+  phi for haddad, rho c_p V / f_vl(n) for terreros) of the spheres between the held planes
+  (partial volumes) over the slab's volume A L (:func:`bed_capacity`);
+- only the outputs the slab solution can describe enter the fit (:func:`output_window`): after
+  the heat has crossed a particle radius, and while the profile is still further from the steady
+  state than the slab's own steady misfit on this bed; none, or a run that is flagged (its
+  temperatures not a faithful solution), has a source, a flux or a wall exchange, or is steady:
+  gamma is *not measurable* and the reason is said (``not_measurable`` in summary.json);
+- the model-form spread: the same bed heated from the other wall (hot and cold swapped, solved
+  on the run's network), fitted the same way; the two fits' 95 %
+  intervals together are ``gamma_model_form_range`` (flag ``gamma_model_form`` when they do not
+  overlap: the homogeneous slab does not describe this bed to the fit's precision);
 - gamma from the steady solve: k_eff = Q L / (A dT) with Q the heat through the hot wall
   (heat in = heat out checked: refused above thermal_kernel.effective.BALANCE_TOLERANCE), A
   the bed's cross-section;
 - tau of the middle section (003 eq. 41), exactly from the network (one sparse solve) and from
-  the time series (with the steady temperature from the steady solve, not the last snapshot);
+  the time series (with the steady temperature of the steady solve, not the last snapshot) when
+  the outputs cover the transient (:func:`series_tau_problem`);
 - mean-field predictions gamma_mf = phi Z H_mean / (2 pi R_mean k_p) for the laws of
-  MEAN_FIELD_LAWS on the same contacts (forces from the dump, modulus from the scene);
-- figure ``post/profiles.png`` (+ ``profiles.csv``) and ``post/summary.json``.
+  MEAN_FIELD_LAWS on the same contacts (forces from the dump, modulus from the scene); phi the
+  packing's solid_fraction, checked against the spheres between the two walls;
+- the run's flags (thermal.h5) as ``flags``, post's own as ``post_flags``;
+- figure ``post/profiles.png`` (+ ``profiles.csv``) and ``post/summary.json``, built in a
+  temporary folder beside ``post/`` and swapped in whole.
 Rattlers (no conducting contact) keep their initial temperature: they are left out of the
 profiles (their number is reported).
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import errno
 import json
 import math
+import os
+import shutil
+import signal
+import sys
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,11 +64,14 @@ import numpy as np
 from thermal_kernel.calibrate import cross_section
 from thermal_kernel.network import assemble
 from thermal_kernel.effective import EffectiveConductivity, effective_conductivity
-from thermal_kernel.output import ThermalRun, read_run_packing, read_thermal
+from thermal_kernel.output import (ThermalFileError, ThermalRun, read_run_packing,
+                                   read_thermal)
 from thermal_kernel.atomic import savefig_atomic, write_text_atomic
 from thermal_kernel.packing import packing_statistics
 from thermal_kernel.problem import FACES, boundary_particles, build_problem
 from thermal_kernel.scene import SceneError
+from thermal_kernel.solvers.implicit import run_implicit
+from thermal_kernel.solvers.steady import solve_steady
 
 from .analytic import (slab_mean_temperature, slab_midplane_characteristic_time,
                        slab_temperature)
@@ -116,19 +142,47 @@ class Profiles:
 
 @dataclass(frozen=True)
 class GammaResult:
-    """gamma = k_eff / k_p fitted to every profile against the slab solution (003 App. A)."""
+    """gamma = k_eff / k_p fitted to the profiles against the slab solution (003 App. A)."""
     fit: GammaFit
     per_time: list               # [t, gamma, ci95 low, ci95 high] of each output time alone
-    gamma_paper: float           # gamma / phi: 003's convention (alpha from rho_p c_p)
+    #                              (None, None, None for an output left out: see left_out)
+    gamma_paper: float           # 003's convention: the fitted alpha read as gamma k_p/(rho_p c_p)
     gamma_paper_ci95: list
     tau_slab_s: float            # the slab's own mid-plane time L^2 / (8 alpha)
+    used_s: list                 # the output times fitted
+    left_out: list               # [[t, why], ...] the outputs the slab solution cannot describe
+    other: GammaFit | None = None        # the same bed heated from the other wall
+    other_note: str | None = None        # why ``other`` is missing, if it is
+
+    @property
+    def model_form_range(self) -> list | None:
+        """Both orientations' 95 % intervals together (None without the other orientation)."""
+        if self.other is None:
+            return None
+        return [min(self.fit.ci95[0], self.other.ci95[0]),
+                max(self.fit.ci95[1], self.other.ci95[1])]
+
+    @property
+    def model_form_spread(self) -> float | None:
+        """|gamma - gamma_other| / (gamma + gamma_other): half the difference over the mean."""
+        if self.other is None:
+            return None
+        return abs(self.fit.gamma - self.other.gamma) / (self.fit.gamma + self.other.gamma)
+
+    @property
+    def model_form_flag(self) -> bool:
+        """The two orientations' 95 % intervals do not overlap."""
+        return self.other is not None and (self.other.ci95[0] > self.fit.ci95[1]
+                                           or self.other.ci95[1] < self.fit.ci95[0])
 
 
 @dataclass(frozen=True)
 class Tau:
     """tau of the middle section (003 eq. 41)."""
-    tau_s: float                 # exactly from the network (one sparse solve)
-    tau_series_s: float | None   # from the time series (None for a steady run)
+    tau_s: float | None          # exactly from the network (one sparse solve)
+    tau_series_s: float | None   # from the time series (None: not measurable, see why)
+    tau_note: str | None = None          # why tau_s is None
+    series_note: str | None = None       # why tau_series_s is None
 
 
 @dataclass(frozen=True, eq=False)
@@ -167,7 +221,7 @@ class PostResult:
     n_bins: int
     slab: Slab
     profiles: Profiles
-    gamma: GammaResult | None    # None for a steady run (no transient)
+    gamma: GammaResult | None    # None: not measurable (a steady run; why: not_measurable)
     steady: EffectiveConductivity    # length convention "held_centres"
     gamma_steady: float
     tau: Tau
@@ -179,9 +233,14 @@ class PostResult:
     mean_normal_force_n: float
     rattlers: int                # spheres neither conducting nor held (left out of profiles)
     pressure_pa: float
+    bed_capacity_j_m3k: float    # the run's capacity per unit slab volume (bed_capacity)
+    solid_fraction_between_walls: float  # the spheres' volume between the two walls / A gap
+    not_measurable: dict         # {summary key: why} of what this run cannot give
+    post_flags: tuple            # post's own flags (gamma_model_form, solid_fraction, ...)
 
     def summary(self) -> dict:
-        fit = self.gamma.fit if self.gamma else None
+        g = self.gamma
+        fit = g.fit if g else None
         flux = {"flux_halo_ratio": self.flux.halo_ratio,
                 "flux_halo_radius": self.flux.halo_radius,
                 "flux_interior_particles": self.flux.interior_particles}
@@ -190,23 +249,37 @@ class PostResult:
                         flux_cov_raw_volume_weighted=self.flux.cov_raw_volume,
                         flux_cov_halo=self.flux.cov_halo,
                         flux_mean_over_q_per_area=self.flux.mean_over_q_per_area)
+        other = g.other if g else None
         return {
             "thermal": str(self.thermal), "packing": str(self.packing.path),
             "law": self.run.law, "method": self.run.method,
+            # the run's own flags (thermal.h5, comma-separated) and post's
+            "flags": self.run.flags, "post_flags": ",".join(self.post_flags),
+            "not_measurable": dict(self.not_measurable),
             "n_particles": int(self.packing.n_particles), "pressure_pa": self.pressure_pa,
-            "solid_fraction": self.solid_fraction, "mean_coordination": self.mean_coordination,
+            "solid_fraction": self.solid_fraction,
+            "solid_fraction_between_walls": self.solid_fraction_between_walls,
+            "mean_coordination": self.mean_coordination,
             "mean_normal_force_n": self.mean_normal_force_n, "rattlers": self.rattlers,
+            "bed_capacity_j_m3k": self.bed_capacity_j_m3k,
             "gamma": fit.gamma if fit else None, "gamma_ci95": list(fit.ci95) if fit else None,
             # 003 App. A writes alpha = kappa_eff/(rho c_p) with rho the particle density
-            # (Table 1): the same fitted diffusivity read in that convention is gamma / phi
-            "gamma_paper": self.gamma.gamma_paper if fit else None,
-            "gamma_paper_ci95": self.gamma.gamma_paper_ci95 if fit else None,
-            "gamma_per_time": self.gamma.per_time if fit else None,
+            # (Table 1): the same fitted diffusivity read in that convention
+            "gamma_paper": g.gamma_paper if fit else None,
+            "gamma_paper_ci95": g.gamma_paper_ci95 if fit else None,
+            "gamma_per_time": g.per_time if fit else None,
+            "gamma_outputs_used_s": g.used_s if fit else None,
+            "gamma_outputs_left_out": g.left_out if fit else None,
             "gamma_residual_rms_k": fit.residual_rms_k if fit else None,
+            # the same bed heated from the other wall: the slab model's form error
+            "gamma_other_orientation": other.gamma if other else None,
+            "gamma_other_orientation_ci95": list(other.ci95) if other else None,
+            "gamma_model_form_range": g.model_form_range if fit else None,
+            "gamma_model_form_spread": g.model_form_spread if fit else None,
             "gamma_steady": self.gamma_steady, "steady_balance": self.steady.balance,
             "tau_s": self.tau.tau_s, "tau_series_s": self.tau.tau_series_s,
             # the slab's own mid-plane time with the fitted diffusivity, L^2/(8 alpha)
-            "tau_slab_s": self.gamma.tau_slab_s if fit else None,
+            "tau_slab_s": g.tau_slab_s if fit else None,
             "gamma_mean_field": dict(self.mean_field),
             "gamma_affine": self.fabric.gamma_affine,
             "gamma_affine_transverse": self.fabric.gamma_affine_transverse,
@@ -245,40 +318,213 @@ def slab_of(scene, packing, where) -> Slab:
                 z0_m=z0, z1_m=z1, length_m=z1 - z0, wall_gap_m=max(x0, x1) - min(x0, x1))
 
 
-def profiles_of(run: ThermalRun, packing, net, slab: Slab, n_bins: int) -> Profiles:
+def profiles_of(run: ThermalRun, packing, net, slab: Slab, n_bins: int,
+                temperature=None) -> Profiles:
     """Partial-volume profiles of the conducting spheres in ``n_bins`` bins between the held
-    planes, at every output time."""
+    planes, at every output time (of ``temperature`` (K, N) instead of the run's if given)."""
     conducting = np.asarray(net.conducting)
     z = packing.position[:, slab.axis] - slab.z0_m
     edges = np.linspace(0.0, slab.length_m, n_bins + 1)
-    values = binned_profile(z, packing.radius, run.temperature, edges, weights=conducting)
+    values = binned_profile(z, packing.radius,
+                            run.temperature if temperature is None else temperature, edges,
+                            weights=conducting)
     return Profiles(times_s=run.times, edges_m=edges, values_k=values, height_m=z,
                     conducting=conducting)
 
 
+# ----------------------------------------------------------------------------- what is measurable
+# Flags of a run (thermal.h5 'flags') that leave its temperatures a faithful solution of the
+# network: its own bookkeeping (docs/solvers.md: rattlers and floating clusters keep their
+# initial temperature, contacts of zero conductance are dropped). Any other flag --
+# max_principle, energy_ledger, non_finite, dt_above_bound, below_absolute_zero, ... or one added
+# later -- says they are not, and no transient quantity is taken from them.
+BENIGN_FLAGS = frozenset({"rattlers", "floating_clusters", "zero_conductance_contacts_dropped"})
+# An output enters the gamma fit once the heat has crossed a mean particle radius,
+# sqrt(alpha_s t) >= r_mean with alpha_s = gamma_steady k_p / (rho c)_bed (before, the profile is
+# the first layer's response to its wall contacts, not a continuum's: on the 405-bar test bed,
+# law pipe, one-output fits give gamma/gamma_steady 100, 34, 10.5, 3.9, 1.6, 1.13 at
+# sqrt(alpha_s t) = 0.06 ... 0.8 r_mean, then 0.84-0.95 from 1.3 to 8 r_mean), and while its
+# profile is further from the steady state (max over the bins) than STEADY_MISFIT_FACTOR x the
+# slab's own steady misfit m on this bed, m = max over the bins of |the network's steady profile
+# - the slab's linear one|, known before any fit (the same bed: m = 8.8 K, 4.6 % of the span;
+# one-output fits 0.91 at 33 K from steady, 0.77 at 6 K, 0.49 at 0.3 K, 0.25 at 5e-4 K, each
+# with an interval of +-1-2 %: late profiles fit the bed's steady misfit, not its diffusivity).
+STEADY_MISFIT_FACTOR = 2.0
+# ... and never closer than this share of the temperature span (a bed the slab describes
+# exactly, m ~ 0: the solver's own error)
+STEADY_FLOOR = 1e-3
+# tau from the time series integrates the middle section's e(t) = T_s - T over the outputs
+# (trapezoid) and extrapolates the tail past the last one. Not measurable when e(t_last)/e(0)
+# is above this (for an exponential tail that is its share of the integral), or when the
+# trapezoid and an exponential interpolation between the outputs differ by more than this share
+# of the integral (outputs too far apart for the decay).
+TAU_SERIES_TOLERANCE = 0.1
+# The packing's solid_fraction against the spheres' volume between the two walls over A x gap
+# (post_flags "solid_fraction" above it; on the 405-bar bed 0.5390 against 0.5389)
+SOLID_FRACTION_RTOL = 0.01
+
+
+def transient_problem(run: ThermalRun, scene, slab: Slab) -> str | None:
+    """Why the run's temperatures cannot be compared with the slab solution at all (a steady
+    run, a flagged run, a source, a flux or a wall exchange); None when they can."""
+    if run.method == "steady" or not bool(np.all(np.isfinite(run.times))):
+        return "a steady run has no transient (the steady ETC is the answer)"
+    bad = [f for f in run.flags.split(",") if f and f not in BENIGN_FLAGS]
+    if bad:
+        return (f"the run is flagged {', '.join(bad)} (thermal.h5 flags): its temperatures "
+                "are not a faithful solution (docs/solvers.md)")
+    others = [b for b in scene.boundaries if b is not slab.bottom and b is not slab.top]
+    if others:
+        b = others[0]
+        return (f"the run has a {b.kind} boundary ({getattr(b, 'name', b.kind)}): 003 App. A's "
+                "slab solution has only the two held walls")
+    return None
+
+
+def bed_capacity(capacity_j_k, packing, slab: Slab, area_m2: float, weights) -> float:
+    """The run's heat capacity per unit volume of the slab (J/m^3/K): sum_p C_p v_p / V_p over
+    A L, with C_p the capacities the run used (the law's rule), v_p the part of sphere p between
+    the two held planes (partial volumes, as the profiles) and ``weights`` (N,) the spheres that
+    take part (conducting or held: a rattler keeps its initial temperature). On a simple-cubic
+    lattice this is the finite-difference slab's capacity exactly (the held layers' inner halves
+    fill the end half-cells); for the granular laws it is phi rho c_p, for haddad (C_p = rho c_p
+    V_p / phi, 002 eq. 5) rho c_p."""
+    z = packing.position[:, slab.axis]
+    inside = partial_volumes(z, packing.radius, np.array([slab.z0_m, slab.z1_m]))[:, 0]
+    share = inside / (4.0 / 3.0 * np.pi * packing.radius ** 3)
+    return float(np.sum(np.asarray(capacity_j_k) * share * np.asarray(weights, float))
+                 / (area_m2 * slab.length_m))
+
+
+def solid_fraction_between_walls(packing, slab: Slab, area_m2: float) -> float:
+    """The spheres' volume between the two held walls (caps beyond them cut) over A x gap."""
+    lo, hi = sorted(_wall_position(packing, b.on)[1] for b in (slab.bottom, slab.top))
+    z = packing.position[:, slab.axis]
+    inside = partial_volumes(z, packing.radius, np.array([lo, hi]))[:, 0]
+    return float(inside.sum() / (area_m2 * (hi - lo)))
+
+
+def output_window(profiles: Profiles, steady_k, slab: Slab, t_initial, alpha_s: float,
+                  r_mean: float) -> list:
+    """[why or None] for each output: None when the slab solution can describe it (see
+    STEADY_MISFIT_FACTOR). ``steady_k`` (B,): the network's steady profile in the same bins."""
+    lo, hi = profiles.edges_m[:-1], profiles.edges_m[1:]
+    linear = slab_mean_temperature(lo, hi, math.inf, slab.length_m, 1.0, slab.bottom.value,
+                                   slab.top.value, t_initial)
+    misfit = float(np.nanmax(np.abs(steady_k - linear)))
+    span = max(abs(slab.bottom.value - t_initial), abs(slab.top.value - t_initial),
+               abs(slab.bottom.value - slab.top.value))
+    floor = max(STEADY_MISFIT_FACTOR * misfit, STEADY_FLOOR * span)
+    out = []
+    for k, t in enumerate(profiles.times_s):
+        depth = math.sqrt(max(alpha_s * t, 0.0))
+        if not t >= r_mean ** 2 / alpha_s:      # sqrt(alpha_s t) >= r_mean
+            out.append(f"t = {t:g} s: the heat has crossed {depth / r_mean:.2g} of a particle "
+                       f"radius (sqrt(alpha t), alpha from gamma_steady): below the continuum "
+                       "scale")
+            continue
+        away = float(np.nanmax(np.abs(profiles.values_k[k] - steady_k)))
+        if not away > floor:
+            out.append(f"t = {t:g} s: {away:.3g} K from the steady state, within "
+                       f"{floor:.3g} K (the slab's steady misfit on this bed is {misfit:.3g} K)")
+        else:
+            out.append(None)
+    return out
+
+
 def fit_profiles(profiles: Profiles, slab: Slab, *, conductivity_w_mk, capacity_j_m3k,
-                 t_initial, solid_fraction) -> GammaResult | None:
-    """gamma fitted to all profiles, and to each output time's alone (the window dependence,
-    issue 15); None for a steady run (its one output at t = inf has no transient)."""
+                 t_initial, particle_capacity_j_m3k, window, gamma0=0.05):
+    """gamma fitted to the outputs ``window`` (from :func:`output_window`) admits, and to each
+    of them alone (the window dependence, issue 15). Returns (GammaResult, None), or (None,
+    why) when no output is admitted or the profiles do not determine gamma."""
     times = profiles.times_s
-    if not bool(np.all(np.isfinite(times))):
-        return None
+    use = np.array([w is None for w in window], bool)
+    left_out = [[float(t), w] for t, w in zip(times, window) if w is not None]
+    if not use.any():
+        return None, ("no output the slab solution can describe: " + "; ".join(
+            w for _, w in left_out[:1] + left_out[-1:][len(left_out) < 2:]))
     args = dict(conductivity_w_mk=conductivity_w_mk, volumetric_capacity_j_m3k=capacity_j_m3k,
                 t_bottom=slab.bottom.value, t_top=slab.top.value, t_initial=t_initial)
-    fit = fit_gamma(times, profiles.edges_m, profiles.values_k, **args)
+    fit = fit_gamma(times[use], profiles.edges_m, profiles.values_k[use], **args, gamma0=gamma0)
+    if not (np.all(np.isfinite(fit.ci95)) and fit.ci95[0] > 0):
+        return None, (f"the profiles do not determine gamma (95 % interval [{fit.ci95[0]:.3g}, "
+                      f"{fit.ci95[1]:.3g}])")
     per_time = []
     for k, t in enumerate(times):
+        if not use[k]:
+            per_time.append([float(t), None, None, None])
+            continue
         try:
             one = fit_gamma([t], profiles.edges_m, profiles.values_k[k:k + 1], **args,
                             gamma0=fit.gamma)
             per_time.append([float(t), one.gamma, *one.ci95])
         except (ValueError, RuntimeError):
-            per_time.append([float(t), float("nan"), float("nan"), float("nan")])
+            per_time.append([float(t), None, None, None])
+    # 003 App. A: alpha = gamma_paper k_p / (rho_p c_p), the particle's capacity per volume
+    paper = fit.diffusivity_m2_s * particle_capacity_j_m3k / conductivity_w_mk
     return GammaResult(
-        fit=fit, per_time=per_time, gamma_paper=fit.gamma / solid_fraction,
-        gamma_paper_ci95=[c / solid_fraction for c in fit.ci95],
+        fit=fit, per_time=per_time, gamma_paper=float(paper),
+        gamma_paper_ci95=[float(c * paper / fit.gamma) for c in fit.ci95],
         tau_slab_s=float(slab_midplane_characteristic_time(slab.length_m,
-                                                           fit.diffusivity_m2_s)))
+                                                           fit.diffusivity_m2_s)),
+        used_s=[float(t) for t in times[use]], left_out=left_out), None
+
+
+# The other orientation's transient: Crank-Nicolson with Rannacher start-up (second order,
+# stiff start-up modes damped; docs/solvers.md) in at most OTHER_STEPS steps of at most 1/20 of
+# the first admitted output time -- a cost bounded whatever the run's own step was (an explicit
+# run at its stability bound, or a fine implicit step, would cost the run's time again).
+OTHER_STEPS = 4000
+
+
+def transient_on(net, t_initial: float, times):
+    """The transient on the network ``net`` from a uniform ``t_initial`` at ``times`` (s,
+    increasing): (K, N) K. Raises FloatingPointError for a flagged result."""
+    times = np.asarray(times, float)
+    dt = max(times[0] / 20.0, times[-1] / OTHER_STEPS)
+    t0 = np.full(net.capacity_j_k.shape[0], float(t_initial))
+    result = run_implicit(net, t0, times, dt=dt, theta=0.5, scheme="rannacher")
+    bad = [f for f in result.flags if f not in BENIGN_FLAGS]
+    if bad:
+        raise FloatingPointError(f"flagged {', '.join(bad)}")
+    return result.temperature_k
+
+
+def other_orientation(run: ThermalRun, packing, slab: Slab, n_bins: int, fit_args: dict,
+                      r_mean: float, alpha_s: float):
+    """The same bed heated from the other wall (the two held temperatures swapped), solved on
+    the run's network (:func:`transient_on`) at its output times, profiled and fitted as the run
+    (its own window). Returns (GammaFit, None) or (None, why)."""
+    scene = run.scene
+    swap = {id(slab.bottom): slab.top.value, id(slab.top): slab.bottom.value}
+    boundaries = tuple(dataclasses.replace(b, value=swap[id(b)]) if id(b) in swap else b
+                       for b in scene.boundaries)
+    swapped = dataclasses.replace(scene, boundaries=boundaries)
+    problem, _ = build_problem(swapped, packing)
+    net = assemble(problem)
+    # outputs before the heat crosses a particle radius are left out whichever wall is hot
+    # (output_window): only the others are solved for
+    admitted = run.times >= r_mean ** 2 / alpha_s
+    if not admitted.any():
+        return None, "no output after the heat crossed a particle radius"
+    temperature = np.full((run.times.size, packing.n_particles), np.nan)
+    try:
+        temperature[admitted] = transient_on(net, scene.initial_temperature, run.times[admitted])
+    except (FloatingPointError, ValueError, RuntimeError) as e:
+        return None, f"the other orientation's transient failed ({e})"
+    slab2 = dataclasses.replace(slab, bottom=boundaries[scene.boundaries.index(slab.bottom)],
+                                top=boundaries[scene.boundaries.index(slab.top)])
+    profiles = profiles_of(run, packing, net, slab2, n_bins, temperature=temperature)
+    t_steady = solve_steady(net, np.full(packing.n_particles, scene.initial_temperature))
+    steady = binned_profile(profiles.height_m, packing.radius, t_steady.temperature_k[-1],
+                            profiles.edges_m, weights=profiles.conducting)
+    window = output_window(profiles, steady, slab2, scene.initial_temperature, alpha_s, r_mean)
+    result, why = fit_profiles(profiles, slab2, conductivity_w_mk=fit_args["kp"],
+                               capacity_j_m3k=fit_args["capacity"],
+                               t_initial=scene.initial_temperature,
+                               particle_capacity_j_m3k=fit_args["rho_c"], window=window,
+                               gamma0=fit_args["gamma0"])
+    return (result.fit, None) if result else (None, f"the other orientation: {why}")
 
 
 def steady_etc(net, slab: Slab, area_m2: float, initial_k, where) -> EffectiveConductivity:
@@ -290,20 +536,54 @@ def steady_etc(net, slab: Slab, area_m2: float, initial_k, where) -> EffectiveCo
                                   where=where)
 
 
-def tau_of(net, run: ThermalRun, packing, profiles: Profiles, slab: Slab, t_steady) -> Tau:
+def series_tau_problem(times_s, e_rel) -> str | None:
+    """Why tau cannot be read from the time series of the middle section's e(t)/e(0) =
+    (T_s - T)/(T_s - T_0) at ``times_s`` (see TAU_SERIES_TOLERANCE); None when it can."""
+    t = np.concatenate([[0.0], np.asarray(times_s, float)])
+    e = np.concatenate([[1.0], np.asarray(e_rel, float)])
+    if abs(e[-1]) > TAU_SERIES_TOLERANCE:
+        return (f"the outputs end at t = {t[-1]:g} s with the middle section still "
+                f"{100 * abs(e[-1]):.3g} % of its rise from the steady state: the rest of the "
+                "integral would be extrapolated")
+    # trapezoid against an exponential between two outputs where e decays with one sign
+    gap = 0.0
+    for k in range(1, len(t)):
+        a, b, dt = e[k - 1], e[k], t[k] - t[k - 1]
+        if a * b > 0 and abs(b) < abs(a):
+            gap += abs(0.5 * (a + b) * dt - (a - b) * dt / math.log(a / b))
+    total = float(np.trapezoid(e, t))
+    if not gap <= TAU_SERIES_TOLERANCE * abs(total):
+        return (f"the outputs are too far apart for the decay: between them the trapezoid and "
+                f"an exponential differ by {100 * gap / abs(total):.3g} % of the integral")
+    return None
+
+
+def tau_of(net, run: ThermalRun, packing, profiles: Profiles, slab: Slab, t_steady,
+           transient_why: str | None = None) -> Tau:
     """tau of the middle section (the bins around mid-height): from the network, and from the
-    time series with the steady temperature of the steady solve (not the last snapshot)."""
+    time series with the steady temperature of the steady solve (not the last snapshot) when
+    the run's outputs cover the transient (:func:`series_tau_problem`) and nothing prevents a
+    transient reading (``transient_why``)."""
     initial = run.initial_temperature
     mid = np.array([0.45 * slab.length_m, 0.55 * slab.length_m])
     w_mid = partial_volumes(profiles.height_m, packing.radius, mid)[:, 0] * profiles.conducting
+    s_steady = float(t_steady @ w_mid / w_mid.sum())
+    s_init = float(initial @ w_mid / w_mid.sum())
+    span = abs(slab.bottom.value - slab.top.value) + abs(slab.bottom.value - s_init)
+    if not abs(s_steady - s_init) > 1e-9 * span:
+        why = (f"the middle section's steady temperature is its initial one ({s_init:.6g} K): "
+               "eq. 41's e(0) is 0")
+        return Tau(tau_s=None, tau_series_s=None, tau_note=why, series_note=why)
     tau_net = characteristic_time_network(net, t_steady, initial, w_mid)
-    tau_series = None
-    if bool(np.all(np.isfinite(run.times))):
-        section = (run.temperature @ w_mid) / w_mid.sum()
-        tau_series = float(characteristic_time_series(
-            run.times, section, float(t_steady @ w_mid / w_mid.sum()),
-            float(initial @ w_mid / w_mid.sum())))
-    return Tau(tau_s=tau_net, tau_series_s=tau_series)
+    if transient_why is not None:
+        return Tau(tau_s=tau_net, tau_series_s=None, series_note=transient_why)
+    section = (run.temperature @ w_mid) / w_mid.sum()
+    why = series_tau_problem(run.times, (s_steady - section) / (s_steady - s_init))
+    if why is not None:
+        return Tau(tau_s=tau_net, tau_series_s=None,
+                   series_note=f"{why} (the exact tau is {tau_net:.4g} s)")
+    return Tau(tau_s=tau_net, tau_series_s=float(characteristic_time_series(
+        run.times, section, s_steady, s_init)))
 
 
 def flux_field(packing, conductance_w_k, t_steady, solid_fraction, slab: Slab,
@@ -385,35 +665,75 @@ def _check_options(thermal_h5, n_bins, halo_ratio, halo_radius="common"):
 
 
 def analyse(thermal_h5, n_bins: int = 10, halo_ratio: float = 3.0,
-            halo_radius: str = "common") -> PostResult:
+            halo_radius: str = "common", orientations: bool = True) -> PostResult:
     """Every quantity of the module docstring, from the run's output alone; no file written.
     The flux field's Halo radius is ``halo_ratio`` x the packing's mean radius ("common", 002's
-    "pre-defined number of DE") or x each particle's own radius ("own")."""
+    "pre-defined number of DE") or x each particle's own radius ("own"). ``orientations``: also
+    fit the bed heated from the other wall (one more transient solve; the model-form spread)."""
     thermal_h5 = Path(thermal_h5)
     _check_options(thermal_h5, n_bins, halo_ratio, halo_radius)
     run = read_thermal(thermal_h5)          # the scene as it ran, from the run's output
     packing = read_run_packing(run)         # refused if it changed since the run
     scene = run.scene
     slab = slab_of(scene, packing, thermal_h5)
-    kp = scene.material(0).conductivity
     mat = scene.material(0)
+    kp = mat.conductivity
     stats = packing_statistics(packing)
     phi = float(packing.attrs["solid_fraction"])
-    rho_c_bed = phi * mat.density * mat.heat_capacity
+    area = cross_section(packing, slab.axis)
+    post_flags = []
+    not_measurable = {}
 
     problem, _ = build_problem(dataclasses.replace(scene), packing)
     net = assemble(problem)
+    # the capacities the run used (thermal.h5), not the law's rule applied again here
+    capacity = getattr(run, "capacity", None)
+    if capacity is None:
+        capacity = np.asarray(net.capacity_j_k)
+    elif not np.allclose(capacity, net.capacity_j_k, rtol=1e-9, atol=0.0):
+        post_flags.append("capacity_not_the_laws")   # the law's rule changed since the run
     profiles = profiles_of(run, packing, net, slab, n_bins)
-    gamma = fit_profiles(profiles, slab, conductivity_w_mk=kp, capacity_j_m3k=rho_c_bed,
-                         t_initial=scene.initial_temperature, solid_fraction=phi)
-    area = cross_section(packing, slab.axis)
     steady = steady_etc(net, slab, area, np.asarray(run.initial_temperature), thermal_h5)
     t_steady = steady.temperature_k
+    gamma_steady = steady.k_eff_w_mk / kp
+    rho_c_bed = bed_capacity(capacity, packing, slab, area, profiles.conducting)
+    phi_walls = solid_fraction_between_walls(packing, slab, area)
+    if not abs(phi - phi_walls) <= SOLID_FRACTION_RTOL * phi_walls:
+        post_flags.append("solid_fraction")
+
+    obstacle = transient_problem(run, scene, slab)
+    why, gamma = obstacle, None
+    if obstacle is None:
+        r_mean = float(packing.radius.mean())
+        alpha_s = gamma_steady * kp / rho_c_bed
+        steady_profile = binned_profile(profiles.height_m, packing.radius, t_steady,
+                                        profiles.edges_m, weights=profiles.conducting)
+        window = output_window(profiles, steady_profile, slab, scene.initial_temperature,
+                               alpha_s, r_mean)
+        args = dict(kp=kp, capacity=rho_c_bed, rho_c=mat.density * mat.heat_capacity,
+                    gamma0=gamma_steady)
+        gamma, why = fit_profiles(profiles, slab, conductivity_w_mk=kp,
+                                  capacity_j_m3k=rho_c_bed, t_initial=scene.initial_temperature,
+                                  particle_capacity_j_m3k=args["rho_c"], window=window,
+                                  gamma0=gamma_steady)
+        if gamma is not None and orientations:
+            other, note = other_orientation(run, packing, slab, n_bins, args, r_mean, alpha_s)
+            gamma = dataclasses.replace(gamma, other=other, other_note=note)
+            if gamma.model_form_flag:
+                post_flags.append("gamma_model_form")
+            if note:
+                not_measurable["gamma_other_orientation"] = note
+    if why is not None:
+        not_measurable["gamma"] = why
+    tau = tau_of(net, run, packing, profiles, slab, t_steady, transient_why=obstacle)
+    if tau.tau_note:
+        not_measurable["tau_s"] = tau.tau_note
+    if tau.series_note:
+        not_measurable["tau_series_s"] = tau.series_note
     touching = packing.overlap > 0
     return PostResult(
         thermal=thermal_h5, run=run, packing=packing, n_bins=n_bins, slab=slab,
-        profiles=profiles, gamma=gamma, steady=steady, gamma_steady=steady.k_eff_w_mk / kp,
-        tau=tau_of(net, run, packing, profiles, slab, t_steady),
+        profiles=profiles, gamma=gamma, steady=steady, gamma_steady=gamma_steady, tau=tau,
         flux=flux_field(packing, problem.conductance_w_k, t_steady, phi, slab, profiles, steady,
                         halo_ratio, halo_radius),
         fabric=fabric_of(packing, problem.conductance_w_k, slab, area, kp),
@@ -421,30 +741,113 @@ def analyse(thermal_h5, n_bins: int = 10, halo_ratio: float = 3.0,
         mean_coordination=float(2.0 * touching.sum() / packing.n_particles),
         mean_normal_force_n=float(stats["mean_normal_force_n"]),
         rattlers=int(np.count_nonzero(~profiles.conducting)),
-        pressure_pa=float(packing.attrs.get("pressure_pa", float("nan"))))
+        pressure_pa=float(packing.attrs.get("pressure_pa", float("nan"))),
+        bed_capacity_j_m3k=rho_c_bed, solid_fraction_between_walls=phi_walls,
+        not_measurable=not_measurable, post_flags=tuple(post_flags))
 
 
 # ----------------------------------------------------------------------------- write
+# Set by command()'s SIGINT handler: a Ctrl-C that Python swallowed on the way (raised inside a
+# weakref callback or a finaliser it is only printed as "Exception ignored") still stops post
+# before its folder is swapped in.
+_INTERRUPTED = []
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM held back for the block (the swap of the post folder), delivered
+    when it ends. Main thread only (elsewhere Python delivers none)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _stale(folder: Path) -> bool:
+    """A temporary post folder (``.post.tmp-<pid>``, ``.post.old-<pid>``) whose process is
+    gone (killed with -9 during its swap, or earlier)."""
+    try:
+        pid = int(folder.name.rsplit("-", 1)[1])
+    except (IndexError, ValueError):
+        return False
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:
+        return False
+    return False
+
+
+def _swap_in(tmp: Path, out_dir: Path) -> None:
+    """``tmp`` renamed to ``out_dir``; an ``out_dir`` already there (an earlier post) is moved
+    aside first and removed after. Signals are held for the two renames, so ``out_dir`` is the
+    old folder or the new one, whole."""
+    aside = out_dir.with_name(f".post.old-{os.getpid()}")
+    for attempt in range(5):                # another post may swap its folder in meanwhile
+        moved = False
+        with _signals_held():
+            if _INTERRUPTED:
+                raise KeyboardInterrupt
+            if out_dir.is_symlink() or (out_dir.exists() and not out_dir.is_dir()):
+                raise NotADirectoryError(20, "expected the post folder, found a file",
+                                         str(out_dir))
+            try:
+                if out_dir.exists():
+                    os.rename(out_dir, aside)
+                    moved = True
+                os.rename(tmp, out_dir)
+            except OSError as e:
+                if moved:
+                    os.rename(aside, out_dir)
+                if e.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOENT) and attempt < 4:
+                    continue
+                raise
+        if moved:
+            shutil.rmtree(aside, ignore_errors=True)
+        return
+
+
 def write_post(result: PostResult, plots: bool = True) -> dict:
-    """``post/`` beside the run: the figures and CSVs (with ``plots``), then summary.json
-    (last: a complete summary.json means the whole post-processing is there, for the campaign's
-    resume). Returns the summary, ``files`` naming what was written."""
-    out_dir = result.thermal.parent / "post"
-    out_dir.mkdir(parents=True, exist_ok=True)
+    """``post/`` beside the run, all or nothing: the figures and CSVs (with ``plots``) and
+    summary.json are written into ``.post.tmp-<pid>`` beside it, which then replaces ``post/``
+    whole (a full disk, Ctrl-C or an error leaves the earlier ``post/``, or none, and no
+    temporary folder). Returns the summary, ``files`` naming what was written."""
+    parent = result.thermal.parent
+    out_dir = parent / "post"
+    for old in [*parent.glob(".post.tmp-*"), *parent.glob(".post.old-*")]:
+        if _stale(old):
+            shutil.rmtree(old, ignore_errors=True)
+    tmp = parent / f".post.tmp-{os.getpid()}"
     summary = result.summary()
     summary["files"] = ["summary.json"]
     slab, fit = result.slab, result.gamma.fit if result.gamma else None
-    if plots and fit is not None:
-        summary["files"] += ["profiles.png", "profiles.csv"]
-        p = result.profiles
-        _plot_profiles(out_dir, p.times_s, p.edges_m, p.values_k, fit, slab.length_m,
-                       slab.bottom.value, slab.top.value, result.run.scene.initial_temperature,
-                       summary)
-    if plots:
-        summary["files"] += ["flux_section.png", "flux_section.csv"]
-        _plot_flux_section(out_dir, result.packing, slab.axis, result.flux.q_raw,
-                           result.flux.q_halo, summary)
-    write_text_atomic(out_dir / "summary.json", json.dumps(summary, indent=1))
+    try:
+        tmp.mkdir()
+        if plots and fit is not None:
+            summary["files"] += ["profiles.png", "profiles.csv"]
+            p = result.profiles
+            _plot_profiles(tmp, p.times_s, p.edges_m, p.values_k, fit, slab.length_m,
+                           slab.bottom.value, slab.top.value,
+                           result.run.scene.initial_temperature, summary)
+        if plots:
+            summary["files"] += ["flux_section.png", "flux_section.csv"]
+            _plot_flux_section(tmp, result.packing, slab.axis, result.flux.q_raw,
+                               result.flux.q_halo, summary)
+        (tmp / "summary.json").write_text(json.dumps(summary, indent=1))
+        _swap_in(tmp, out_dir)
+    except BaseException as e:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(e, OSError):      # name the file the user knows, not the temporary one
+            name = str(e.filename or tmp).replace(str(tmp), str(out_dir), 1)
+            raise OSError(e.errno, e.strerror or str(e), name) from None
+        raise
     return summary
 
 
@@ -453,6 +856,119 @@ def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float
     """:func:`analyse` then :func:`write_post`: the summary (post/summary.json) as a dict."""
     return write_post(analyse(thermal_h5, n_bins=n_bins, halo_ratio=halo_ratio,
                               halo_radius=halo_radius), plots=plots)
+
+
+def report_lines(r: PostResult, thermal: Path, files) -> list:
+    """The lines ``tdem post`` prints: each quantity, or why this run cannot give it."""
+    nm = r.not_measurable
+    pressure = f", p = {r.pressure_pa:.4g} Pa" if math.isfinite(r.pressure_pa) else ""
+    out = [f"tdem post: {thermal} ({r.run.law}, {r.packing.n_particles} particles{pressure})"]
+    bad = [f for f in r.run.flags.split(",") if f and f not in BENIGN_FLAGS]
+    if bad:
+        out.append(f"  run flags          {r.run.flags}   (thermal.h5: {', '.join(bad)} make its "
+                   "temperatures unusable for the transient fit)")
+    if r.gamma is None:
+        out.append(f"  gamma = k_eff/k_p  not measurable from this run: {nm['gamma']}")
+    else:
+        g = r.gamma
+        fit = g.fit
+        out.append(f"  gamma = k_eff/k_p  {fit.gamma:.5g}   95 % CI [{fit.ci95[0]:.5g}, "
+                   f"{fit.ci95[1]:.5g}], profile residual {fit.residual_rms_k:.3g} K "
+                   f"({len(g.used_s)} of {len(g.per_time)} outputs, {g.used_s[0]:g}-"
+                   f"{g.used_s[-1]:g} s)")
+        for _t, why in g.left_out[:3]:
+            out.append(f"    left out: {why}")
+        if len(g.left_out) > 3:
+            out.append(f"    ... and {len(g.left_out) - 3} more outputs (summary.json)")
+        if g.other is not None:
+            lo, hi = g.model_form_range
+            out.append(f"  heated from the other wall {g.other.gamma:.5g}   95 % CI "
+                       f"[{g.other.ci95[0]:.5g}, {g.other.ci95[1]:.5g}]: model-form range "
+                       f"[{lo:.5g}, {hi:.5g}] (+-{100 * g.model_form_spread:.3g} %)"
+                       + ("; the two intervals do not overlap (flag gamma_model_form): the "
+                          "homogeneous slab does not describe this bed to the fit's precision"
+                          if g.model_form_flag else ""))
+        elif g.other_note:
+            out.append(f"  other orientation  not measurable: {g.other_note}")
+        out.append(f"  gamma_paper        {g.gamma_paper:.5g}   (003's convention: alpha = "
+                   "gamma kappa_p/(rho_p c_p))")
+    out.append(f"  gamma (steady ETC) {r.gamma_steady:.5g}   heat in/out balance "
+               f"{r.steady.balance:.1e}")
+    out.append(f"  gamma affine k_zz  {r.fabric.gamma_affine:.5g}   (upper bound of the steady "
+               f"ETC; <n_z^2> {r.fabric.nz2:.4f}, conductance-weighted "
+               f"{r.fabric.nz2_conductance:.4f})")
+    out.append("  gamma mean field   " + ", ".join(f"{k} {v:.4g}"
+                                                  for k, v in r.mean_field.items()))
+    if r.tau.tau_s is None:
+        out.append(f"  tau (middle)       not measurable: {nm['tau_s']}")
+    else:
+        series = (f" (from the time series: {r.tau.tau_series_s:.5g} s)"
+                  if r.tau.tau_series_s is not None else "")
+        out.append(f"  tau (middle)       {r.tau.tau_s:.5g} s{series}")
+        if r.tau.tau_series_s is None and r.run.method != "steady":
+            out.append(f"    from the time series: not measurable: {nm['tau_series_s']}")
+    if r.flux.cov_halo is not None:
+        size = "r_mean" if r.flux.halo_radius == "common" else "R_p (own radius)"
+        out.append(f"  heat flux (steady) CoV of |q| {r.flux.cov_raw:.3f} per particle "
+                   f"({r.flux.cov_raw_volume:.3f} volume-weighted), "
+                   f"{r.flux.cov_halo:.3f} with a halo of {r.flux.halo_ratio:g} {size} "
+                   f"({r.flux.interior_particles} interior particles); mean axial q / (Q/A) "
+                   f"{r.flux.mean_over_q_per_area:.3f}")
+    if "solid_fraction" in r.post_flags:
+        out.append(f"  solid fraction     the packing says {r.solid_fraction:.4g}, its spheres "
+                   f"between the walls fill {r.solid_fraction_between_walls:.4g} (flag "
+                   "solid_fraction; the fit uses the run's capacities, not either)")
+    if r.post_flags:
+        out.append(f"  post flags         {', '.join(r.post_flags)}")
+    out.append(f"  wrote {thermal.parent / 'post'}/ ({', '.join(files)})")
+    return out
+
+
+def _program() -> bool:
+    """This process is the ``tdem`` command (not a test or a script calling :func:`command`)."""
+    main = sys.modules.get("__main__")
+    spec = getattr(main, "__spec__", None)
+    return Path(sys.argv[0]).name == "tdem" or getattr(spec, "name", "") == "tdem.cli"
+
+
+def command(run, n_bins: int = 10, halo_ratio: float = 3.0, halo_radius: str = "common") -> int:
+    """``tdem post RUN``: :func:`analyse`, :func:`write_post`, then the lines of
+    :func:`report_lines` on stdout. Ctrl-C before the post folder is swapped in leaves the
+    earlier one (or none), even when Python swallowed it on the way (``_INTERRUPTED``); once
+    the folder is whole and reported, a Ctrl-C ends the ``tdem`` process quietly (exit 130)
+    instead of surfacing as "Exception ignored ... KeyboardInterrupt" with exit 0."""
+    path = Path(run)
+    thermal = path / "thermal.h5" if path.is_dir() else path
+    if not thermal.exists():
+        raise ThermalFileError(f"{thermal}: file not found (give a run folder or its "
+                               "thermal.h5)")
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.getsignal(signal.SIGINT) if main_thread else None
+
+    def noted(signum, frame):
+        _INTERRUPTED.append(signum)
+        raise KeyboardInterrupt
+
+    if main_thread:
+        signal.signal(signal.SIGINT, noted)
+    try:
+        r = analyse(thermal, n_bins=n_bins, halo_ratio=halo_ratio, halo_radius=halo_radius)
+        if _INTERRUPTED:
+            raise KeyboardInterrupt
+        files = write_post(r)["files"]
+    finally:
+        _INTERRUPTED.clear()
+        if main_thread:
+            signal.signal(signal.SIGINT, previous)
+    for line in report_lines(r, thermal, files):
+        print(line)
+    sys.stdout.flush()
+    if main_thread and _program():
+        def quiet(signum, frame):
+            sys.stderr.write("tdem: interrupted (post/ was already written whole)\n")
+            os._exit(130)
+        signal.signal(signal.SIGINT, quiet)
+    return 0
 
 
 def _pressure_label(summary):
