@@ -81,9 +81,18 @@ PACKING_CASES = {    # name: (source file, edit, words of the one line)
                             ["solid_fraction", "the spheres' volume over the domain's"]),
     "overlap_negative": (BED, _row("contacts/overlap", 4, -1e-3),
                          ["contacts/overlap", "contact 4", "r_i + r_j - |branch|"]),
-    "wall_overlap_far": (BOX, _row("wall_contacts/overlap", 2, 5e-4),
+    "wall_contact_far": (BOX, lambda f: _wall_contact_on_farthest(f, 2),
                          ["wall_contacts/overlap", "row 2", "r - distance"]),
 }
+
+
+def _wall_contact_on_farthest(f, row):
+    """A touching wall contact moved to the particle farthest from its wall."""
+    w = int(f["wall_contacts/wall"][row])
+    x = f["particles/position"][()]
+    dist = (x - f["walls/point"][w]) @ f["walls/normal"][w]
+    f["wall_contacts/particle"][row] = int(np.argmax(dist))
+    f["wall_contacts/overlap"][row] = 1e-6
 
 
 @pytest.mark.parametrize("case", sorted(PACKING_CASES))

@@ -343,16 +343,19 @@ ATTR_RANGES = {
     "mean_coordination": (0.0, math.inf, False, True, ""),
 }
 # A contact's overlap must be r_i + r_j - |branch| (docs/packing-format.md) within this fraction of
-# the smaller radius, and a plane wall contact's r - (distance to the plane) within this fraction
-# of its radius. Every generator writes exactly that (measured: 1.5e-15 of the radius over every
-# committed and validation packing); a LIGGGHTS import keeps LIGGGHTS' delta, which with the
-# default 6-digit dump format differs from the positions by ~1e-5 of a radius (1 % of an overlap).
+# the smaller radius (and, in an import, a wall contact's r - distance). Every generator writes
+# exactly that (measured: 1.5e-15 of the radius over every committed and validation packing); a
+# LIGGGHTS import keeps LIGGGHTS' delta, which with the default 6-digit dump format differs from
+# the positions by ~1e-5 of a radius (1 % of an overlap).
 OVERLAP_RTOL = 1e-3
-# Cylinder and sphere walls are facet polygons in YADE: a contact's depth is measured against a
-# facet, the file's wall is the analytic surface; they differ by up to the facets' sagitta, which
-# the file does not record (measured up to 0.067 r, dense_sphere.h5). Half a radius leaves any
-# usable facet mesh and still refuses a wall contact on a particle away from the wall.
-CURVED_WALL_RTOL = 0.5
+# A touching wall contact's overlap against r - (the centre's distance to the wall): within half
+# a radius. Cylinder and sphere walls are facet polygons in YADE (a depth measured against a
+# facet differs from the analytic surface by the facets' sagitta, which the file does not record:
+# measured up to 0.067 r, dense_sphere.h5), and hand-made packings state wall overlaps of their
+# own (tests' chains); half a radius leaves both and still refuses a wall contact on a particle
+# away from the wall (a wrong wall position, a contact on another atom). An importer checks its
+# dumps tighter (tdem/liggghts.py: OVERLAP_RTOL).
+WALL_RTOL = 0.5
 # solid_fraction against the particles: every generator divides the spheres' volume, whole or
 # less the caps beyond the walls (tdem_yade, import liggghts), by the domain's volume (the box
 # lo..hi, pi R^2 L in a cylinder wall, 4/3 pi R^3 in a sphere wall); measured equal to 1e-12 on
@@ -424,7 +427,7 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
             dist = _wall_distance(kind, wall_point[w], wall_normal[w], wall_radius[w],
                                   position[wall_particle[rows]])
             geo = r[rows] - dist
-            rtol = OVERLAP_RTOL if kind == "plane" else CURVED_WALL_RTOL
+            rtol = WALL_RTOL
             # touching rows only: a row with overlap <= 0 is a near-wall neighbour without
             # force (thermal_kernel.lattice writes 0 for its outer layers whatever the radius)
             off = (wall_overlap[rows] > 0) & \
