@@ -484,3 +484,19 @@ def test_sigterm_ends_a_run_like_ctrl_c(tmp_path):
     assert len(lines) == 1 and lines[0].startswith("tdem: ") and "SIGTERM" in lines[0], err
     assert lines[0].endswith(f"{out / 'thermal.h5'} not written") and "Traceback" not in err
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_scene_changed_through_the_api_is_read_by_its_resolved_scene(tmp_path, clean_run):
+    """A run of a scene changed after it was read (dataclasses.replace: validation, tests) stores
+    scene_text_agrees = 0 and is read by its resolved scene; a `tdem run` stores 1, and its
+    text and resolved scene are then cross-checked (the tamper cases above)."""
+    with h5py.File(clean_run) as f:
+        assert int(f.attrs["scene_text_agrees"]) == 1
+    path = tmp_path / "s.toml"
+    path.write_text(bed_scene(IMPLICIT))
+    scene = dataclasses.replace(load_scene(path), initial_temperature=310.0,
+                                output=tmp_path / "out" / "thermal.h5")
+    summary = run_scene(scene, quiet=True, threads=1)
+    with h5py.File(summary.output) as f:
+        assert int(f.attrs["scene_text_agrees"]) == 0
+    assert read_thermal(summary.output).scene.initial_temperature == 310.0

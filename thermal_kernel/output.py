@@ -378,9 +378,12 @@ def read_thermal(path, *, data: bool = True) -> ThermalRun:
                           initial_temperature=f["initial_temperature"][()],
                           capacity=f["capacity"][()])
         scene_path = attr("scene_path", str)
+        agreed = attrs.get("scene_text_agrees")
+        agreed = (isinstance(agreed, (int, np.integer)) and not isinstance(agreed, bool)
+                  and int(agreed) == 1)
     if version >= 2:
         scene = dataclasses.replace(scene_from_json(scene_json, fail), text=scene_text)
-        _check_scene_text(path, scene_text, scene_path, scene_json, law, fail)
+        _check_scene_text(path, scene_text, scene_path, scene_json, law, agreed, fail)
     else:           # the stored text, parsed as it was then
         from .scene import SceneError, load_scene
         try:
@@ -471,35 +474,58 @@ def check_run_values(f, attrs, method, dt, flags, fail) -> None:
                                 f"is outside {why}: the file was changed after the run")
 
 
-def _check_scene_text(path, text, scene_path, scene_json, law, fail) -> None:
-    """The stored scene text parses (a campaign's file: as its case scene, the run's law set)
-    and agrees with the resolved scene ``scene_json`` on every key but the paths (path,
-    packing, output: a run may be moved, its packing given on the command line)."""
+def scene_text_difference(text, scene_path, scene_json, law, out_dir):
+    """Where the scene ``text`` (a campaign's file: as its case scene, ``law`` set) disagrees
+    with the resolved scene ``scene_json`` on a key other than the paths (path, packing,
+    output: a run may be moved, its packing given on the command line): ``(what, key, text's
+    value, scene_json's value)``, or None when they agree. ``what`` is "toml" or "scene" when
+    the text does not parse (the message in the value)."""
     import tomllib
 
     from .scene import SceneError, load_scene
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
-        fail("scene", f"the stored scene text is not valid TOML ({e}); a run stores the "
-                      "scene it read: the file was changed after the run")
+        return "toml", "scene", str(e), None
     if "campaign" in data:             # a campaign's case: tdem.campaign.case_scenes
         data = {k: v for k, v in data.items() if k not in ("pack", "campaign", "law")}
         data = {"packing": "packing.h5", "law": law, **data}
     try:
-        scene = load_scene(scene_path, out_dir=path.parent, text=text, data=data)
+        scene = load_scene(scene_path, out_dir=out_dir, text=text, data=data)
     except SceneError as e:
-        fail("scene", f"the stored scene text no longer parses as a scene ({e})")
+        return "scene", "scene", str(e), None
     ignore = ("path", "packing", "output")
     mine = {k: v for k, v in json.loads(scene_to_json(scene)).items() if k not in ignore}
-    theirs = json.loads(scene_json)
+    try:
+        theirs = json.loads(scene_json)
+    except (TypeError, json.JSONDecodeError):
+        theirs = None
     theirs = {k: v for k, v in theirs.items() if k not in ignore} if isinstance(
         theirs, dict) else theirs
-    if mine != theirs:
-        where, a, b = _first_difference(mine, theirs)
-        fail("scene_json", f"the resolved scene says {where} = {b!r}, the stored scene text "
-                           f"{a!r}: the two were written together by the run, so the file was "
-                           "changed after it")
+    if mine == theirs:
+        return None
+    where, a, b = _first_difference(mine, theirs)
+    return "value", where, a, b
+
+
+def _check_scene_text(path, text, scene_path, scene_json, law, agreed, fail) -> None:
+    """The stored scene text is valid TOML; when the run recorded that it agreed with the
+    resolved scene (attribute scene_text_agrees = 1: the scene ran as its file says, not
+    changed through the API), it still parses and agrees (:func:`scene_text_difference`)."""
+    diff = scene_text_difference(text, scene_path, scene_json, law, path.parent)
+    if diff is None:
+        return
+    what, where, a, b = diff
+    if what == "toml":
+        fail("scene", f"the stored scene text is not valid TOML ({a}); a run stores the "
+                      "scene it read: the file was changed after the run")
+    if not agreed:
+        return
+    if what == "scene":
+        fail("scene", f"the stored scene text no longer parses as a scene ({a})")
+    fail("scene_json", f"the resolved scene says {where} = {b!r}, the stored scene text "
+                       f"{a!r}: the run found them in agreement, so the file was changed "
+                       "after it")
 
 
 def _first_difference(a, b, where=""):

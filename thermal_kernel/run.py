@@ -15,7 +15,7 @@ import numpy as np
 from .atomic import OutputBusyError, output_lock
 from .checkpoint import checkpoint_path, packing_sha256, read_checkpoint, write_checkpoint
 from .network import assemble
-from .output import scene_to_json, write_thermal
+from .output import scene_text_difference, scene_to_json, write_thermal
 from .packing import read_packing
 from .problem import build_problem
 from .scene import Scene, SceneError
@@ -260,6 +260,10 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
         "neighbours": json.dumps(None if info["neighbours"] is None else
                                  info["neighbours"].summary(), sort_keys=True, default=float),
         "scene_json": scene_json,
+        # 1: the scene ran as its text says (read_thermal then checks the two still agree);
+        # 0: changed through the API after it was read (the resolved scene is what ran)
+        "scene_text_agrees": int(scene_text_difference(
+            scene.text, str(scene.path), scene_json, scene.law, scene.output.parent) is None),
         "run_args": json.dumps(dict(run_args or {}, threads=threads,
                                     checkpoint_every=checkpoint_every, resume=resume,
                                     packing=str(packing_path) if packing_path else None),
