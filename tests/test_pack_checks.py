@@ -49,6 +49,7 @@ DENSE = [
     ('method = "tiled"\ncell_particles = 20\nn_particles = 21', "n_particles"),
     ('method = "shell"\ncell_particles = 20\nn_particles = 21', "n_particles"),
     ('method = "shell"\nshape = "periodic"', "method"),
+    ('method = "shell"\nshape = "sphere"\nn_particles = 50000', "method"),
     # facets sagging more than the smallest cloud sphere: one would start outside them
     ('shape = "sphere"\nsphere_facet_level = 1', "sphere_facet_level"),
 ]

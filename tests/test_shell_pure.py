@@ -12,8 +12,8 @@ from yade_scripts.dense_geometry import Container
 
 @pytest.mark.parametrize("shape, n, expected", [
     ("box", 2000, "direct"), ("box", shell.AUTO_SHELL_ABOVE, "direct"),
-    ("box", shell.AUTO_SHELL_ABOVE + 1, "shell"), ("cylinder", 100_000, "shell"),
-    ("sphere", 100_000, "shell"), ("periodic", 100_000, "direct")])
+    ("box", shell.AUTO_SHELL_ABOVE + 1, "shell"), ("cylinder", 100_000, "direct"),
+    ("sphere", 100_000, "direct"), ("periodic", 100_000, "direct")])
 def test_auto_method(shape, n, expected):
     assert shell.resolve_method(shape, "auto", n) == expected
     p = P.resolve_and_check("dense", {"shape": shape, "n_particles": n,

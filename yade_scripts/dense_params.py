@@ -55,8 +55,8 @@ PARAMS = {
                         "and carve the domain out of the copies (no walls pressed on the "
                         "spheres; periodicity length = the cell); shell: as tiled, then walls "
                         "pressed onto a shell of shell_diameters along them (the interior "
-                        "stays as tiled); auto: direct up to 20,000 spheres (and for a "
-                        "periodic domain), shell above"),
+                        "stays as tiled; boxes only); auto: shell for a box of more than "
+                        "20,000 spheres, direct otherwise"),
     "shell_diameters": dict(kind="float", default=4.0, minimum=1.0,
                             help="shell: thickness of the shell relaxed against the walls, in "
                                  "mean diameters"),
@@ -129,6 +129,11 @@ def check(p):
         raise ValueError(f"method: \"{p['method']}\" carves a box, cylinder or sphere out of "
                          "copies of a periodic cell; for a periodic domain use method = "
                          "\"direct\"")
+    from .shell import SHELL_SHAPES
+    if p["method"] == "shell" and p["shape"] not in SHELL_SHAPES + ("periodic",):
+        raise ValueError(f"method: \"shell\" is measured for {', '.join(SHELL_SHAPES)} only "
+                         f"(docs/packings.md); for a {p['shape']} use \"direct\" (walls) or "
+                         "\"tiled\" (cut faces)")
     if tiled and not p["cell_packing"] and p["n_particles"] < p["cell_particles"]:
         raise ValueError(f"cell_particles: expected at most n_particles ({p['n_particles']}) for "
                          f"method = \"{p['method']}\", got {p['cell_particles']}")
