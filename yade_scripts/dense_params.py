@@ -175,14 +175,23 @@ def _mean_cube_over_cubed_mean(p):
     return 1.0 + p["radius_spread"] ** 2
 
 
+# Fewer spheres than this in a tiled or shell domain: its solid fraction and statistics would be
+# set by the spheres its surface cuts (21 spheres carved from a 400-sphere cell: phi 0.78 against
+# the cell's 0.66).
+MIN_CARVED_PARTICLES = 100
+
+
 def check_carved_domain(p):
-    """tiled, shell: the carved domain must be at least four mean diameters across (as the
-    direct path's domain): a smaller one is a handful of spheres cut out of the cell whose
-    solid fraction means nothing (21 spheres from a 400-sphere cell gave phi 0.78). The size
-    in mean diameters depends only on n_particles, the distribution's shape, the cell's solid
-    fraction (~0.65) and the aspect, not on the radii's scale."""
+    """tiled, shell: at least MIN_CARVED_PARTICLES spheres, and at least one mean diameter across
+    the smallest side (a thin sheet of one diameter, 000's case, is allowed). The size in mean
+    diameters depends only on n_particles, the distribution's shape, the cell's solid fraction
+    (~0.65) and the aspect, not on the radii's scale."""
     import math
     import numpy as np
+    if p["n_particles"] < MIN_CARVED_PARTICLES:
+        raise ValueError(f"n_particles: method = \"{p['method']}\" expected at least "
+                         f"{MIN_CARVED_PARTICLES} spheres (fewer: the spheres cut by the surface "
+                         f"set the solid fraction), got {p['n_particles']}")
     aspect = np.asarray(p["aspect"], dtype=float)
     volume_d3 = p["n_particles"] * math.pi / 6.0 * _mean_cube_over_cubed_mean(p) / 0.65
     if p["shape"] == "box":
@@ -193,7 +202,8 @@ def check_carved_domain(p):
         smallest = min(2.0 * radius, 2.0 * radius * ratio)
     else:
         smallest = 2.0 * (3.0 * volume_d3 / (4.0 * math.pi)) ** (1.0 / 3.0)
-    if smallest < 4.0:
-        raise ValueError(f"n_particles: a {p['shape']} of {p['n_particles']} spheres is "
-                         f"{smallest:.2g} mean diameters across; method = \"{p['method']}\" "
-                         "expected at least 4 (more spheres, or method = \"direct\")")
+    if smallest < 1.0:
+        raise ValueError(f"n_particles: a {p['shape']} of {p['n_particles']} spheres with aspect "
+                         f"{list(aspect)} is {smallest:.2g} mean diameters across; method = "
+                         f"\"{p['method']}\" expected at least 1 (more spheres or another "
+                         "aspect)")
