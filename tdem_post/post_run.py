@@ -545,12 +545,14 @@ def series_tau_problem(times_s, e_rel) -> str | None:
         return (f"the outputs end at t = {t[-1]:g} s with the middle section still "
                 f"{100 * abs(e[-1]):.3g} % of its rise from the steady state: the rest of the "
                 "integral would be extrapolated")
-    # trapezoid against an exponential between two outputs where e decays with one sign
+    # trapezoid against an exponential between two outputs over which e decays (an e that
+    # reached 0, or round-off of the other sign, counted as 1e-12 of the one before)
     gap = 0.0
     for k in range(1, len(t)):
         a, b, dt = e[k - 1], e[k], t[k] - t[k - 1]
-        if a * b > 0 and abs(b) < abs(a):
-            gap += abs(0.5 * (a + b) * dt - (a - b) * dt / math.log(a / b))
+        if abs(b) < abs(a):
+            b_exp = math.copysign(max(abs(b), 1e-12 * abs(a)), a) if a * b <= 0 else b
+            gap += abs(0.5 * (a + b) * dt - (a - b_exp) * dt / math.log(a / b_exp))
     total = float(np.trapezoid(e, t))
     if not gap <= TAU_SERIES_TOLERANCE * abs(total):
         return (f"the outputs are too far apart for the decay: between them the trapezoid and "

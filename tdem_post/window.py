@@ -60,10 +60,11 @@ def window_fit(case_dir, times=PAPER_TIMES, dt: float | None = None, threads: in
         "gamma_window_residual_rms_k": window["gamma_residual_rms_k"],
         "gamma_window_per_time": window["gamma_per_time"],
         "gamma_case": case["gamma"], "gamma_case_ci95": case["gamma_ci95"],
-        "gamma_paper_case": case["gamma"] / case["solid_fraction"],
+        "gamma_paper_case": case.get("gamma_paper"),
         "gamma_case_per_time": case.get("gamma_per_time"),
         "gamma_steady": case["gamma_steady"], "tau_s": case["tau_s"],
-        "flags": flags, "wall_seconds": time.time() - t0,
+        "flags": flags, "post_flags": window["post_flags"],
+        "not_measurable": window["not_measurable"], "wall_seconds": time.time() - t0,
     }
     write_text_atomic(done, json.dumps(out, indent=1))
     return out
@@ -81,11 +82,16 @@ def main(argv=None) -> int:
     times = [float(x) for x in args.times.split(",") if x.strip()]
     print("p (bar)  law    gamma(case window)  gamma(window)  gamma_paper(window)  "
           "gamma_steady")
+    def num(value, width):      # a gamma the window cannot give (not measurable): said so
+        return f"{value:{width}.4g}" if value is not None else f"{'n/m':>{width}}"
+
     for case in args.cases:
         r = window_fit(case, times, args.dt, args.threads)
-        print(f"{r['pressure_pa'] / 1e5:7.3g}  {r['law']:<6} {r['gamma_case']:18.4g}  "
-              f"{r['gamma_window']:13.4g}  {r['gamma_paper_window']:19.4g}  "
-              f"{r['gamma_steady']:12.4g}", flush=True)
+        print(f"{r['pressure_pa'] / 1e5:7.3g}  {r['law']:<6} {num(r['gamma_case'], 18)}  "
+              f"{num(r['gamma_window'], 13)}  {num(r['gamma_paper_window'], 19)}  "
+              f"{r['gamma_steady']:12.4g}"
+              + "".join(f"\n    {k} not measurable: {v}"
+                        for k, v in (r.get("not_measurable") or {}).items()), flush=True)
     return 0
 
 
