@@ -404,20 +404,27 @@ def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label
     elif old is not None and why is None:
         summary = old
         summary["flags"] = run_flags(thermal_path, summary.get("flags"))
-        print(f"{label}{name}: done before (gamma {summary['gamma']:.4g}), kept"
+        print(f"{label}{name}: done before (gamma {_g(summary.get('gamma'))}), kept"
               + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
         return _with_target(summary, packing)
     if summary_path.exists():       # stale: never left beside a new run
         summary_path.unlink()
     summary = _compute(scene, conf, case_dir, packing, threads, run_args, name, inputs,
                        summary_path)
-    print(f"{label}{name}: gamma {summary['gamma']:.4g} "
-          f"[{summary['gamma_ci95'][0]:.4g}, {summary['gamma_ci95'][1]:.4g}], steady "
-          f"{summary['gamma_steady']:.4g}, tau {summary['tau_s']:.4g} s "
+    ci = summary.get("gamma_ci95") or (None, None)
+    print(f"{label}{name}: gamma {_g(summary.get('gamma'))}"
+          + (f" [{_g(ci[0])}, {_g(ci[1])}]" if summary.get("gamma") is not None else "")
+          + f", steady {_g(summary.get('gamma_steady'))}, tau {_g(summary.get('tau_s'))} s "
           f"({summary['case_wall_seconds']:.1f} s)"
           + (f"; flags: {summary['flags']}" if summary["flags"] else "")
           + (f"; recomputed: {why}" if why else ""), flush=True)
     return _with_target(summary, packing)
+
+
+def _g(value) -> str:
+    """A number of a case's summary for its line; post's None: "not measurable" (post says why,
+    summary.json's not_measurable)."""
+    return "not measurable" if value is None else f"{value:.4g}"
 
 
 def _with_target(summary: dict, packing: Path) -> dict:
@@ -473,7 +480,7 @@ def _repost(old, thermal_path, conf, inputs, summary_path, label, name, asked):
     what = ("post-processed again" if asked else
             f"n_bins {old.get('n_bins')} -> {conf['n_bins']}: post-processed again")
     print(f"{label}{name}: thermal run kept, {what}: gamma "
-          f"{old['gamma']:.4g} -> {summary['gamma']:.4g} ({time.time() - t0:.1f} s)",
+          f"{_g(old.get('gamma'))} -> {_g(summary.get('gamma'))} ({time.time() - t0:.1f} s)",
           flush=True)
     return summary, None
 
@@ -506,23 +513,34 @@ def n_distinct(p) -> int:
     return int(len(p) > 0) + int(np.sum(np.diff(p) > 1e-9 * np.abs(p[1:])))
 
 
+def _measured(p_bar, y):
+    """The pairs (p, y) with y measured (finite and > 0: post's "not measurable" is NaN)."""
+    p_bar, y = np.asarray(p_bar, dtype=float), np.asarray(y, dtype=float)
+    ok = np.isfinite(p_bar) & np.isfinite(y) & (y > 0)
+    return p_bar[ok], y[ok]
+
+
 def _log_slope(p_bar, y):
-    """The log-log slope of y(p), or None when fewer than two pressures are distinct."""
+    """The log-log slope of y(p) over the measured values, or None when fewer than two of
+    their pressures are distinct."""
+    p_bar, y = _measured(p_bar, y)
     if n_distinct(p_bar) < 2:
         return None
     return float(np.polyfit(np.log(p_bar), np.log(y), 1)[0])
 
 
-def _no_slope(p_bar) -> str:
+def _no_slope(p_bar, y) -> str:
+    p_bar = _measured(p_bar, y)[0]
     n, m = n_distinct(p_bar), len(p_bar)
     if m < 2:
-        return "not fitted: one pressure"
+        return f"not fitted: {m} measured value{'' if m == 1 else 's'}"
     return f"not fitted: {m} cases at {n} distinct pressure{'' if n == 1 else 's'} (a slope " \
         "needs two)"
 
 
 def _fit(p_bar, y):
     from tdem_post.fits import fit_power_law
+    p_bar, y = _measured(p_bar, y)
     if n_distinct(p_bar) < 4:
         return None
     try:
@@ -535,31 +553,42 @@ def results_table(rows: list):
     """One row per case (pressure x law [x seed]) of the post-processing summaries."""
     import pandas as pd
     nan = float("nan")
+
+    def num(r, key, k=None):
+        """A number of the summary; NaN where post found it not measurable (None)."""
+        v = r.get(key)
+        if v is not None and k is not None:
+            v = v[k]
+        return nan if v is None else v
     return pd.DataFrame([{
         **({"seed": r["seed"]} if r.get("seed") is not None else {}),
         "pressure_pa": r["pressure_pa"],
         "pressure_target_pa": r["pressure_target_pa"],
         "law": r["law"], "n_particles": r["n_particles"],
         "mean_coordination": r["mean_coordination"], "solid_fraction": r["solid_fraction"],
-        "mean_normal_force_n": r["mean_normal_force_n"], "gamma": r["gamma"],
-        "gamma_ci95_low": r["gamma_ci95"][0], "gamma_ci95_high": r["gamma_ci95"][1],
-        "gamma_residual_rms_k": r["gamma_residual_rms_k"],
+        "mean_normal_force_n": r["mean_normal_force_n"], "gamma": num(r, "gamma"),
+        "gamma_ci95_low": num(r, "gamma_ci95", 0), "gamma_ci95_high": num(r, "gamma_ci95", 1),
+        "gamma_residual_rms_k": num(r, "gamma_residual_rms_k"),
         # 003's convention: alpha = gamma_paper k_p / (rho_p c_p), so gamma_paper = gamma / phi
-        "gamma_paper": r["gamma"] / r["solid_fraction"],
-        "gamma_steady": r["gamma_steady"],
+        "gamma_paper": num(r, "gamma") / r["solid_fraction"],
+        "gamma_steady": num(r, "gamma_steady"),
         # fabric-tensor (affine) estimate k_zz / k_p: an upper bound of gamma_steady (Thomson)
         "gamma_affine": r.get("gamma_affine", nan),
         "gamma_affine_transverse": r.get("gamma_affine_transverse", nan),
         "fabric_nz2": r.get("fabric_nz2", nan),
         "fabric_nz2_conductance": r.get("fabric_nz2_conductance", nan),
         "contact_stress_axial_pa": r.get("contact_stress_axial_pa", nan),
-        "tau_s": r["tau_s"], "tau_series_s": r["tau_series_s"],
-        "tau_slab_s": r.get("tau_slab_s", nan), "length_m": r.get("length_m", nan),
+        "tau_s": num(r, "tau_s"), "tau_series_s": num(r, "tau_series_s"),
+        "tau_slab_s": num(r, "tau_slab_s"), "length_m": num(r, "length_m"),
         **{f"gamma_mean_field_{k}": v for k, v in r["gamma_mean_field"].items()},
         "thermal_wall_seconds": r.get("thermal_wall_seconds", nan),
         "case_wall_seconds": r.get("case_wall_seconds", nan),
         # the run's thermal.h5 flags ("none": clean; see docs/solvers.md)
         "flags": r.get("flags", "unknown") or "none",
+        # post's own (e.g. gamma_model_form) and what it could not measure, with why
+        "post_flags": r.get("post_flags") or "",
+        "not_measurable": "; ".join(f"{k}: {v}" for k, v in
+                                    (r.get("not_measurable") or {}).items()),
     } for r in rows]).sort_values((["seed"] if rows and rows[0].get("seed") is not None
                                    else []) + ["law", "pressure_pa"])
 
@@ -635,6 +664,19 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
     else:
         lines += ["", "No run flagged by the maximum-principle and energy-ledger checks or the "
                       "solver (other flags, e.g. `rattlers`, are information; docs/solvers.md)."]
+    unmeasured = [r for _, r in table.iterrows() if r["not_measurable"]]
+    if unmeasured:
+        lines += ["", f"**Not measurable from {len(unmeasured)} of {len(table)} runs** (post "
+                      "says why; their cells are nan, left out of the fits): "
+                  + "; ".join((f"seed {r['seed']} " if seeded else "")
+                              + f"{r['pressure_pa'] / 1e5:.3g} bar {r['law']}: "
+                              f"{r['not_measurable']}" for r in unmeasured) + "."]
+    post_flagged = [r for _, r in table.iterrows() if r["post_flags"]]
+    if post_flagged:
+        lines += ["", "Post-processing flags (docs/post.md): "
+                  + "; ".join((f"seed {r['seed']} " if seeded else "")
+                              + f"{r['pressure_pa'] / 1e5:.3g} bar {r['law']}: "
+                              f"{r['post_flags']}" for r in post_flagged) + "."]
     if seeded:
         lines += _seed_summary(table, fits, seeds)
     lines += ["", "## Fits over pressure (p in bar)" + (f", seed {seeds[0]}" if seeded else ""),
@@ -644,8 +686,10 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
         p_bar = g["pressure_pa"].to_numpy() / 1e5
         for what, fit in (("γ", f["gamma"]), ("τ", f["tau"])):
             if fit is None:
+                y = g["gamma" if what == "γ" else "tau_s"].to_numpy()
                 lines.append(f"- {law}: {what}(p) not fitted (fewer than 4 distinct "
-                             f"pressures: {n_distinct(p_bar)})")
+                             f"pressures with a measured {what}: "
+                             f"{n_distinct(_measured(p_bar, y)[0])})")
             else:
                 lines.append(f"- {law}: {what}(p) = {fit.a:.4g} (±{fit.stderr[0]:.2g}) "
                              f"p^{fit.b:.4g} (±{fit.stderr[1]:.2g}) "
@@ -667,7 +711,7 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
             f"τ / τ_slab = {ratios(g['tau_s'].to_numpy() / g['tau_slab_s'].to_numpy())}")
         trend = _log_slope(p_bar, gamma)
         lines.append(f"- {law}: log-log slope of γ(p) "
-                     + (_no_slope(p_bar) if trend is None else f"{trend:.3g}")
+                     + (_no_slope(p_bar, gamma) if trend is None else f"{trend:.3g}")
                      + " (the paper's curve falls, slope −0.29 at low p; contact mechanics, "
                        "ζ ∝ F_n^(1/3) ∝ p^(1/3), predicts a rising γ)")
         # 003 App. A: tau_mid = L^2 rho_p c_p / (8 gamma_paper kappa_p); the paper's own fits

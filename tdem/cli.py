@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import re
 import signal
@@ -180,40 +179,11 @@ def _cmd_campaign(args):
 
 
 def _cmd_post(args):
-    from tdem_post.post_run import analyse, write_post
-    path = Path(args.run)
-    thermal = path / "thermal.h5" if path.is_dir() else path
-    if not thermal.exists():
-        raise UserError(f"{thermal}: file not found (give a run folder or its thermal.h5)")
-    r = analyse(thermal, n_bins=args.bins, halo_ratio=args.halo, halo_radius=args.halo_radius)
-    files = write_post(r)["files"]
-    pressure = f", p = {r.pressure_pa:.4g} Pa" if math.isfinite(r.pressure_pa) else ""
-    print(f"tdem post: {thermal} ({r.run.law}, {r.packing.n_particles} particles{pressure})")
-    if r.gamma is None:
-        print("  gamma = k_eff/k_p  no profile fit: a steady run has no transient (the steady "
-              "ETC below is the answer)")
-    else:
-        fit = r.gamma.fit
-        print(f"  gamma = k_eff/k_p  {fit.gamma:.5g}   95 % CI [{fit.ci95[0]:.5g}, "
-              f"{fit.ci95[1]:.5g}], profile residual {fit.residual_rms_k:.3g} K")
-        print(f"  gamma_paper = g/phi {r.gamma.gamma_paper:.5g}   (003's convention: alpha = "
-              "gamma kappa_p/(rho_p c_p))")
-    print(f"  gamma (steady ETC) {r.gamma_steady:.5g}   heat in/out balance "
-          f"{r.steady.balance:.1e}")
-    print(f"  gamma affine k_zz  {r.fabric.gamma_affine:.5g}   (upper bound of the steady ETC; "
-          f"<n_z^2> {r.fabric.nz2:.4f}, conductance-weighted {r.fabric.nz2_conductance:.4f})")
-    print("  gamma mean field   " + ", ".join(f"{k} {v:.4g}" for k, v in r.mean_field.items()))
-    series = ("" if r.tau.tau_series_s is None
-              else f" (from the time series: {r.tau.tau_series_s:.5g} s)")
-    print(f"  tau (middle)       {r.tau.tau_s:.5g} s{series}")
-    if r.flux.cov_halo is not None:
-        size = "r_mean" if r.flux.halo_radius == "common" else "R_p (own radius)"
-        print(f"  heat flux (steady) CoV of |q| {r.flux.cov_raw:.3f} per particle "
-              f"({r.flux.cov_raw_volume:.3f} volume-weighted), "
-              f"{r.flux.cov_halo:.3f} with a halo of {r.flux.halo_ratio:g} {size} "
-              f"({r.flux.interior_particles} interior particles); mean axial q / (Q/A) "
-              f"{r.flux.mean_over_q_per_area:.3f}")
-    print(f"  wrote {thermal.parent / 'post'}/ ({', '.join(files)})")
+    """tdem_post.post_run.command: the post folder built whole or not at all, the report lines
+    (each quantity or why the run cannot give it), its own Ctrl-C handling."""
+    from tdem_post.post_run import command
+    return command(args.run, n_bins=args.bins, halo_ratio=args.halo,
+                   halo_radius=args.halo_radius)
 
 
 def _floats(text, what):

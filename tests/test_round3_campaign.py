@@ -173,7 +173,7 @@ def test_no_slope_through_pressures_that_are_not_distinct(tmp_path, capsys):
     report = (tmp_path / "out" / "report.md").read_text()
     slope = [line for line in report.splitlines() if "log-log slope of γ(p)" in line]
     assert len(slope) == 1 and "not fitted: 2 cases at 1 distinct pressure" in slope[0]
-    assert "γ(p) not fitted (fewer than 4 distinct pressures: 1)" in report
+    assert "γ(p) not fitted (fewer than 4 distinct pressures with a measured γ: 1)" in report
     assert n_distinct([1e5, 1e5, 2e5]) == 2 and n_distinct([1e5, 1e5 * (1 + 1e-12)]) == 1
 
 
