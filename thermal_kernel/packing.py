@@ -403,7 +403,7 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
         i, j = pair[:, 0], pair[:, 1]
         r_min = np.minimum(radius[i], radius[j])
         # the branch (already checked to join the centres) gives the spheres' own overlap
-        geo = radius[i] + radius[j] - np.linalg.norm(branch, axis=1)
+        geo = radius[i] + radius[j] - np.sqrt(np.einsum("ij,ij->i", branch, branch))
         off = np.abs(overlap - geo) > OVERLAP_RTOL * r_min + eps
         if off.any():
             c = int(np.flatnonzero(off)[0])
@@ -450,7 +450,12 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
     # coincident centres: two spheres in one place (any overlap search would be O(N log N) on
     # every load; equal centres are the impossible case that costs one sort)
     if position.shape[0] > 1:
-        order = np.lexsort(position.T[::-1])
+        by_x = np.argsort(position[:, 0], kind="stable")
+        tied = np.flatnonzero(np.diff(position[by_x, 0]) == 0)      # equal x: the candidates
+        mask = np.zeros(position.shape[0], bool)
+        mask[by_x[tied]] = mask[by_x[tied + 1]] = True
+        cand = np.flatnonzero(mask)
+        order = cand[np.lexsort(position[cand].T[::-1])]
         same = np.flatnonzero(np.all(np.diff(position[order], axis=0) == 0, axis=1))
         if same.size:
             a, b = sorted((int(order[same[0]]), int(order[same[0] + 1])))
