@@ -15,7 +15,8 @@ Steps, each kept so that an interrupted campaign resumes where it stopped:
    thermal.h5``) and is post-processed (``post/summary.json``, which records the sha256 of the
    case's resolved scene and of the packing file's bytes); a case whose summary exists is kept
    when both hashes still match its inputs, recomputed (and said so) when either differs, and
-   post-processed again from its thermal.h5 when only ``n_bins`` changed. Every case is checked
+   post-processed again from its thermal.h5 when only ``n_bins`` or the post-processing's code
+   (tdem_post, its hash) changed. Every case is checked
    on its packing (the walls its boundaries name, the law's inputs) before any case runs;
 3. ``results.csv`` (one row per case), ``gamma_p.png``/``tau_p.png`` (+ CSV) and ``report.md``
    with the power-law fits next to the paper's curves (003, Fig. 7 and 10) and the mean-field
@@ -26,6 +27,7 @@ Steps, each kept so that an interrupted campaign resumes where it stopped:
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import re
@@ -319,6 +321,17 @@ def file_sha256(path: Path) -> str:
     return h.hexdigest()
 
 
+@functools.cache
+def post_sha256() -> str:
+    """sha256 (hex) of the post-processing's code (the tdem_post modules' bytes): a case
+    posted by other code is posted again from its thermal.h5 (its numbers are post's)."""
+    import tdem_post
+    h = hashlib.sha256()
+    for path in sorted(Path(tdem_post.__file__).resolve().parent.glob("*.py")):
+        h.update(path.name.encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()
+
+
 def scene_sha256(scene_json: str) -> str:
     """sha256 (hex) of a case's resolved scene (:func:`~thermal_kernel.output.scene_to_json`)
     without what names files (its path, packing, output): what the thermal run computes from.
@@ -378,7 +391,8 @@ def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label
               packing_hash=None):
     """One pressure x law case in ``series_dir/cases/<p>Pa_<law>/``: kept when its
     ``post/summary.json`` exists and records the hashes of this case's scene and packing file
-    (post-processed again, from its thermal.h5 alone, with ``repost`` or another ``n_bins``);
+    (post-processed again, from its thermal.h5 alone, with ``repost``, another ``n_bins`` or
+    other tdem_post code, :func:`post_sha256`);
     run otherwise: ``scene`` (the law's, :func:`case_scenes`) on ``packing``. A case that ran
     on other inputs is recomputed, and the line says which input changed."""
     from thermal_kernel.output import scene_to_json
@@ -388,6 +402,7 @@ def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label
     thermal_path = case_dir / "thermal.h5"
     inputs = dict(scene_sha256=scene_sha256(scene_to_json(scene)),
                   packing_sha256=packing_hash or file_sha256(packing))
+    post = post_sha256()
     old = _read_summary(summary_path) if summary_path.exists() else None
     why = None                      # why a case found done is recomputed
     if summary_path.exists() and old is None:
@@ -396,7 +411,8 @@ def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label
         changed = _stale(old, thermal_path, packing, inputs)
         if changed:
             why = f"the {' and the '.join(changed)} changed since it ran"
-    if old is not None and why is None and (repost or old.get("n_bins") != conf["n_bins"]):
+    if old is not None and why is None and (repost or old.get("n_bins") != conf["n_bins"]
+                                            or old.get("post_sha256") != post):
         summary, why = _repost(old, thermal_path, conf, inputs, summary_path, label, name,
                                repost)
         if summary is not None:
@@ -446,7 +462,7 @@ def _compute(scene, conf, case_dir, packing, threads, run_args, name, inputs, su
     summary["case_wall_seconds"] = time.time() - t0
     summary["thermal_wall_seconds"] = run_seconds
     summary["flags"] = post.run.flags
-    summary.update(inputs)
+    summary.update(inputs, post_sha256=post_sha256())
     summary_path.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(summary_path, json.dumps(summary, indent=1))
     return summary
@@ -475,10 +491,12 @@ def _repost(old, thermal_path, conf, inputs, summary_path, label, name, asked):
     for key in ("case_wall_seconds", "thermal_wall_seconds"):
         summary[key] = old.get(key, float("nan"))
     summary["flags"] = post.run.flags            # (analysed: the file is a complete run)
-    summary.update(inputs)
+    summary.update(inputs, post_sha256=post_sha256())
     write_text_atomic(summary_path, json.dumps(summary, indent=1))
     what = ("post-processed again" if asked else
-            f"n_bins {old.get('n_bins')} -> {conf['n_bins']}: post-processed again")
+            f"n_bins {old.get('n_bins')} -> {conf['n_bins']}: post-processed again"
+            if old.get("n_bins") != conf["n_bins"] else
+            "the post-processing (tdem_post) changed since it was posted: post-processed again")
     print(f"{label}{name}: thermal run kept, {what}: gamma "
           f"{_g(old.get('gamma'))} -> {_g(summary.get('gamma'))} ({time.time() - t0:.1f} s)",
           flush=True)

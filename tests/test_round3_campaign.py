@@ -5,8 +5,9 @@ line: the rules, each stated on a test that failed on the code before the round.
   the scene (k / 10, hot wall 600 K) or one packing file was edited, the campaign gives the
   results of a fresh campaign on the edited inputs, and its lines say which cases were recomputed
   and why (before: every case "done before, kept", the report showing the old numbers).
-- ``--repost`` of a thermal.h5 holding a NaN temperature does not post it silently: the case is
-  recomputed and the line says why.
+- A kept case posted by other post-processing code (tdem_post's hash) is posted again; ``--repost``
+  of a thermal.h5 holding a NaN temperature does not post it silently: the case is recomputed
+  and the line says why.
 - No slope or power law over pressure through pressures that are not distinct (two copies of
   one bed gave "log-log slope -0.659" through two identical points).
 - Refusals (one table): one line on stderr naming the file or flag and what was expected,
@@ -88,34 +89,31 @@ def case_lines(stdout):
 # --- stale cases ----------------------------------------------------------------------------
 
 def test_rerun_after_a_scene_edit_equals_a_fresh_campaign(tmp_path, capsys):
-    """k / 10 and the hot wall at 600 K, rerun into the same --out: both cases recomputed (the
-    lines say the scene changed), and the table and report are those of a fresh campaign on the
-    edited file; a further rerun keeps both. The edit matters: tau is ~10x longer."""
+    """k / 10 and the hot wall at 600 K, rerun into the same --out: the case is recomputed (its
+    line says the scene changed), and the table and report are those of a fresh campaign on the
+    edited file. The edit matters: tau is ~10x longer."""
     out = tmp_path / "out"
-    path = write_campaign(tmp_path / "camp.toml", [LOW, HIGH])
+    path = write_campaign(tmp_path / "camp.toml", [LOW])
     assert campaign(capsys, path, out)[0] == 0
     before = results(out)
     summary = json.loads((out / "cases" / f"{LOW.stem}_pipe" / "post" / "summary.json")
                          .read_text())
-    assert len(summary["scene_sha256"]) == 64 and len(summary["packing_sha256"]) == 64
+    for key in ("scene_sha256", "packing_sha256", "post_sha256"):
+        assert len(summary[key]) == 64
 
     edited = BED_THERMAL.replace("conductivity = 205.0", "conductivity = 20.5") \
         .replace("value = 500.0", "value = 600.0")
     assert edited != BED_THERMAL
-    path2 = write_campaign(tmp_path / "camp_edited.toml", [LOW, HIGH], thermal=edited)
-    code, stdout, _ = campaign(capsys, path2, out)
-    assert code == 0
-    lines = case_lines(stdout)
-    assert len(lines) == 2 and "done before" not in stdout
-    assert all("recomputed: the scene changed since it ran" in v for v in lines.values())
+    path2 = write_campaign(tmp_path / "camp_edited.toml", [LOW], thermal=edited)
+    code, stdout, err = campaign(capsys, path2, out)
+    assert code == 0, err
+    assert "done before" not in stdout
+    assert "recomputed: the scene changed since it ran" in case_lines(stdout)[f"{LOW.stem}_pipe"]
     fresh = tmp_path / "fresh"
     assert campaign(capsys, path2, fresh)[0] == 0
     same_as_fresh(out, fresh)
     assert (results(out).tau_s > 5 * before.tau_s).all()
     assert "camp_edited.toml" in (out / "report.md").read_text().splitlines()[0]
-
-    code, stdout, _ = campaign(capsys, path2, out)
-    assert code == 0 and stdout.count("done before") == 2 and "recomputed" not in stdout
 
 
 def test_rerun_after_a_packing_edit_recomputes_that_case_only(tmp_path, capsys):
@@ -140,13 +138,23 @@ def test_rerun_after_a_packing_edit_recomputes_that_case_only(tmp_path, capsys):
     assert sorted(results(out).pressure_pa) != sorted(before.pressure_pa)   # the edit matters
 
 
-def test_repost_of_a_nan_temperature_is_not_silent(tmp_path, capsys):
-    """A NaN put into a kept case's thermal.h5: --repost does not post it; the case is
-    recomputed, its line says why, and the table is the untouched campaign's."""
+def test_a_kept_run_is_posted_again_when_post_changed_or_its_file_is_bad(tmp_path, capsys):
+    """A case posted by other post-processing code (its stored hash of tdem_post differs, and
+    its gamma with it) is posted again from its thermal.h5, not kept. A NaN put into a kept
+    case's thermal.h5: --repost does not post it; the case is recomputed and its line says why.
+    Both end with the untouched campaign's table."""
     path = write_campaign(tmp_path / "camp.toml", [LOW])
     out = tmp_path / "out"
     assert campaign(capsys, path, out)[0] == 0
     before = results(out)
+    summary_path = out / "cases" / f"{LOW.stem}_pipe" / "post" / "summary.json"
+    summary = json.loads(summary_path.read_text())
+    summary_path.write_text(json.dumps(dict(summary, post_sha256="0" * 64, gamma=1.0)))
+    code, stdout, _ = campaign(capsys, path, out)
+    assert code == 0 and "done before" not in stdout
+    assert "the post-processing (tdem_post) changed since it was posted" in stdout
+    pd.testing.assert_frame_equal(results(out), before, rtol=1e-12)
+
     thermal = out / "cases" / f"{LOW.stem}_pipe" / "thermal.h5"
     with h5py.File(thermal, "r+") as f:
         t = f["temperature"][()]
