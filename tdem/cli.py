@@ -575,8 +575,11 @@ def main(argv=None) -> int:
             print(f"tdem: {_SIGNALS[_received[-1]]}", file=sys.stderr, flush=True)
         return 128 + _received[-1] if _received else code
     finally:
-        if program:     # until the process has ended: one line and the signal's status
-            _install_signal_handlers(_late_signal)
+        if program:     # until the process has ended: one line and the signal's status (a
+            # late handler the command set itself, e.g. tdem post's, is kept)
+            for signum in _SIGNALS:
+                if signal.getsignal(signum) is _on_signal:
+                    signal.signal(signum, _late_signal)
         else:
             for signum, handler in previous.items():
                 signal.signal(signum, handler)
