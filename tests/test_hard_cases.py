@@ -285,7 +285,8 @@ def test_floating_cluster_with_a_source(tmp_path, method):
         assert "source_ignored" in flags(a)
         np.testing.assert_allclose(T[0, floating], T_INIT, rtol=1e-14)
         return
-    expect = T_INIT + q * times / (RHO * CP)
+    # a source's value is W per m^3 of bed: each particle gets q V_p / phi (issue 28, C22)
+    expect = T_INIT + q * times / (RHO * CP * float(pk.attrs["solid_fraction"]))
     np.testing.assert_allclose(T[:, floating], np.repeat(expect[:, None], floating.sum(), 1),
                                rtol=1e-12)
     with h5py.File(tmp_path / "floating" / "thermal.h5") as f:
