@@ -14,8 +14,9 @@ Tolerances, and why:
   0.98-1.07). Before: post's capacity phi rho c_p gave haddad 0.54 and terreros 0.36 of
   gamma_steady, each with a tight interval.
 - hot and cold walls swapped: post of either run solves the other orientation itself (Crank-
-  Nicolson in up to 4,000 steps) while the runs here step at dt = 0.25 s; the two runs' ranges
-  agree within 1 % (time-stepping differences; the spread they describe is 11 %).
+  Nicolson, 40 steps per output interval) while the runs here step at dt = 0.25 s; the two
+  runs' fits and ranges agree within 0.2 % (measured 1e-4: time-stepping differences; the
+  spread they describe is 11 %).
 """
 import errno
 import math
@@ -201,15 +202,15 @@ def test_flags_reach_summary_and_stop_the_transient_fit(tmp_path, name, extra, s
 # ----------------------------------------------------------------------------- C25
 def test_hot_and_cold_walls_swapped_give_one_model_form_range(baseline):
     """Rule: which wall is hot is not a property of the bed. Post fits the run and the bed heated
-    from the other wall, so the run and its swap report one model-form range (within 1 %, post's
-    own solve against the runs' steps) and each run's own 95 % interval lies inside it; on this
-    graded bed the two orientations' intervals do not overlap (0.0716 against 0.0903 before),
-    which is flagged gamma_model_form instead of claiming the fit's precision."""
+    from the other wall, so the run and its swap report one model-form range (within 0.2 %,
+    post's own solve against the runs' steps) and each run's own 95 % interval lies inside it;
+    on this graded bed the two orientations' intervals do not overlap (0.0716 against 0.0903
+    before), which is flagged gamma_model_form instead of claiming the fit's precision."""
     a, b = (analyse(run_ / "thermal.h5") for run_ in baseline)
     assert a.gamma_steady == pytest.approx(b.gamma_steady, rel=1e-9)
-    assert a.gamma.other.gamma == pytest.approx(b.gamma.fit.gamma, rel=0.01)
-    assert b.gamma.other.gamma == pytest.approx(a.gamma.fit.gamma, rel=0.01)
-    np.testing.assert_allclose(a.gamma.model_form_range, b.gamma.model_form_range, rtol=0.01)
+    assert a.gamma.other.gamma == pytest.approx(b.gamma.fit.gamma, rel=2e-3)
+    assert b.gamma.other.gamma == pytest.approx(a.gamma.fit.gamma, rel=2e-3)
+    np.testing.assert_allclose(a.gamma.model_form_range, b.gamma.model_form_range, rtol=2e-3)
     for r in (a, b):
         lo, hi = r.gamma.model_form_range
         assert lo <= r.gamma.fit.ci95[0] and r.gamma.fit.ci95[1] <= hi
