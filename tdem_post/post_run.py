@@ -989,15 +989,21 @@ def _plot_profiles(out_dir, times, edges, profiles, fit, length, t_b, t_t, t_i, 
     import matplotlib.pyplot as plt
     centres = 0.5 * (edges[:-1] + edges[1:])
     fine = np.linspace(0, length, 200)
-    rows = ["time_s,z_m,tdem_k,analytic_k"]
+    # fitted: 1 for the outputs the fit used, 0 for those left out (summary.json says why)
+    rows = ["time_s,z_m,tdem_k,analytic_k,fitted"]
+    used = set(summary.get("gamma_outputs_used_s") or times)
     fig, ax = plt.subplots(figsize=(6, 4.5))
     for k, t in enumerate(times):
         model = slab_mean_temperature(edges[:-1], edges[1:], t, length, fit.diffusivity_m2_s,
                                       t_b, t_t, t_i)
         line = slab_temperature(fine, t, length, fit.diffusivity_m2_s, t_b, t_t, t_i)
-        ax.plot(centres * 1e3, profiles[k], "o", ms=4, color=f"C{k}", label=f"t = {t:g} s")
+        fitted = float(t) in used
+        ax.plot(centres * 1e3, profiles[k], "o", ms=4, color=f"C{k}",
+                mfc=None if fitted else "none",
+                label=f"t = {t:g} s" + ("" if fitted else " (left out)"))
         ax.plot(fine * 1e3, line, "--", color=f"C{k}")
-        rows += [f"{t},{c},{p},{m}" for c, p, m in zip(centres, profiles[k], model)]
+        rows += [f"{t},{c},{p},{m},{int(fitted)}"
+                 for c, p, m in zip(centres, profiles[k], model)]
     ax.set_xlabel("height above the bottom held spheres (mm)")
     ax.set_ylabel("temperature (K)")
     ax.set_title(f"{summary['law']}{_pressure_label(summary)}: "
