@@ -441,8 +441,9 @@ def fit_profiles(profiles: Profiles, slab: Slab, *, conductivity_w_mk, capacity_
     use = np.array([w is None for w in window], bool)
     left_out = [[float(t), w] for t, w in zip(times, window) if w is not None]
     if not use.any():
-        return None, ("no output the slab solution can describe: " + "; ".join(
-            w for _, w in left_out[:1] + left_out[-1:][len(left_out) < 2:]))
+        return None, (f"none of the {len(times)} outputs is one the slab solution can describe ("
+                      + "; ".join(w for _, w in left_out[:1] + left_out[-1:][len(left_out) < 2:])
+                      + ")")
     args = dict(conductivity_w_mk=conductivity_w_mk, volumetric_capacity_j_m3k=capacity_j_m3k,
                 t_bottom=slab.bottom.value, t_top=slab.top.value, t_initial=t_initial)
     fit = fit_gamma(times[use], profiles.edges_m, profiles.values_k[use], **args, gamma0=gamma0)
@@ -709,6 +710,8 @@ def analyse(thermal_h5, n_bins: int = 10, halo_ratio: float = 3.0,
         post_flags.append("solid_fraction")
 
     obstacle = transient_problem(run, scene, slab)
+    if obstacle is None and not gamma_steady > 0:
+        obstacle = "no heat crosses the bed at steady state (gamma_steady 0): no diffusivity"
     why, gamma = obstacle, None
     if obstacle is None:
         r_mean = float(packing.radius.mean())
