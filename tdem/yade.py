@@ -102,18 +102,39 @@ def _run_logged(cmd: list[str], cwd: Path, log_path: Path, show) -> tuple[int, d
     tail = deque(maxlen=20)
     with open(log_path, "w") as log:
         log.write("$ " + " ".join(cmd) + "\n")
+        # its own process group: an interrupted tdem (Ctrl-C, SIGTERM) stops YADE and the jobs
+        # of yade-batch with it instead of leaving them running (issue 28)
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                 stdin=subprocess.DEVNULL, env=yade_environment(),
-                                cwd=cwd, text=True, bufsize=1)
-        for line in proc.stdout:
-            log.write(line)
-            log.flush()
-            line = line.rstrip()
-            tail.append(line)
-            text = show(line)
-            if text is not None:
-                print(text, flush=True)
-        return proc.wait(), tail
+                                cwd=cwd, text=True, bufsize=1, start_new_session=True)
+        try:
+            for line in proc.stdout:
+                log.write(line)
+                log.flush()
+                line = line.rstrip()
+                tail.append(line)
+                text = show(line)
+                if text is not None:
+                    print(text, flush=True)
+            return proc.wait(), tail
+        except BaseException:
+            _stop_group(proc)
+            raise
+
+
+def _stop_group(proc: subprocess.Popen) -> None:
+    """Terminate a YADE process group (SIGTERM, then SIGKILL after 5 s)."""
+    import signal
+    for sig, wait in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 5.0)):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            proc.wait(timeout=wait)
+            return
+        except subprocess.TimeoutExpired:
+            continue
 
 
 def _is_banner(line: str) -> bool:
