@@ -875,8 +875,8 @@ def report_lines(r: PostResult, thermal: Path, files) -> list:
     out = [f"tdem post: {thermal} ({r.run.law}, {r.packing.n_particles} particles{pressure})"]
     bad = [f for f in r.run.flags.split(",") if f and f not in BENIGN_FLAGS]
     if bad:
-        out.append(f"  run flags          {r.run.flags}   (thermal.h5: {', '.join(bad)} make its "
-                   "temperatures unusable for the transient fit)")
+        out.append(f"  run flags          {r.run.flags}   (thermal.h5; for {', '.join(bad)} no "
+                   "transient quantity is read from its temperatures)")
     if r.gamma is None:
         out.append(f"  gamma = k_eff/k_p  not measurable from this run: {nm['gamma']}")
     else:
