@@ -116,7 +116,8 @@ def build_seeds(scene_path: Path, seeds: list[int], out_dir: Path | None = None,
     if jobs < 1:
         raise UserError(f"--jobs: expected a number of parallel YADE jobs >= 1, got {jobs}")
     dirs = [out_dir / f"seed_{s}" for s in seeds]
-    print(f"tdem pack: {scene_path} -> {out_dir}/seed_<s>/ (generator {generator}, seeds "
+    method = f"method {params['method']}, " if "method" in params else ""
+    print(f"tdem pack: {scene_path} -> {out_dir}/seed_<s>/ (generator {generator}, {method}seeds "
           f"{', '.join(map(str, seeds))}, yade-batch with {jobs} job(s) at a time, 1 YADE "
           f"thread each)", flush=True)
     try:
@@ -137,7 +138,8 @@ def build(scene_path: Path, out_dir: Path | None = None, *, threads: int = 1,
     """Build the packing(s) of a scene and print their statistics; return the files made."""
     generator, params = read_pack_table(scene_path)
     out_dir = Path(out_dir).resolve() if out_dir else default_out_dir(scene_path)
-    print(f"tdem pack: {scene_path} -> {out_dir}/ (generator {generator}, "
+    method = f"method {params['method']}, " if "method" in params else ""
+    print(f"tdem pack: {scene_path} -> {out_dir}/ (generator {generator}, {method}"
           f"YADE script yade_scripts/{yade.SCRIPTS[generator]}, {threads} thread(s))", flush=True)
     start = time.time()
     try:

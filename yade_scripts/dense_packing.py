@@ -202,8 +202,7 @@ def compress(p, centres, radii, box):
         label = ", friction on" if final and friction_stage else ""
         unbalanced_target = p["unbalanced_force_target"] if final else \
             max(p["unbalanced_force_target"], 1e-2)
-        e_star = young / (2.0 * (1.0 - p["poisson"] ** 2))
-        overlap_scale = (p_target / e_star) ** (2.0 / 3.0)   # typical delta/R at the target
+        overlap_scale = hertz_overlap(p, young)   # typical delta/R at the target
         if p["time_step"] == "p_wave":
             # the P-wave bound of the smallest sphere, at the stage's modulus
             O.dt = 0.5 * utils.PWaveTimeStep()
@@ -510,7 +509,45 @@ def wall_stresses(box, walls, bodies, inward, lo, hi, radius):
     return out
 
 
-def press_shell(p, box, centres, radii, frozen):
+# The free shell's elastic strain (against the frozen band) per Hertz overlap/radius at the
+# confining pressure: measured on the 1e4 box (seed 1), where an affine stretch of 0.0058 after the
+# 1e8 -> 1e9 Pa stiffening took the walls' stress from 10x to 7.7x the target, i.e. a strain of
+# 0.036 at an overlap scale of 0.0149.
+SHELL_STRAIN = 2.4
+
+
+def hertz_overlap(p, young):
+    """Typical overlap / radius of a Hertz contact at the confining pressure and modulus
+    ``young``: (p / E*)^(2/3)."""
+    e_star = young / (2.0 * (1.0 - p["poisson"] ** 2))
+    return (p["confining_pressure_pa"] / e_star) ** (2.0 / 3.0)
+
+
+def expand_shell(free_ids, walls, bodies, core, strain):
+    """Stretch the free shell outward in each slab between a plane wall and the frozen core by
+    that wall's ``strain`` (core = (lo, hi) corners of the core, in the carved box's frame;
+    nothing inside the core moves), and move the walls with it."""
+    lo, hi = core
+    slab = np.zeros((3, 2))                     # strain of the (axis, lo/hi) slab
+    for w, wall in enumerate(walls):
+        axis = int(np.argmax(np.abs(wall["normal"])))
+        slab[axis, 0 if wall["normal"][axis] > 0 else 1] = strain[w]
+    for b in free_ids:
+        x = O.bodies[b].state.pos
+        new = [x[a] - slab[a, 0] * (lo[a] - x[a]) if x[a] < lo[a] else
+               x[a] + slab[a, 1] * (x[a] - hi[a]) if x[a] > hi[a] else x[a] for a in range(3)]
+        O.bodies[b].state.pos = Vector3(*new)
+    for w, wall in enumerate(walls):
+        axis = int(np.argmax(np.abs(wall["normal"])))
+        for b in bodies[w]:
+            pos = O.bodies[b].state.pos
+            new = [pos[0], pos[1], pos[2]]
+            new[axis] = pos[axis] - strain[w] * (lo[axis] - pos[axis]) \
+                if wall["normal"][axis] > 0 else pos[axis] + strain[w] * (pos[axis] - hi[axis])
+            O.bodies[b].state.pos = Vector3(*new)
+
+
+def press_shell(p, box, centres, radii, frozen, shell_m):
     """method = "shell": the free shell and its frozen band in YADE, the walls on the carved
     surface pressed onto the shell until each carries the confining pressure (a servo per wall,
     the compliance of a column of shell_diameters contacts in Hertz's law), through the direct
@@ -537,6 +574,8 @@ def press_shell(p, box, centres, radii, frozen):
     friction_stage = p["friction"] != p["compaction_friction"]
     if friction_stage:
         stages = stages + [stages[-1]]
+    free_ids = [int(b) for k, b in enumerate(sphere_ids) if not frozen[k]]
+    core = (np.full(3, shell_m), box.size - shell_m)     # the frozen band and interior
     for k, young in enumerate(stages):
         if young != young_now:
             set_young(mats, young, young_now)
@@ -547,8 +586,7 @@ def press_shell(p, box, centres, radii, frozen):
         label = ", friction on" if final and friction_stage else ""
         unbalanced_target = p["unbalanced_force_target"] if final else \
             max(p["unbalanced_force_target"], 1e-2)
-        e_star = young / (2.0 * (1.0 - p["poisson"] ** 2))
-        overlap_scale = (p_target / e_star) ** (2.0 / 3.0)   # typical delta/R at the target
+        overlap_scale = hertz_overlap(p, young)
         # a wall moves at most this far per control interval: a few overlaps of its column of
         # contacts, or 3 % of a mean radius while it carries less than a quarter of the target
         # (the cut layer's deficit closing: little resistance)
@@ -556,7 +594,7 @@ def press_shell(p, box, centres, radii, frozen):
         # Hertz: a column of `layers` contacts of overlap ~ overlap_scale r shortens by
         # layers r overlap_scale ((p_t/p)^(2/3) - 1) to bring its stress from p to p_t; the
         # soft first stage also rearranges the cut layer, a softer column: twice the gain
-        gain = 2.0 if k == 0 else 0.5
+        gain = p["shell_soft_gain"] if k == 0 else 1.0
         settled = 0
         while True:
             O.run(every, True)
@@ -573,9 +611,22 @@ def press_shell(p, box, centres, radii, frozen):
                 settled = 0
             if settled >= 2:
                 break
+            if k > 0 and not settled:
+                # the stiffening stages: the shell's elastic strain is SHELL_STRAIN x
+                # overlap_scale x ratio^(2/3) (Hertz); strain it affinely towards the target's
+                # (0.7 of the way), walls with it, as the direct path's radius controller
+                # changes every radius at once (moving the walls alone took hundreds of steps to
+                # reach through the shell, and left its inner part as the last stretch left it)
+                expand_shell(free_ids, walls, bodies, core, 0.7 * SHELL_STRAIN * overlap_scale
+                             * (np.maximum(ratio, 0.0) ** (2.0 / 3.0) - 1.0))
+                collider.doSort = True
+                for b in wall_of_body:
+                    O.bodies[b].state.vel = Vector3(0, 0, 0)
+                continue
             move = gain * layers * overlap_scale * r_mean * (
                 np.maximum(ratio, 1e-12) ** (-2.0 / 3.0) - 1.0)
-            move = np.clip(move, -max_move, np.where(ratio < 0.25, 3e-2 * r_mean, max_move))
+            move = np.clip(move, -max_move, np.where(ratio < 0.25, p["shell_press_step"] * r_mean,
+                                                     max_move))
             if settled:
                 move[:] = 0.0
             for w in range(len(walls)):
@@ -633,6 +684,11 @@ def shell_state(p, state):
     inside), then press walls onto a shell of shell_diameters mean diameters (press_shell);
     returns the state of the pressed domain and the tiling's and shell's attributes."""
     carved, cell_info = tiled_state(p, state)
+    cut = ~carved["box"].inside(carved["position"], carved["radius"])
+    # the spheres cut by the surface are removed: carve a little more, so that about
+    # n_particles remain
+    carved, cell_info = tiled_state(
+        dict(p, n_particles=int(round(p["n_particles"] / (1.0 - cut.mean())))), state)
     box, position, radius = carved["box"], carved["position"], carved["radius"]
     shell_m = p["shell_diameters"] * 2.0 * float(radius.mean())
     band_m = shell.frozen_band_m(radius, p["gap_tolerance"])
@@ -646,7 +702,7 @@ def shell_state(p, state):
         f"free in a shell of {shell_m:.4g} m ({p['shell_diameters']:g} mean diameters), "
         f"{int(band.sum())} frozen behind it ({band_m:.4g} m), {len(radius) - len(sub)} "
         f"interior spheres stay as tiled")
-    pressed = press_shell(p, box, position[sub], radius[sub], band[sub])
+    pressed = press_shell(p, box, position[sub], radius[sub], band[sub], shell_m)
     position = position.copy()
     position[sub] = pressed["position"]
     position -= pressed["lo"]

@@ -60,6 +60,12 @@ PARAMS = {
     "shell_diameters": dict(kind="float", default=4.0, minimum=1.0,
                             help="shell: thickness of the shell relaxed against the walls, in "
                                  "mean diameters"),
+    "shell_press_step": dict(kind="float", default=0.03, minimum=1e-4,
+                             help="shell: how far a wall moves per 50 DEM steps while it carries "
+                                  "less than a quarter of the pressure, in mean radii"),
+    "shell_soft_gain": dict(kind="float", default=2.0, minimum=0.05,
+                            help="shell: gain of the walls' pressure controller in the soft first "
+                                 "stage (1 = the Hertz compliance of the shell's column)"),
     "cell_particles": dict(kind="int", default=10000, minimum=20,
                            help="tiled, shell: spheres in the periodic cell that is copied"),
     "cell_packing": dict(kind="str", default="",
