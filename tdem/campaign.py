@@ -587,8 +587,10 @@ def results_table(rows: list):
         "mean_normal_force_n": r["mean_normal_force_n"], "gamma": num(r, "gamma"),
         "gamma_ci95_low": num(r, "gamma_ci95", 0), "gamma_ci95_high": num(r, "gamma_ci95", 1),
         "gamma_residual_rms_k": num(r, "gamma_residual_rms_k"),
-        # 003's convention: alpha = gamma_paper k_p / (rho_p c_p), so gamma_paper = gamma / phi
-        "gamma_paper": num(r, "gamma") / r["solid_fraction"],
+        # 003's convention: alpha = gamma_paper k_p / (rho_p c_p), post's reading of its fitted
+        # diffusivity (gamma rho_p c_p over the run's own bed capacity; was gamma / phi, which
+        # mixed the packing's solid fraction with the run's capacity)
+        "gamma_paper": num(r, "gamma_paper"),
         "gamma_steady": num(r, "gamma_steady"),
         # fabric-tensor (affine) estimate k_zz / k_p: an upper bound of gamma_steady (Thomson)
         "gamma_affine": r.get("gamma_affine", nan),

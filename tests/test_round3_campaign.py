@@ -185,6 +185,23 @@ def test_no_slope_through_pressures_that_are_not_distinct(tmp_path, capsys):
     assert n_distinct([1e5, 1e5, 2e5]) == 2 and n_distinct([1e5, 1e5 * (1 + 1e-12)]) == 1
 
 
+
+def test_results_gamma_paper_is_posts_and_meets_app_a(tmp_path, capsys):
+    """results.csv's gamma_paper is post's (the fitted diffusivity read in 003's convention,
+    alpha = gamma_paper k_p / (rho_p c_p)), so App. A holds in the table: tau_slab gamma_paper =
+    L^2 rho_p c_p / (8 k_p). It was gamma / phi, which mixes the packing's solid fraction with
+    the run's own capacity (the report's 'App. A requires' line was then off by their ratio)."""
+    out = tmp_path / "out"
+    assert campaign(capsys, write_campaign(tmp_path / "camp.toml", [LOW]), out)[0] == 0
+    row = results(out).iloc[0]
+    summary = json.loads((out / "cases" / f"{LOW.stem}_pipe" / "post" / "summary.json")
+                         .read_text())
+    assert row.gamma_paper == pytest.approx(summary["gamma_paper"], rel=1e-12)
+    # BED_THERMAL: k_p 205 W/m/K, rho_p 2500 kg/m^3, c_p 900 J/kg/K
+    app_a = row.length_m ** 2 * 2500.0 * 900.0 / (8 * 205.0)
+    assert row.tau_slab_s * row.gamma_paper == pytest.approx(app_a, rel=1e-9)
+    assert abs(row.gamma / row.solid_fraction / row.gamma_paper - 1) > 1e-3   # not gamma/phi
+
 # --- refusals: one line, exit 2, nothing left --------------------------------------------------
 
 PACK = """[pack]
