@@ -55,15 +55,15 @@ PARAMS = {
                         "and carve the domain out of the copies (no walls pressed on the "
                         "spheres; periodicity length = the cell); shell: as tiled, then walls "
                         "pressed onto a shell of shell_diameters along them (the interior "
-                        "stays as tiled; boxes only); auto: shell for a box of more than "
-                        "20,000 spheres, direct otherwise"),
+                        "stays as tiled; boxes only; its packings do not yet match the direct "
+                        "ones, docs/packings.md); auto: direct (shell once it matches)"),
     "shell_diameters": dict(kind="float", default=4.0, minimum=1.0,
                             help="shell: thickness of the shell relaxed against the walls, in "
                                  "mean diameters"),
-    "shell_press_step": dict(kind="float", default=0.03, minimum=1e-4,
+    "shell_press_step": dict(kind="float", default=0.01, minimum=1e-4,
                              help="shell: how far a wall moves per 50 DEM steps while it carries "
                                   "less than a quarter of the pressure, in mean radii"),
-    "shell_soft_gain": dict(kind="float", default=2.0, minimum=0.05,
+    "shell_soft_gain": dict(kind="float", default=0.5, minimum=0.05,
                             help="shell: gain of the walls' pressure controller in the soft first "
                                  "stage (1 = the Hertz compliance of the shell's column)"),
     "cell_particles": dict(kind="int", default=10000, minimum=20,
