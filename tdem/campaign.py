@@ -646,8 +646,9 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
              + ("`seed_<s>/cases/<p>Pa_<law>/post/profiles.png`." if seeded
                 else "`cases/<p>Pa_<law>/post/profiles.png`."), "",
              "γ = k_eff / k_p fitted to the binned profiles against the slab solution with the "
-             "bed's heat capacity φ ρ_p c_p (95 % interval); γ_paper = γ / φ, the same fitted "
-             "diffusivity in 003's convention α = γ_paper κ_p / (ρ_p c_p) (App. A; ρ is the "
+             "run's own bed heat capacity (thermal.h5; φ ρ_p c_p for a law whose particles "
+             "carry ρ_p c_p V_p) (95 % interval); γ_paper, the same fitted diffusivity in 003's "
+             "convention α = γ_paper κ_p / (ρ_p c_p) (App. A; ρ is the "
              "particle density, Table 1) - the number to compare with the paper's γ(p); "
              "γ_steady = k_eff / k_p from the steady heat flow (no capacity enters: compare it "
              "with γ); γ_aff the affine (fabric-tensor) estimate k_zz / k_p = Σ H l_z² / (V k_p), "
@@ -852,7 +853,7 @@ def _plots(out_dir, table, fits, rows=()):
                 if key == "gamma":
                     ax.errorbar(p, stats["gamma_paper_mean"], yerr=stats["gamma_paper_std"],
                                 fmt="D", mfc="none", capsize=3, color=f"C{k}",
-                                label=f"γ_paper = γ/φ (003's convention), {law}")
+                                label=f"γ_paper = α ρ_p c_p/κ_p (003's convention), {law}")
                     ax.plot(p, stats.gamma_steady_mean, "x", color=f"C{k}",
                             label=f"steady ETC {law} (mean)")
                 continue
@@ -864,7 +865,7 @@ def _plots(out_dir, table, fits, rows=()):
                 ax.plot(p, g.gamma_steady, "x", color=f"C{k}", label=f"steady ETC {law}")
                 if k == 0:
                     ax.plot(p, g.gamma_paper, "D", mfc="none", color=f"C{k}",
-                            label=f"γ_paper = γ/φ (003's convention), {law}")
+                            label=f"γ_paper = α ρ_p c_p/κ_p (003's convention), {law}")
             else:
                 ax.plot(p, g[key], "o", color=f"C{k}", label=f"tdem {law}")
             fit = fits[law]["gamma" if key == "gamma" else "tau"]
