@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 APT_PACKAGES := yade python3-h5py python3-scipy python3-venv liggghts openmpi-bin
 
-.PHONY: demo test test-fast coverage deps apt validate bench bench-packings bench-bed clean
+.PHONY: demo test test-fast coverage deps apt validate bench bench-packings bench-walled bench-bed clean
 
 demo: deps
 	$(BIN)/tdem demo
@@ -56,6 +56,11 @@ bench: deps
 # Packing paths side by side (hours: the reference relaxes 10,000 spheres for ~1 h per seed);
 # resumable (--reuse keeps the cases already built). Writes bench/results/packings.{csv,md,png},
 # quoted by docs/packings.md.
+# Walled boxes at scale (issue 24): the direct 1e4 reference (3 seeds) against the shell path;
+# builds what is missing (hours), writes bench/results/walled.md and docs/img/walled_profiles.png.
+bench-walled: deps
+	$(BIN)/python bench/bench_walled.py --build
+
 bench-packings: deps
 	$(BIN)/python bench/bench_packings.py --reuse
 
