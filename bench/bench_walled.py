@@ -40,6 +40,7 @@ from thermal_kernel.atomic import savefig_atomic, write_text_atomic  # noqa: E40
 from thermal_kernel.packing import read_packing  # noqa: E402
 from tdem_post.packing_compare import packing_stats  # noqa: E402
 from tdem_post.wall_layers import layer_centres, wall_layers  # noqa: E402
+from validation.framework import scene_with_pack  # noqa: E402
 
 OUT = ROOT / "bench" / "out" / "walled"
 RESULTS = ROOT / "bench" / "results"
@@ -70,18 +71,7 @@ def scene_text(method: str, n: int, seed: int, cell: Path | None, keys: dict) ->
     extra = dict(method=method, n_particles=n, seed=seed, max_seconds=14400.0, **keys)
     if cell is not None:
         extra["cell_packing"] = str(cell)
-    lines, in_pack = [], False
-    for line in BASE.read_text().splitlines():
-        if line.startswith("["):
-            in_pack = line.strip() == "[pack]"
-            lines.append(line)
-            if in_pack:
-                lines += [f"{k} = {json.dumps(v)}" for k, v in extra.items()]
-            continue
-        if in_pack and line.split("=")[0].strip() in extra:
-            continue
-        lines.append(line)
-    return "\n".join(lines) + "\n"
+    return scene_with_pack(BASE, extra)
 
 
 def seed_cell(seed: int) -> Path | None:

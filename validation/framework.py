@@ -134,7 +134,8 @@ def register_packing(name: str, scene: str, overrides: dict) -> None:
     PACKINGS.setdefault(name, (scene, overrides))
 
 
-def _scene_with(scene: Path, overrides: dict) -> str:
+def scene_with_pack(scene: Path, overrides: dict) -> str:
+    """The scene file's text with ``overrides`` written into its [pack] table."""
     lines, in_pack = [], False
     for line in scene.read_text().splitlines():
         if line.startswith("["):
@@ -174,7 +175,7 @@ def _build_packing(name: str, folder: Path, path: Path) -> Path:
             and overrides.get("cell_particles", 10_000) == 10_000:
         overrides.setdefault("cell_packing", str(CELL_1E5))
     scene = folder / "scene.toml"
-    write_text_atomic(scene, _scene_with(ROOT / scene_rel, overrides))
+    write_text_atomic(scene, scene_with_pack(ROOT / scene_rel, overrides))
     print(f"  packing {name}: tdem pack {scene.relative_to(ROOT)} ...", flush=True)
     t0 = time.perf_counter()
     tdem = Path(sys.executable).with_name("tdem")

@@ -168,6 +168,20 @@ def friction_on(mats, tan_phi):
             i.phys.tangensOfFrictionAngle = tan_phi
 
 
+def enter_stage(p, mats, stages, k, friction_stage):
+    """Stage k of a relaxation (direct or shell): friction switched on for the last one when the
+    material has friction; returns (final, its log label, the unbalanced-force ratio that ends
+    it: the target at the last stage, 1e-2 before, the typical Hertz overlap/radius at the
+    stage's modulus)."""
+    final = k == len(stages) - 1
+    if final and friction_stage:
+        friction_on(mats, p["friction"])
+    label = ", friction on" if final and friction_stage else ""
+    unbalanced_target = p["unbalanced_force_target"] if final else \
+        max(p["unbalanced_force_target"], 1e-2)
+    return final, label, unbalanced_target, hertz_overlap(p, stages[k])
+
+
 def compress(p, centres, radii, box):
     """Fixed container; the radii grow (or shrink) uniformly until the mean stress equals the
     confining pressure and the unbalanced-force ratio is below the target, at each stiffness
@@ -196,13 +210,8 @@ def compress(p, centres, radii, box):
                 collider.doSort = True
             set_young(mats, young, young_now)
             young_now = young
-        final = k == len(stages) - 1
-        if final and friction_stage:
-            friction_on(mats, p["friction"])
-        label = ", friction on" if final and friction_stage else ""
-        unbalanced_target = p["unbalanced_force_target"] if final else \
-            max(p["unbalanced_force_target"], 1e-2)
-        overlap_scale = hertz_overlap(p, young)   # typical delta/R at the target
+        final, label, unbalanced_target, overlap_scale = enter_stage(p, mats, stages, k,
+                                                                     friction_stage)
         if p["time_step"] == "p_wave":
             # the P-wave bound of the smallest sphere, at the stage's modulus
             O.dt = 0.5 * utils.PWaveTimeStep()
@@ -580,16 +589,11 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
         if young != young_now:
             set_young(mats, young, young_now)
             young_now = young
-        final = k == len(stages) - 1
-        if final and friction_stage:
-            friction_on(mats, p["friction"])
-        label = ", friction on" if final and friction_stage else ""
-        unbalanced_target = p["unbalanced_force_target"] if final else \
-            max(p["unbalanced_force_target"], 1e-2)
-        overlap_scale = hertz_overlap(p, young)
+        final, label, unbalanced_target, overlap_scale = enter_stage(p, mats, stages, k,
+                                                                     friction_stage)
         # a wall moves at most this far per control interval: a few overlaps of its column of
-        # contacts, or 3 % of a mean radius while it carries less than a quarter of the target
-        # (the cut layer's deficit closing: little resistance)
+        # contacts, or shell_press_step mean radii while it carries less than a quarter of the
+        # target (the cut layer's deficit closing: little resistance)
         max_move = r_mean * min(1e-2, 2.0 * layers * overlap_scale)
         # Hertz: a column of `layers` contacts of overlap ~ overlap_scale r shortens by
         # layers r overlap_scale ((p_t/p)^(2/3) - 1) to bring its stress from p to p_t; the
