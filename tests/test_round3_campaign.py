@@ -376,6 +376,12 @@ def test_sigterm_ends_a_run_as_ctrl_c_does(tmp_path):
     assert not out.exists() or not any(out.iterdir())
 
 
+def _default_sigint():
+    # a test run started in the background (`make test &`, nohup) inherits SIGINT ignored, and
+    # Python then installs no KeyboardInterrupt handler: give the child the default disposition
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_a_signal_after_the_command_returned_is_one_line_and_its_status():
     """Ctrl-C when the command has returned and the interpreter is ending (an atexit callback
     stands for the moment): before, "Exception ignored ... KeyboardInterrupt" and exit 0."""
@@ -385,7 +391,7 @@ def test_a_signal_after_the_command_returned_is_one_line_and_its_status():
             "sys.argv = ['tdem', 'laws']\n"
             "sys.exit(main())\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=120)
+                          timeout=120, preexec_fn=_default_sigint)
     assert proc.returncode == 130, proc.stderr
     assert proc.stderr == "tdem: interrupted\n"
     assert "pipe" in proc.stdout            # the command itself ran to its end
@@ -407,8 +413,14 @@ def test_an_interrupt_swallowed_by_a_finaliser_is_not_exit_0(capsys, monkeypatch
         del x
         print("done")
     monkeypatch.setattr(cli, "_cmd_laws", command)
-    previous = signal.getsignal(signal.SIGINT)
-    assert main(["laws"]) == 130
-    got = capsys.readouterr()
-    assert got.out == "done\n" and got.err == "tdem: interrupted\n"
-    assert signal.getsignal(signal.SIGINT) is previous     # put back for the caller
+    # a test run in the background (nohup, `make test &`) has SIGINT ignored, where Ctrl-C
+    # rightly does nothing; this test is about a Ctrl-C that arrives: Python's default handler
+    outer = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        previous = signal.getsignal(signal.SIGINT)
+        assert main(["laws"]) == 130
+        got = capsys.readouterr()
+        assert got.out == "done\n" and got.err == "tdem: interrupted\n"
+        assert signal.getsignal(signal.SIGINT) is previous     # put back for the caller
+    finally:
+        signal.signal(signal.SIGINT, outer)

@@ -19,6 +19,12 @@ pytestmark = [pytest.mark.yade,
 ROOT = Path(__file__).resolve().parent.parent
 
 
+def _default_sigint():
+    # a test run started in the background (nohup, `make test &`) inherits SIGINT ignored, and
+    # Python then installs no KeyboardInterrupt handler: give the child the default disposition
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _running(pattern: str) -> bool:
     return subprocess.run(["pgrep", "-f", pattern], capture_output=True).returncode == 0
 
@@ -28,7 +34,8 @@ def test_interrupted_pack_stops_yade(tmp_path, sig, status):
     out = tmp_path / "o"
     proc = subprocess.Popen([sys.executable, "-m", "tdem.cli", "pack",
                              str(ROOT / "runs" / "dense_box.toml"), "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_default_sigint)
     params = str(out / "params.json")
     for _ in range(600):                 # until YADE runs the script (it writes yade.log)
         if _running(params) and (out / "yade.log").exists():
