@@ -1,7 +1,7 @@
 """method = "shell" (issue 24) makes a walled box whose walls are pressed like the direct path's
 (YADE for real).
 
-A periodic cell of 1,000 spheres is tiled and carved to a box of 3,000, the spheres cut by the
+A periodic cell of 500 spheres is tiled and carved to a box of 2,000, the spheres cut by the
 faces are removed and six walls are pressed onto a shell along them; the reference is the direct
 relaxation of the same box (method = "direct"). Exact identities and physical rules:
 
@@ -30,7 +30,7 @@ pytestmark = [pytest.mark.yade,
               pytest.mark.skipif(shutil.which("yade", path=yade_environment()["PATH"]) is None,
                                  reason="Debian's yade is not installed")]
 
-N, CELL, SEED = 3000, 1000, 2
+N, CELL, SEED = 2000, 500, 2
 
 
 @pytest.fixture(scope="module")
