@@ -252,6 +252,26 @@ def compress(p, centres, radii, box):
     return time.time() - start, sphere_ids, wall_of_body, collider
 
 
+def yade_forces(index_of, wall_of_body):
+    """YADE's normal forces of the real interactions: {(i, j): |F_n|} between spheres (indices
+    of ``index_of``, i < j) and {(particle, wall): (penetration depth, |F_n|)} with the walls
+    (several facets of one curved wall may touch a sphere: the deepest is kept)."""
+    force, wall_touch = {}, {}
+    for i in O.interactions:
+        if not i.isReal:
+            continue
+        a, b = i.id1, i.id2
+        if a in index_of and b in index_of:
+            force[tuple(sorted((index_of[a], index_of[b])))] = i.phys.normalForce.norm()
+        else:
+            particle, body = (index_of[b], a) if b in index_of else (index_of[a], b)
+            key = (particle, wall_of_body[body])
+            depth = i.geom.penetrationDepth
+            if key not in wall_touch or depth > wall_touch[key][0]:
+                wall_touch[key] = (depth, i.phys.normalForce.norm())
+    return force, wall_touch
+
+
 def solid_fraction(box):
     return sum(4.0 / 3.0 * math.pi * b.shape.radius ** 3 for b in O.bodies
                if isinstance(b.shape, Sphere)) / box.volume
@@ -357,24 +377,8 @@ def relax_cell_or_domain(p):
             fail(f"{outside.size} of {n} spheres left the {box.shape} container during the "
                  f"compression (particle {k} at {np.round(position[k], 6).tolist()} m, domain "
                  f"0 ... {np.round(box.size, 6).tolist()} m); nothing written", code=3)
-    force = {}
     walls = box.walls()
-    wall_touch = {}
-    for i in O.interactions:
-        if not i.isReal:
-            continue
-        a, b = i.id1, i.id2
-        if a in index_of and b in index_of:
-            key = tuple(sorted((index_of[a], index_of[b])))
-            force[key] = i.phys.normalForce.norm()
-        else:
-            particle, body = (index_of[b], a) if b in index_of else (index_of[a], b)
-            w = wall_of_body[body]
-            # several facets of one curved wall may touch a sphere: keep the deepest
-            key = (particle, w)
-            depth = i.geom.penetrationDepth
-            if key not in wall_touch or depth > wall_touch[key][0]:
-                wall_touch[key] = (depth, i.phys.normalForce.norm())
+    force, wall_touch = yade_forces(index_of, wall_of_body)
     log(f"compressed in {compress_seconds:.1f} s: phi {solid_fraction(box):.4f}, mean stress "
         f"{pressure:.4g} Pa, unbalanced {unbalanced:.3g}")
 
@@ -664,19 +668,7 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
     pressure_normal = float(np.mean(wall_stresses(box, walls, bodies, inward, lo, hi, radius)))
     index_of = {int(b): k for k, b in enumerate(sphere_ids)}
     position = np.array([[O.bodies[int(b)].state.pos[j] for j in range(3)] for b in sphere_ids])
-    force, wall_touch = {}, {}
-    for i in O.interactions:
-        if not i.isReal:
-            continue
-        a, b = i.id1, i.id2
-        if a in index_of and b in index_of:
-            force[tuple(sorted((index_of[a], index_of[b])))] = i.phys.normalForce.norm()
-        else:
-            particle, body = (index_of[b], a) if b in index_of else (index_of[a], b)
-            key = (particle, wall_of_body[body])
-            depth = i.geom.penetrationDepth
-            if key not in wall_touch or depth > wall_touch[key][0]:
-                wall_touch[key] = (depth, i.phys.normalForce.norm())
+    force, wall_touch = yade_forces(index_of, wall_of_body)
     return dict(position=position, lo=lo, hi=hi, radius=radius, force=force,
                 wall_touch=wall_touch, steps=int(steps), seconds=time.time() - t0,
                 unbalanced=float(unbalanced), pressure=pressure,
