@@ -61,6 +61,8 @@ CASES = [
     ("shell_10000", "shell", 10_000, (1, 2, 3), False, {}),
     ("shell_fast_10000", "shell", 10_000, (1,), False,
      dict(shell_press_step=0.03, shell_soft_gain=2.0)),
+    # the seam's mechanism: a thicker shell moves the seam, it does not remove it
+    ("shell6_10000", "shell", 10_000, (2,), False, dict(shell_diameters=6.0)),
     ("shell_100000", "shell", 100_000, (1,), False, {}),
     ("shell_1000000", "shell", 1_000_000, (1,), False, {}),
 ]
@@ -205,7 +207,7 @@ def summary(rows: list[dict]) -> str:
                    f"{num('peak_rss_mb', reduce=np.max)} | {steps} | "
                    + " | ".join(cell(k, f) for k, _, f in SCALARS) + " |")
     ref = by.get("direct_10000")
-    for new_label in ("shell_10000", "shell_fast_10000"):
+    for new_label in ("shell_10000", "shell_fast_10000", "shell6_10000"):
         new = by.get(new_label)
         if not (ref and new):
             continue
@@ -255,6 +257,7 @@ def plot(rows: list[dict]) -> None:
     styles = {"direct_10000": ("k", "direct, 1e4 (reference)"),
               "shell_10000": ("C0", "shell, 1e4"),
               "shell_fast_10000": ("C3", "shell, fast soft stage, 1e4"),
+              "shell6_10000": ("C4", "shell of 6 diameters, 1e4"),
               "shell_100000": ("C1", "shell, 1e5"),
               "shell_1000000": ("C2", "shell, 1e6")}
     for label, (colour, name) in styles.items():
