@@ -463,62 +463,32 @@ def tiled_state(p, state):
 SHELL_MASK, FROZEN_MASK, FROZEN_ONLY = 3, 6, 4
 
 
-def wall_geometry(box, walls, wall_of_body):
-    """Per wall: its bodies, and per body the unit vector along which the wall moves inward
-    (a plane's normal; for a facet of the cylinder's mantle or of the spherical container, the
-    direction from its centroid towards the axis or the centre)."""
-    bodies = {w: [] for w in range(len(walls))}
-    for b, w in wall_of_body.items():
-        bodies[w].append(b)
-    inward = {}
-    for w, wall in enumerate(walls):
-        for b in bodies[w]:
-            if wall["kind"] == "plane":
-                inward[b] = np.asarray(wall["normal"], dtype=float)
-                continue
-            c = np.array([O.bodies[b].state.pos[j] for j in range(3)]) - box.centre
-            if wall["kind"] == "cylinder":
-                c[2] = 0.0
-            inward[b] = -c / np.linalg.norm(c)
-    return bodies, inward
+def wall_bodies(walls, wall_of_body):
+    """Per plane wall: its YADE body, and the unit vector along which it moves inward (its
+    normal; the shell path makes boxes only, shell.SHELL_SHAPES)."""
+    body = {w: b for b, w in wall_of_body.items()}
+    return body, {body[w]: np.asarray(wall["normal"], dtype=float) for w, wall in enumerate(walls)}
 
 
-def wall_extent(box, walls, bodies, start):
-    """(lo, hi, radius) of the domain the walls enclose now: the planes' positions, and the
-    curved wall's radius from how far its first facet has moved from ``start``."""
+def wall_extent(box, walls, body):
+    """(lo, hi) of the box the plane walls enclose now."""
     lo, hi = np.zeros(3), box.size.copy()
-    radius = float(box.radius)
     for w, wall in enumerate(walls):
-        b = bodies[w][0]
-        pos = np.array([O.bodies[b].state.pos[j] for j in range(3)])
-        if wall["kind"] == "plane":
-            axis = int(np.argmax(np.abs(wall["normal"])))
-            (lo if wall["normal"][axis] > 0 else hi)[axis] = pos[axis]
-        else:
-            radius = float(box.radius) - float(np.linalg.norm(pos - start[b]))
-    if box.shape in ("cylinder", "sphere"):
-        axes = [0, 1] if box.shape == "cylinder" else [0, 1, 2]
-        lo[axes] = box.centre[axes] - radius
-        hi[axes] = box.centre[axes] + radius
-    return lo, hi, radius
+        axis = int(np.argmax(np.abs(wall["normal"])))
+        (lo if wall["normal"][axis] > 0 else hi)[axis] = O.bodies[body[w]].state.pos[axis]
+    return lo, hi
 
 
-def wall_stresses(box, walls, bodies, inward, lo, hi, radius):
-    """Normal stress of each wall, Pa: the spheres' force on its bodies along the outward
-    direction over its area now."""
+def wall_stresses(walls, body, inward, lo, hi):
+    """Normal stress of each plane wall, Pa: the spheres' force on it along its outward normal
+    over its area now."""
     size = hi - lo
     out = np.zeros(len(walls))
     for w, wall in enumerate(walls):
-        push = sum(-np.dot([O.forces.f(b)[j] for j in range(3)], inward[b]) for b in bodies[w])
-        if wall["kind"] == "plane":
-            axis = int(np.argmax(np.abs(wall["normal"])))
-            area = np.pi * radius ** 2 if box.shape == "cylinder" else \
-                float(np.prod(np.delete(size, axis)))
-        elif wall["kind"] == "cylinder":
-            area = 2.0 * np.pi * radius * size[2]
-        else:
-            area = 4.0 * np.pi * radius ** 2
-        out[w] = push / area
+        b = body[w]
+        axis = int(np.argmax(np.abs(wall["normal"])))
+        push = -np.dot([O.forces.f(b)[j] for j in range(3)], inward[b])
+        out[w] = push / float(np.prod(np.delete(size, axis)))
     return out
 
 
@@ -536,7 +506,7 @@ def hertz_overlap(p, young):
     return (p["confining_pressure_pa"] / e_star) ** (2.0 / 3.0)
 
 
-def expand_shell(free_ids, walls, bodies, core, strain):
+def expand_shell(free_ids, walls, body, core, strain):
     """Stretch the free shell outward in each slab between a plane wall and the frozen core by
     that wall's ``strain`` (core = (lo, hi) corners of the core, in the carved box's frame;
     nothing inside the core moves), and move the walls with it."""
@@ -552,12 +522,11 @@ def expand_shell(free_ids, walls, bodies, core, strain):
         O.bodies[b].state.pos = Vector3(*new)
     for w, wall in enumerate(walls):
         axis = int(np.argmax(np.abs(wall["normal"])))
-        for b in bodies[w]:
-            pos = O.bodies[b].state.pos
-            new = [pos[0], pos[1], pos[2]]
-            new[axis] = pos[axis] - strain[w] * (lo[axis] - pos[axis]) \
-                if wall["normal"][axis] > 0 else pos[axis] + strain[w] * (pos[axis] - hi[axis])
-            O.bodies[b].state.pos = Vector3(*new)
+        pos = O.bodies[body[w]].state.pos
+        new = [pos[0], pos[1], pos[2]]
+        new[axis] = pos[axis] - strain[w] * (lo[axis] - pos[axis]) \
+            if wall["normal"][axis] > 0 else pos[axis] + strain[w] * (pos[axis] - hi[axis])
+        O.bodies[body[w]].state.pos = Vector3(*new)
 
 
 def press_shell(p, box, centres, radii, frozen, shell_m):
@@ -575,8 +544,7 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
             body.dynamic = False
     collider.avoidSelfInteractionMask = FROZEN_ONLY
     walls = box.walls()
-    bodies, inward = wall_geometry(box, walls, wall_of_body)
-    start = {b: np.array([O.bodies[b].state.pos[j] for j in range(3)]) for b in wall_of_body}
+    body, inward = wall_bodies(walls, wall_of_body)
     p_target = p["confining_pressure_pa"]
     r_mean = float(np.mean(radii))
     layers = float(p["shell_diameters"])
@@ -600,14 +568,14 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
         # target (the cut layer's deficit closing: little resistance)
         max_move = r_mean * min(1e-2, 2.0 * layers * overlap_scale)
         # Hertz: a column of `layers` contacts of overlap ~ overlap_scale r shortens by
-        # layers r overlap_scale ((p_t/p)^(2/3) - 1) to bring its stress from p to p_t; the
-        # soft first stage also rearranges the cut layer, a softer column: twice the gain
+        # layers r overlap_scale ((p_t/p)^(2/3) - 1) to bring its stress from p to p_t; in the
+        # soft first stage the cut layer also rearranges: its own gain (shell_soft_gain)
         gain = p["shell_soft_gain"] if k == 0 else 1.0
         settled = 0
         while True:
             O.run(every, True)
-            lo, hi, radius = wall_extent(box, walls, bodies, start)
-            ratio = wall_stresses(box, walls, bodies, inward, lo, hi, radius) / p_target
+            lo, hi = wall_extent(box, walls, body)
+            ratio = wall_stresses(walls, body, inward, lo, hi) / p_target
             unbalanced = utils.unbalancedForce()
             # the walls' mean stress within the tolerance (the direct path's criterion on the
             # mean stress), and every wall within twice it
@@ -625,7 +593,7 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
                 # (0.7 of the way), walls with it, as the direct path's radius controller
                 # changes every radius at once (moving the walls alone took hundreds of steps to
                 # reach through the shell, and left its inner part as the last stretch left it)
-                expand_shell(free_ids, walls, bodies, core, 0.7 * SHELL_STRAIN * overlap_scale
+                expand_shell(free_ids, walls, body, core, 0.7 * SHELL_STRAIN * overlap_scale
                              * (np.maximum(ratio, 0.0) ** (2.0 / 3.0) - 1.0))
                 collider.doSort = True
                 for b in wall_of_body:
@@ -638,9 +606,8 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
             if settled:
                 move[:] = 0.0
             for w in range(len(walls)):
-                for b in bodies[w]:
-                    v = inward[b] * (move[w] / (every * O.dt))
-                    O.bodies[b].state.vel = Vector3(*(float(x) for x in v))
+                v = inward[body[w]] * (move[w] / (every * O.dt))
+                O.bodies[body[w]].state.vel = Vector3(*(float(x) for x in v))
             now = time.time() - t0
             if now - last > 3.0:
                 last = now
@@ -664,12 +631,12 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
     collider.doSort = True
     O.engines[-1].dead = True
     O.step()
-    lo, hi, radius = wall_extent(box, walls, bodies, start)
-    pressure_normal = float(np.mean(wall_stresses(box, walls, bodies, inward, lo, hi, radius)))
+    lo, hi = wall_extent(box, walls, body)
+    pressure_normal = float(np.mean(wall_stresses(walls, body, inward, lo, hi)))
     index_of = {int(b): k for k, b in enumerate(sphere_ids)}
     position = np.array([[O.bodies[int(b)].state.pos[j] for j in range(3)] for b in sphere_ids])
     force, wall_touch = yade_forces(index_of, wall_of_body)
-    return dict(position=position, lo=lo, hi=hi, radius=radius, force=force,
+    return dict(position=position, lo=lo, hi=hi, force=force,
                 wall_touch=wall_touch, steps=int(steps), seconds=time.time() - t0,
                 unbalanced=float(unbalanced), pressure=pressure,
                 pressure_normal=pressure_normal)
@@ -702,7 +669,7 @@ def shell_state(p, state):
     position = position.copy()
     position[sub] = pressed["position"]
     position -= pressed["lo"]
-    new_box = shell.pressed_box(box.shape, pressed["lo"], pressed["hi"], pressed["radius"])
+    new_box = shell.pressed_box(pressed["lo"], pressed["hi"])
     s_pair, s_branch, s_overlap, s_force, s_radius, n_untracked = relaxed_contacts(
         position[sub], radius[sub], p["gap_tolerance"], None, pressed["force"])
     pair, branch, overlap, normal_force, contact_radius = shell.merge_contacts(

@@ -27,9 +27,9 @@ FROZEN_MARGIN = 1.2
 AUTO_SHELL_ABOVE = 20000
 
 
-# The shapes the shell path can make (press_shell moves plane walls; the cylinder's mantle and
-# the spherical container are facets it could move too, but their packings have not been compared
-# with the direct reference).
+# The shapes the shell path can make: press_shell moves plane walls only (a cylinder's mantle and
+# a spherical container are facets; moving them is not written, nor compared with the direct
+# reference).
 SHELL_SHAPES = ("box",)
 
 # The shapes for which method = "auto" picks the shell path above AUTO_SHELL_ABOVE spheres: none
@@ -84,22 +84,11 @@ def merge_contacts(moved, kept, new):
     return tuple(np.concatenate([a[stay], b[fresh]]) for a, b in zip(kept, new))
 
 
-def pressed_box(shape, lo, hi, radius_m=float("nan")):
-    """The Container of the pressed domain between wall positions lo and hi (the box's walls,
-    or the cylinder's caps and mantle radius, the sphere's radius): the domain is what the
+def pressed_box(lo, hi):
+    """The Container of the pressed box between wall positions lo and hi: the domain is what the
     walls enclose after pressing, not the size the cell was carved to."""
     size = np.asarray(hi, dtype=float) - np.asarray(lo, dtype=float)
-    if shape == "box":
-        box = Container("box", float(np.prod(size)), size / size.max())
-        box.size = size.copy()
-    elif shape == "cylinder":
-        box = Container("cylinder", float(np.pi * radius_m ** 2 * size[2]),
-                        [1.0, 1.0, size[2] / (2 * radius_m)])
-        box.radius = float(radius_m)
-        box.size = np.array([2 * radius_m, 2 * radius_m, size[2]])
-    else:
-        box = Container("sphere", float(4.0 / 3.0 * np.pi * radius_m ** 3), [1.0, 1.0, 1.0])
-        box.radius = float(radius_m)
-        box.size = np.full(3, 2 * radius_m)
+    box = Container("box", float(np.prod(size)), size / size.max())
+    box.size = size.copy()
     box.centre = box.size / 2
     return box
