@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 
 from bed_scene import BED_THERMAL
+from faults import FullDiskFile
 
 DATA = Path(__file__).resolve().parent / "data"
 BED = DATA / "bed_small_1.6e+06Pa.h5"
@@ -527,21 +528,7 @@ def test_disk_full_injected_at_the_writer(tmp_path, monkeypatch, capsys):
     from tdem.cli import main
     from thermal_kernel import atomic
 
-    class Full:
-        def __init__(self, path, mode):
-            self.f = open(path, mode)
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            self.f.close()
-
-        def write(self, data):
-            self.f.write(bytes(data)[:100])
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-
-    monkeypatch.setattr(atomic, "open", Full, raising=False)
+    monkeypatch.setattr(atomic, "open", FullDiskFile, raising=False)
     out = tmp_path / "out"
     rc = main(["run", str(_scene(tmp_path, MANY_OUTPUTS)), "--out", str(out), "--quiet",
                "--threads", "1"])

@@ -22,6 +22,7 @@ import h5py
 import numpy as np
 import pytest
 
+from faults import FullDiskFile
 from tdem.cli import main
 from thermal_kernel import atomic
 from thermal_kernel.packing import (SOLID_FRACTION_RTOL, read_packing,
@@ -335,21 +336,7 @@ def test_full_disk_while_writing_the_packing(dumps, tmp_path, capsys, monkeypatc
     and a segfault): one line naming the file, exit 2, no file and no temporary left."""
     paths, walls, p = dumps
 
-    class Full:
-        def __init__(self, path, mode):
-            self.f = open(path, mode)
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            self.f.close()
-
-        def write(self, data):
-            self.f.write(bytes(data)[:100])
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-
-    monkeypatch.setattr(atomic, "open", Full, raising=False)
+    monkeypatch.setattr(atomic, "open", FullDiskFile, raising=False)
     out = tmp_path / "out" / "p.h5"
     out.parent.mkdir()
     rc, _, err = tdem(capsys, "import", "liggghts", *paths, "--walls", walls, *_material(p),
