@@ -108,24 +108,22 @@ def build(label: str, method: str, n: int, seed: int, own_cell: bool, keys: dict
     return folder
 
 
-def flux_numbers(packing_path: Path) -> tuple[float, float]:
+def flux_numbers(packing, packing_path: Path) -> tuple[float, float]:
     """(γ of the pipe law, calibrated C_t of the haddad law), steady, x walls held."""
     from thermal_kernel.calibrate import calibrate_ct, flux_test
     from thermal_kernel.scene import load_scene
-    material = ('[material]\nconductivity = 33.0\ndensity = 7800.0\nheat_capacity = 460.0\n'
-                'young_pa = 2.1e11\npoisson = 0.3\n[initial]\ntemperature = 0.5\n'
-                '[solver]\nmethod = "steady"\n')
-    out = []
-    for law, extra in (("pipe", ""), ("haddad", "[law_params]\nct = 0.806\n"
-                                       "[neighbours]\ntarget_z_with_gaps = 7.5\n")):
-        scene_path = packing_path.parent / f"{law}_scene.toml"
-        write_text_atomic(scene_path, f'packing = "{packing_path.name}"\nlaw = "{law}"\n'
-                          + extra + material)
-        scene = load_scene(scene_path)
-        packing = read_packing(packing_path)
-        out.append(flux_test(scene, packing, "x").effective_w_mk / 33.0 if law == "pipe"
-                   else calibrate_ct(scene, packing, "x").ct)
-    return out[0], out[1]
+
+    def scene(law: str, extra: str = ""):
+        path = packing_path.parent / f"{law}_scene.toml"
+        write_text_atomic(path, f'packing = "{packing_path.name}"\nlaw = "{law}"\n' + extra
+                          + '[material]\nconductivity = 33.0\ndensity = 7800.0\n'
+                            'heat_capacity = 460.0\nyoung_pa = 2.1e11\npoisson = 0.3\n'
+                            '[initial]\ntemperature = 0.5\n[solver]\nmethod = "steady"\n')
+        return load_scene(path)
+    gamma = flux_test(scene("pipe"), packing, "x").effective_w_mk / 33.0
+    ct = calibrate_ct(scene("haddad", "[law_params]\nct = 0.806\n[neighbours]\n"
+                                      "target_z_with_gaps = 7.5\n"), packing, "x").ct
+    return gamma, ct
 
 
 def measure(label: str, method: str, folder: Path) -> dict:
@@ -143,7 +141,7 @@ def measure(label: str, method: str, folder: Path) -> dict:
     else:   # built in a yade-batch table (tdem pack --seeds): the packing's own wall time
         peak_kb, user_s, sys_s = float("nan"), float("nan"), 0.0
         wall_s = float(packing.attrs.get("wall_seconds", float("nan")))
-    gamma, ct = flux_numbers(path)
+    gamma, ct = flux_numbers(packing, path)
     attrs = packing.attrs
     row = dict(
         label=label, method=method, seed=int(attrs["seed"]), n_particles=packing.n_particles,
