@@ -15,7 +15,8 @@ from thermal_kernel.laws.terreros import local_volume_fraction, transmission_sur
 
 # Laws whose conductance comes from the normal force (no force -> H = 0) and laws that are
 # geometric (every row of the dump conducts, gaps included). A new law must be put in one.
-FORCE_BASED = {"pipe", "bob", "argento", "ott", "chaudhuri", "pipe_resistance_as_conductance"}
+FORCE_BASED = {"pipe", "bob", "argento", "ott", "chaudhuri", "pipe_resistance_as_conductance",
+               "liggghts"}        # liggghts: no overlap, no lens, H = 0 (its gaps have F = 0)
 GEOMETRIC = {"terreros", "haddad", "yade"}
 # Hypothesis tools, not physical laws (law.diagnostic): the battery runs on them too, except the
 # linear scaling with conductivity (a resistance used as a conductance scales as 1/k: tested).

@@ -11,6 +11,7 @@ from .base import Law
 from .chaudhuri import CHAUDHURI
 from .granular import ARGENTO, BOB, OTT, PIPE, PIPE_RESISTANCE_AS_CONDUCTANCE
 from .haddad import HADDAD
+from .liggghts import LIGGGHTS
 from .terreros import TERREROS
 from .yade import YADE
 
@@ -23,6 +24,7 @@ LAWS: dict[str, Law] = {
     "ott": OTT,
     "chaudhuri": CHAUDHURI,
     "yade": YADE,
+    "liggghts": LIGGGHTS,
     # diagnostic (law.diagnostic): a hypothesis tool, not a physical law (issue 15)
     "pipe_resistance_as_conductance": PIPE_RESISTANCE_AS_CONDUCTANCE,
 }
