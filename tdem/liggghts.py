@@ -472,6 +472,8 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
                + (f", {Path(walls_path).name}" if walls_path else "")
                + f" at timestep {a.timestep}",
         liggghts_timestep=int(a.timestep),
+        # phase k is the k-th type present (boundary kind phase_temperature's liggghts_type)
+        liggghts_atom_types=" ".join(str(int(t)) for t in np.unique(types)),
         overlap_source="LIGGGHTS delta (compute pair/gran/local, wall/gran/local)",
         overlap_vs_positions_max_m=diff,
         pair_rows_duplicate=duplicates, pair_rows_not_touching=gaps,

@@ -260,9 +260,10 @@ def test_source_steady_by_hand(tmp_path):
 
 # ---------------------------------------------------------------- the registry
 def test_registry_is_explicit_and_every_kind_documents_itself():
-    assert list(BOUNDARIES) == ["temperature", "flux", "wall_temperature", "source"]
+    assert list(BOUNDARIES) == ["temperature", "flux", "wall_temperature", "source",
+                               "phase_temperature"]
     units = {"temperature": "(K", "flux": "W/m^2", "wall_temperature": "(K)",
-             "source": "W/m^3"}
+             "source": "W/m^3", "phase_temperature": "(K)"}
     for kind, cls in BOUNDARIES.items():
         assert cls.kind == kind
         assert "name" in keys(cls) and "kind" not in keys(cls)
@@ -277,6 +278,7 @@ TABLES = {
     "flux": 'on = "xmin"\nvalue = -5.0',
     "wall_temperature": 'on = "xmin"\nvalue = 400.0\nwall_conductivity = 2.0',
     "source": 'value = 1.0\nshape = "sphere"\nradius_m = 0.5',
+    "phase_temperature": 'liggghts_type = 2\nvalue = 400.0',   # tests/test_liggghts_law.py
 }
 
 
@@ -297,7 +299,8 @@ def test_each_kind_parses_its_own_table_and_refuses_the_others_keys(tmp_path, ki
     for key, value in table.items():
         got = getattr(b, key)
         assert got == value, (key, got, value)
-    assert b.name == (f"{kind}:{table['on']}" if "on" in table else "source:sphere")
+    assert b.name == (f"{kind}:{table['on']}" if "on" in table else "source:sphere"
+                      if kind == "source" else "phase_temperature:type2")
     # a key of another kind: refused, naming the kind it belongs to
     for other, cls in BOUNDARIES.items():
         for key in set(keys(cls)) - set(keys(BOUNDARIES[kind])):

@@ -221,3 +221,71 @@ def test_bad_parameter_is_one_line_exit_2(tmp_path, params, words):
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and words in r.stderr, r.stderr
     assert str(scene) in r.stderr
+
+
+# --- the phase_temperature boundary (holding a LIGGGHTS type) ---------------------------------
+
+def _typed_chain(tmp_path, types_attr):
+    """Five overlapping spheres along x, phases [1, 0, 0, 0, 2]; ``types_attr`` the packing's
+    liggghts_atom_types (None: left out)."""
+    from thermal_kernel.lattice import simple_cubic_packing
+    from thermal_kernel.packing import write_packing
+    r = 1e-3
+    pk = simple_cubic_packing((5, 1, 1), 2 * r - 2e-6, radius_m=r, young_pa=E, poisson=NU,
+                              density=2500.0, phase=np.array([1, 0, 0, 0, 2], np.int32))
+    attrs = dict(pk.attrs)
+    if types_attr is not None:
+        attrs["liggghts_atom_types"] = types_attr
+    path = tmp_path / "typed.h5"
+    write_packing(path, dataclasses.replace(pk, attrs=attrs))
+    return path
+
+
+def _typed_scene(tmp_path, packing, boundaries, solver='method = "steady"'):
+    scene = tmp_path / "typed.toml"
+    scene.write_text(f'packing = "{packing}"\nlaw = "liggghts"\n[material]\nconductivity = 5.0\n'
+                     'density = 2500.0\nheat_capacity = 800.0\n[initial]\ntemperature = 300.0\n'
+                     f'{boundaries}\n[solver]\n{solver}\n')
+    return scene
+
+
+HELD = ('[[boundary]]\nkind = "phase_temperature"\nliggghts_type = 4\nvalue = 500.0\n'
+        '[[boundary]]\nkind = "phase_temperature"\nliggghts_type = 7\nvalue = 300.0\n')
+
+
+def test_liggghts_types_hold_their_phases_steady_is_linear(tmp_path):
+    """Types 1, 4, 7 present -> phases 0, 1, 2: type 4 (phase 1, x = 0) at 500 K, type 7
+    (phase 2, x = end) at 300 K; the chain of equal conductances is linear in steady state and
+    the heat in equals the heat out, H (500 - 300) / 4."""
+    import h5py
+    from thermal_kernel.run import run_scene
+    from thermal_kernel.scene import load_scene
+    packing = _typed_chain(tmp_path, "1 4 7")
+    scene = load_scene(_typed_scene(tmp_path, packing, HELD), out_dir=tmp_path / "run")
+    assert [b.name for b in scene.boundaries] == ["phase_temperature:type4",
+                                                  "phase_temperature:type7"]
+    summary = run_scene(scene, quiet=True)
+    with h5py.File(summary.output) as f:
+        t = f["temperature"][-1]
+        flow = f["boundary_heat_flow"][-1]
+    np.testing.assert_allclose(t, [500, 450, 400, 350, 300], rtol=1e-12)
+    r, delta = 1e-3, 2e-6
+    h = 2 * math.sqrt(math.pi) * 5.0 * _circle_radius(r, r, 2 * r - delta)
+    np.testing.assert_allclose(flow, [h * 200 / 4, -h * 200 / 4], rtol=1e-9)
+
+
+@pytest.mark.parametrize("types_attr,boundary,words", [
+    ("1 4 7", 'liggghts_type = 2', "boundary[0].liggghts_type: type 2 is not in"),
+    (None, 'liggghts_type = 4', "has no attribute liggghts_atom_types"),
+    ("1 4 7", 'phase = 5', "boundary[0].phase: no particle of phase 5"),
+    ("1 4 7", 'phase = 1\nliggghts_type = 4', "exactly one of phase"),
+    ("1 4 7", 'phase = 1.5', "boundary[0].phase: expected an integer >= 0"),
+])
+def test_phase_temperature_bad_input_one_line_exit_2(tmp_path, types_attr, boundary, words):
+    packing = _typed_chain(tmp_path, types_attr)
+    scene = _typed_scene(tmp_path, packing, f'[[boundary]]\nkind = "phase_temperature"\n'
+                                            f'{boundary}\nvalue = 500.0\n')
+    r = subprocess.run([*TDEM, "run", str(scene), "--out", str(tmp_path / "run"), "--quiet"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and words in r.stderr, r.stderr

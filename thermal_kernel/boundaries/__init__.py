@@ -17,6 +17,7 @@ import dataclasses
 
 from .base import FACES, BoundaryKind, BuildContext, Rows, boundary_particles
 from .flux import FluxBoundary
+from .phase_temperature import PhaseTemperatureBoundary
 from .source import SOURCE_SHAPES, MovingSource, SourceBoundary, source_time_intervals
 from .temperature import TemperatureBoundary
 from .wall_temperature import WallTemperatureBoundary
@@ -26,6 +27,7 @@ BOUNDARIES: dict[str, type[BoundaryKind]] = {
     "flux": FluxBoundary,
     "wall_temperature": WallTemperatureBoundary,
     "source": SourceBoundary,
+    "phase_temperature": PhaseTemperatureBoundary,
 }
 
 
@@ -54,6 +56,7 @@ def parse_boundary(t) -> BoundaryKind:
 
 
 __all__ = ["BOUNDARIES", "FACES", "SOURCE_SHAPES", "BoundaryKind", "BuildContext",
-           "FluxBoundary", "MovingSource", "Rows", "SourceBoundary", "TemperatureBoundary",
+           "FluxBoundary", "MovingSource", "PhaseTemperatureBoundary", "Rows", "SourceBoundary",
+           "TemperatureBoundary",
            "WallTemperatureBoundary", "boundary_particles", "keys", "parse_boundary",
            "source_time_intervals"]
