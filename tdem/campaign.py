@@ -18,7 +18,9 @@ Steps, each kept so that an interrupted campaign resumes where it stopped:
    post-processed again from its thermal.h5 when only ``n_bins`` or the post-processing's code
    (tdem_post, its hash) changed. Every case is checked
    on its packing (the walls its boundaries name, the law's inputs) before any case runs;
-3. ``results.csv`` (one row per case), ``gamma_p.png``/``tau_p.png`` (+ CSV) and ``report.md``
+3. ``campaign.json``, the campaign's record (:mod:`tdem.campaign_record`: a row per case and
+   the fits over pressure), and from it ``results.csv`` (one row per case),
+   ``gamma_p.png``/``tau_p.png`` (+ CSV) and ``report.md``
    with the power-law fits next to the paper's curves (003, Fig. 7 and 10) and the mean-field
    predictions; each case's ``flags`` (the attribute of its ``thermal.h5``: maximum principle,
    energy ledger, solver flags) is a column of both, and flagged runs are listed. Every file is
@@ -38,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
-from thermal_kernel.atomic import replacing, savefig_atomic, write_text_atomic
+from thermal_kernel.atomic import savefig_atomic, write_text_atomic
 from thermal_kernel.scene import read_toml
 
 PAPER_TAU = dict(a=1.945, b=0.1084, c=-1.332)       # 003 Fig. 10: tau = a p^b + c (p in bar)
@@ -567,81 +569,75 @@ def _fit(p_bar, y):
         return None
 
 
-def results_table(rows: list):
-    """One row per case (pressure x law [x seed]) of the post-processing summaries."""
-    import pandas as pd
-    nan = float("nan")
-
-    def num(r, key, k=None):
-        """A number of the summary; NaN where post found it not measurable (None)."""
-        v = r.get(key)
-        if v is not None and k is not None:
-            v = v[k]
-        return nan if v is None else v
-    return pd.DataFrame([{
-        **({"seed": r["seed"]} if r.get("seed") is not None else {}),
-        "pressure_pa": r["pressure_pa"],
-        "pressure_target_pa": r["pressure_target_pa"],
-        "law": r["law"], "n_particles": r["n_particles"],
-        "mean_coordination": r["mean_coordination"], "solid_fraction": r["solid_fraction"],
-        "mean_normal_force_n": r["mean_normal_force_n"], "gamma": num(r, "gamma"),
-        "gamma_ci95_low": num(r, "gamma_ci95", 0), "gamma_ci95_high": num(r, "gamma_ci95", 1),
-        "gamma_residual_rms_k": num(r, "gamma_residual_rms_k"),
-        # 003's convention: alpha = gamma_paper k_p / (rho_p c_p), post's reading of its fitted
-        # diffusivity (gamma rho_p c_p over the run's own bed capacity; was gamma / phi, which
-        # mixed the packing's solid fraction with the run's capacity)
-        "gamma_paper": num(r, "gamma_paper"),
-        "gamma_steady": num(r, "gamma_steady"),
-        # fabric-tensor (affine) estimate k_zz / k_p: an upper bound of gamma_steady (Thomson)
-        "gamma_affine": r.get("gamma_affine", nan),
-        "gamma_affine_transverse": r.get("gamma_affine_transverse", nan),
-        "fabric_nz2": r.get("fabric_nz2", nan),
-        "fabric_nz2_conductance": r.get("fabric_nz2_conductance", nan),
-        "contact_stress_axial_pa": r.get("contact_stress_axial_pa", nan),
-        "tau_s": num(r, "tau_s"), "tau_series_s": num(r, "tau_series_s"),
-        "tau_slab_s": num(r, "tau_slab_s"), "length_m": num(r, "length_m"),
-        **{f"gamma_mean_field_{k}": v for k, v in r["gamma_mean_field"].items()},
-        "thermal_wall_seconds": r.get("thermal_wall_seconds", nan),
-        "case_wall_seconds": r.get("case_wall_seconds", nan),
-        # the run's thermal.h5 flags ("none": clean; see docs/solvers.md)
-        "flags": r.get("flags", "unknown") or "none",
-        # post's own (e.g. gamma_model_form) and what it could not measure, with why
-        "post_flags": r.get("post_flags") or "",
-        "not_measurable": "; ".join(f"{k}: {v}" for k, v in
-                                    (r.get("not_measurable") or {}).items()),
-    } for r in rows]).sort_values((["seed"] if rows and rows[0].get("seed") is not None
-                                   else []) + ["law", "pressure_pa"])
+def campaign_record(campaign_path: Path, conf: dict, rows: list, seconds: float):
+    """The campaign's :class:`~tdem.campaign_record.CampaignRecord` from its cases' summaries
+    (``rows``: post/summary.json with ``pressure_target_pa``, wall times and, with seeds,
+    ``seed``): one row per case (sorted by seed, law, pressure) and the fits over pressure per
+    law (and seed)."""
+    from tdem_post.fits import PAPER_GAMMA, power_law
+    from tdem_post.records import frame
+    from .campaign_record import CampaignRecord, CaseRow, LawFits
+    cases = [CaseRow.from_summary(r, r.get("seed")) for r in rows]
+    seeded = any(c.seed is not None for c in cases)
+    cases = sorted(cases, key=lambda c: ((c.seed,) if seeded else ()) + (c.law, c.pressure_pa))
+    table = frame(cases)
+    fits = []
+    for key, g in table.groupby(["law", "seed"] if seeded else ["law"]):
+        law, seed = (key[0], int(key[1])) if seeded else \
+            (key[0] if isinstance(key, tuple) else key, None)
+        p_bar = g["pressure_pa"].to_numpy() / 1e5
+        fits.append(LawFits(
+            law=law, seed=seed, gamma=_fit(p_bar, g["gamma"].to_numpy()),
+            tau_s=_fit(p_bar, g["tau_s"].to_numpy()),
+            gamma_loglog_slope=_log_slope(p_bar, g["gamma"].to_numpy()),
+            gamma_paper_over_paper=tuple(float(v) for v in g["gamma_paper"].to_numpy()
+                                         / power_law(p_bar, **PAPER_GAMMA))))
+    seeds = sorted({c.seed for c in cases}) if seeded else None
+    return CampaignRecord(campaign=Path(campaign_path).name, laws=tuple(conf["laws"]),
+                          seeds=tuple(seeds) if seeded else None, wall_seconds=float(seconds),
+                          paper_gamma=dict(PAPER_GAMMA), paper_tau_s=dict(PAPER_TAU),
+                          fits=tuple(fits), rows=tuple(cases))
 
 
 def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, seconds: float):
-    from tdem_post.fits import PAPER_GAMMA, power_law
-    from tdem_post.post_run import MEAN_FIELD_LAWS
+    """The campaign's record (campaign.json, :func:`campaign_record`), and from it results.csv,
+    the figures and report.md."""
+    from tdem_post.records import frame, write_csv, write_json
+    from .campaign_record import RECORD
 
-    table = results_table(rows)
-    with replacing(out_dir / "results.csv") as tmp:
-        table.to_csv(tmp, index=False)
-    seeded = "seed" in table.columns
-    seeds = sorted(table["seed"].unique()) if seeded else [None]
-
-    # power-law fits over pressure, per law (and per seed)
-    fits = {}
-    for key, g in table.groupby(["law", "seed"] if seeded else ["law"]):
-        key = key if seeded else key[0] if isinstance(key, tuple) else key
-        p_bar = g["pressure_pa"].to_numpy() / 1e5
-        fits[key] = dict(gamma=_fit(p_bar, g["gamma"].to_numpy()),
-                         tau=_fit(p_bar, g["tau_s"].to_numpy()))
+    record = campaign_record(campaign_path, conf, rows, seconds)
+    write_json(out_dir / RECORD, record)
+    write_csv(out_dir / "results.csv", record.rows)
+    table = frame(record.rows)
+    seeded = record.seeds is not None
+    fits = {((f.law, f.seed) if seeded else f.law): dict(gamma=f.gamma, tau=f.tau_s)
+            for f in record.fits}
     _plots(out_dir, table, fits, rows)
+    _write_report_md(out_dir, record, table, fits)
+    print(f"tdem campaign: report {out_dir / 'report.md'}", flush=True)
+    print(table[(["seed"] if seeded else []) + ["pressure_pa", "law", "gamma",
+                "gamma_steady", "tau_s", "flags"]].to_string(
+        index=False, float_format=lambda x: f"{x:.4g}"), flush=True)
+    return dict(table=table, fits=fits, record=record, report=out_dir / "report.md")
 
+
+def _write_report_md(out_dir: Path, record, table, fits) -> None:
+    """report.md from the campaign's record (``table``: its rows as a DataFrame, ``fits``: its
+    fits by law, or by (law, seed))."""
+    seeded = record.seeds is not None
+    seeds = list(record.seeds) if seeded else [None]
     first = table[table.seed == seeds[0]] if seeded else table
     p_col = "pressure_target_pa" if seeded else "pressure_pa"
-    lines = [f"# Pressure campaign: {campaign_path.name}", "",
+    from tdem_post.fits import power_law
+    from tdem_post.records import markdown_table
+    lines = [f"# Pressure campaign: {record.campaign}", "",
              f"{table['n_particles'].iloc[0]} particles, pressures "
              f"{', '.join(f'{p / 1e5:.3g}' for p in sorted(table[p_col].unique()))} bar"
              + (" (nominal)" if seeded else "") + ", "
-             f"laws {', '.join(conf['laws'])}"
+             f"laws {', '.join(record.laws)}"
              + (f", packing seeds {', '.join(str(s) for s in seeds)} (one YADE series each, "
                 "`seed_<s>/`)" if seeded else "")
-             + f"; {seconds:.0f} s in all. Files: `results.csv`, "
+             + f"; {record.wall_seconds:.0f} s in all. Files: `results.csv`, "
              "`gamma_p.png`, `tau_p.png`, `contact_angles.png`, "
              + ("`seed_<s>/cases/<p>Pa_<law>/post/profiles.png`." if seeded
                 else "`cases/<p>Pa_<law>/post/profiles.png`."), "",
@@ -656,21 +652,7 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
              "touching contacts (1/3 isotropic); γ_mf the isotropic mean field "
              "φ Z H̄ / (2π R̄ k_p) of each contact law on the same contacts; τ the characteristic "
              "time of the middle section (003 eq. 41) from the network, τ_slab = L² / (8 α) the "
-             "slab's own with the fitted α.", "",
-             "| " + ("seed | " if seeded else "") + "p (bar) | law | Z | φ | mean F_n (N) | γ | "
-             "95 % CI | γ_paper | γ_steady | γ_aff | ⟨n_z²⟩ | "
-             + "".join(f"γ_mf {law} | " for law in MEAN_FIELD_LAWS) + "τ (s) | τ_slab (s) | "
-             "flags |",
-             "|" + "---|" * (14 + len(MEAN_FIELD_LAWS) + seeded)]
-    for _, r in table.iterrows():
-        lines.append(
-            "| " + (f"{r.seed} | " if seeded else "")
-            + f"{r.pressure_pa / 1e5:.3g} | {r.law} | {r.mean_coordination:.2f} | "
-            f"{r.solid_fraction:.4f} | {r.mean_normal_force_n:.3g} | {r.gamma:.4g} | "
-            f"{r.gamma_ci95_low:.4g}–{r.gamma_ci95_high:.4g} | {r.gamma_paper:.4g} | "
-            f"{r.gamma_steady:.4g} | {r.gamma_affine:.4g} | {r.fabric_nz2:.4f} | "
-            + "".join(f"{r[f'gamma_mean_field_{law}']:.4g} | " for law in MEAN_FIELD_LAWS)
-            + f"{r.tau_s:.4g} | {r.tau_slab_s:.4g} | {r['flags']} |")
+             "slab's own with the fitted α.", "", *markdown_table(record.rows)]
     suspect = [(r, [f for f in r["flags"].split(",") if f in SUSPECT_FLAGS])
                for _, r in table.iterrows()]
     suspect = [(r, f) for r, f in suspect if f]
@@ -703,9 +685,9 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
     lines += ["", "## Fits over pressure (p in bar)" + (f", seed {seeds[0]}" if seeded else ""),
               ""]
     for law, g in first.groupby("law"):
-        f = fits[(law, seeds[0]) if seeded else law]
+        law_fits = record.fits_of(law, seeds[0])
         p_bar = g["pressure_pa"].to_numpy() / 1e5
-        for what, fit in (("γ", f["gamma"]), ("τ", f["tau"])):
+        for what, fit in (("γ", law_fits.gamma), ("τ", law_fits.tau_s)):
             if fit is None:
                 y = g["gamma" if what == "γ" else "tau_s"].to_numpy()
                 lines.append(f"- {law}: {what}(p) not fitted (fewer than 4 distinct "
@@ -716,21 +698,22 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
                              f"p^{fit.b:.4g} (±{fit.stderr[1]:.2g}) "
                              f"{'−' if fit.c < 0 else '+'} {abs(fit.c):.4g} "
                              f"(±{fit.stderr[2]:.2g}), rms {fit.rms:.3g}")
-        paper = power_law(p_bar, **PAPER_GAMMA)
+        paper = power_law(p_bar, **record.paper_gamma)
+        paper_tau = power_law(p_bar, **record.paper_tau_s)
         gamma = g["gamma"].to_numpy()
 
         def ratios(x):
             return ", ".join(f"{v:.3g}" for v in x)
         lines.append(
             f"- {law}: γ_paper / paper's γ(p) (003 Fig. 7, same convention) = "
-            f"{ratios(g['gamma_paper'].to_numpy() / paper)} (from low to high pressure); "
+            f"{ratios(law_fits.gamma_paper_over_paper)} (from low to high pressure); "
             f"γ_mf(bob) / γ = {ratios(g['gamma_mean_field_bob'].to_numpy() / gamma)}; "
             f"γ_mf(argento) / γ = {ratios(g['gamma_mean_field_argento'].to_numpy() / gamma)}; "
             f"γ_steady / γ = {ratios(g['gamma_steady'].to_numpy() / gamma)}; "
             f"γ_aff / γ_steady = {ratios(g['gamma_affine'].to_numpy() / g['gamma_steady'])}; "
             f"3 ⟨n_z²⟩ = {ratios(3 * g['fabric_nz2'].to_numpy())}; "
             f"τ / τ_slab = {ratios(g['tau_s'].to_numpy() / g['tau_slab_s'].to_numpy())}")
-        trend = _log_slope(p_bar, gamma)
+        trend = law_fits.gamma_loglog_slope
         lines.append(f"- {law}: log-log slope of γ(p) "
                      + (_no_slope(p_bar, gamma) if trend is None else f"{trend:.3g}")
                      + " (the paper's curve falls, slope −0.29 at low p; contact mechanics, "
@@ -738,29 +721,19 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, sec
         # 003 App. A: tau_mid = L^2 rho_p c_p / (8 gamma_paper kappa_p); the paper's own fits
         # give tau gamma_paper = 0.0056-0.0067 s (docs/campaign.md)
         lines.append(f"- {law}: τ γ_paper (s) = {ratios(g['tau_s'].to_numpy() * g['gamma_paper'])}"
-                     f"; the paper's fits give {ratios(paper_tau(p_bar) * paper)}")
+                     f"; the paper's fits give {ratios(paper_tau * paper)}")
         # App. A's own requirement, L^2 rho_p c_p / (8 kappa_p) = tau_slab gamma_paper (the slab's
         # mid-plane time of the fitted diffusivity), against the paper's fits; and the paper's
         # tau(p) read through App. A as a gamma_paper (> 1 would be k_eff > k_p: impossible)
         app_a = g["tau_slab_s"].to_numpy() * g["gamma_paper"].to_numpy()
         lines.append(f"- {law}: App. A requires τ γ_paper = L² ρ_p c_p/(8 κ_p) = {ratios(app_a)} s "
                      f"(L of these runs); that over the paper's fits = "
-                     f"{ratios(app_a / (paper_tau(p_bar) * paper))}; the paper's τ(p) through "
-                     f"App. A gives γ_paper = {ratios(app_a / paper_tau(p_bar))}")
-    lines += ["", f"Paper (003): γ = {PAPER_GAMMA['a']} p^{PAPER_GAMMA['b']} + "
-                  f"{PAPER_GAMMA['c']} (Fig. 7); τ = {PAPER_TAU['a']} p^{PAPER_TAU['b']} "
-                  f"{PAPER_TAU['c']:+} s (Fig. 10).", ""]
+                     f"{ratios(app_a / (paper_tau * paper))}; the paper's τ(p) through "
+                     f"App. A gives γ_paper = {ratios(app_a / paper_tau)}")
+    pg, pt = record.paper_gamma, record.paper_tau_s
+    lines += ["", f"Paper (003): γ = {pg['a']} p^{pg['b']} + {pg['c']} (Fig. 7); "
+                  f"τ = {pt['a']} p^{pt['b']} {pt['c']:+} s (Fig. 10).", ""]
     write_text_atomic(out_dir / "report.md", "\n".join(lines))
-    print(f"tdem campaign: report {out_dir / 'report.md'}", flush=True)
-    print(table[(["seed"] if seeded else []) + ["pressure_pa", "law", "gamma",
-                "gamma_steady", "tau_s", "flags"]].to_string(
-        index=False, float_format=lambda x: f"{x:.4g}"), flush=True)
-    return dict(table=table, fits=fits, report=out_dir / "report.md")
-
-
-def paper_tau(p_bar):
-    from tdem_post.fits import power_law
-    return power_law(np.asarray(p_bar, float), **PAPER_TAU)
 
 
 def seed_statistics(table):

@@ -2,14 +2,18 @@
 linked, not re-run.
 
 The campaign (`tdem campaign runs/campaign_7500.toml`, the first step of `make validate`: YADE
-~3 min, thermal ~3 min) writes its report; docs/campaign.md quotes it. This case reads that
-committed report - the γ(p) and τ(p) fits per law, the paper's curves, γ / paper's γ - and puts
-the numbers in the summary, so the two pages cannot disagree. A fresh report under
-runs/out/campaign_7500/report.md, when present, is read instead.
+~3 min, thermal ~3 min) writes its record, ``campaign.json`` beside its report
+(:class:`tdem.campaign_record.CampaignRecord`: the cases' rows and the γ(p), τ(p) fits per law).
+This case reads that record - never the report's text - and puts its numbers in the summary:
+``runs/out/campaign_7500/campaign.json`` when a campaign has run here, else the committed copy of
+one, ``validation/records/campaign_7500.json`` (copy a fresh campaign.json there to update it).
 """
 from __future__ import annotations
 
 import re
+
+from tdem.campaign_record import RECORD, CampaignRecord
+from tdem_post.records import record_from_json
 
 from .framework import ROOT, CaseInfo, CaseResult, Context
 from .framework import Judgement
@@ -17,33 +21,35 @@ from .framework import Judgement
 CASE = CaseInfo(number=12, title="the pressure campaign", paper="003 Fig. 7, 10", paper_n="7,500",
                 paper_error="γ(p), τ(p) fits")
 DOC = ROOT / "docs" / "campaign.md"
-FRESH = ROOT / "runs" / "out" / "campaign_7500" / "report.md"
-_NUM = r"(-?[\d.]+(?:e[-+]?\d+)?)"
+FRESH = ROOT / "runs" / "out" / "campaign_7500" / RECORD
+COMMITTED = ROOT / "validation" / "records" / "campaign_7500.json"
 
 
-def parse(text: str) -> dict:
-    """{law: {gamma: (a, b, c), tau: (a, b, c), ratio: [...], slope}} and the paper's curves."""
-    laws: dict = {}
-    for law, a, b, c in re.findall(rf"- (\w+): γ\(p\) = {_NUM} \(±[^)]*\) p\^{_NUM} \(±[^)]*\) "
-                                   rf"\+ {_NUM}", text):
-        laws.setdefault(law, {})["gamma"] = (float(a), float(b), float(c))
-    for law, a, b, c in re.findall(rf"- (\w+): τ\(p\) = {_NUM} \(±[^)]*\) p\^{_NUM} \(±[^)]*\) "
-                                   rf"\+ {_NUM}", text):
-        laws.setdefault(law, {})["tau"] = (float(a), float(b), float(c))
-    for law, ratios in re.findall(r"- (\w+): γ / paper's γ\(p\) \(003 Fig\. 7\) = ([\d., ]+) \(",
-                                  text):
-        laws.setdefault(law, {})["ratio_to_paper"] = [float(v) for v in ratios.split(",")]
-    for law, slope in re.findall(rf"- (\w+): log-log slope of γ\(p\) {_NUM}", text):
-        laws.setdefault(law, {})["loglog_slope"] = float(slope)
-    paper = re.search(rf"Paper \(003\): γ = {_NUM} p\^{_NUM} \+ {_NUM} \(Fig\. 7\); "
-                      rf"τ = {_NUM} p\^{_NUM} ([-+]) ?{_NUM} s", text)
-    out = dict(laws={k: v for k, v in laws.items() if "gamma" in v and "tau" in v})
-    if paper:
-        g = [float(paper.group(i)) for i in (1, 2, 3)]
-        t = [float(paper.group(4)), float(paper.group(5)),
-             float(paper.group(7)) * (-1 if paper.group(6) == "-" else 1)]
-        out["paper"] = dict(gamma=g, tau=t)
-    return out
+def campaign_fits(record: CampaignRecord, source) -> dict:
+    """{laws: {law: {gamma: [a, b, c], tau: [a, b, c], ratio_to_paper: [...], loglog_slope}},
+    paper: {gamma: [a, b, c], tau: [a, b, c]}} from the campaign's record (its first seed's
+    series): ratio_to_paper is γ_paper / 003's γ(p), low to high pressure. A law whose γ(p) or
+    τ(p) was not fitted is an error naming ``source``, not a missing row."""
+    seed = record.seeds[0] if record.seeds else None
+    laws = {}
+    for law in record.laws:
+        f = record.fits_of(law, seed)
+        for what, fit in (("gamma", f.gamma), ("tau_s", f.tau_s)):
+            if fit is None:
+                raise RuntimeError(f"{source}: fits: {law}: {what} not fitted (fewer than 4 "
+                                   "distinct pressures measured)")
+        laws[law] = dict(gamma=[f.gamma.a, f.gamma.b, f.gamma.c],
+                         tau=[f.tau_s.a, f.tau_s.b, f.tau_s.c],
+                         ratio_to_paper=list(f.gamma_paper_over_paper),
+                         loglog_slope=f.gamma_loglog_slope)
+    pg, pt = record.paper_gamma, record.paper_tau_s
+    return dict(laws=laws, paper=dict(gamma=[pg["a"], pg["b"], pg["c"]],
+                                      tau=[pt["a"], pt["b"], pt["c"]]))
+
+
+def source(quick: bool = False):
+    """The campaign record case 12 reads: a fresh one when present (not in a quick run)."""
+    return FRESH if FRESH.exists() and not quick else COMMITTED
 
 
 def parse_seeds(text: str) -> dict:
@@ -82,17 +88,20 @@ def judge(numbers: dict) -> Judgement:
                        "docs/campaign.md)", target_met=None)
 
 
+def _curve(abc) -> str:
+    """a p^b ± |c|, four significant digits."""
+    a, b, c = abc
+    return f"{a:.4g} p^{b:.4g} {'−' if c < 0 else '+'} {abs(c):.4g}"
+
+
 def run(ctx: Context) -> CaseResult:
-    source = FRESH if FRESH.exists() and not ctx.quick else DOC
-    fits = parse(source.read_text())
-    if not fits["laws"] or "paper" not in fits:
-        raise RuntimeError(f"{source.relative_to(ROOT)}: no γ(p) / τ(p) fit lines found")
+    path = source(ctx.quick)
+    fits = campaign_fits(record_from_json(CampaignRecord, path), path.relative_to(ROOT))
     rows = []
     for law, f in sorted(fits["laws"].items()):
         g, t = f["gamma"], f["tau"]
-        ratio = f.get("ratio_to_paper", [])
-        rows.append(f"| {law} | {g[0]:.4g} p^{g[1]:.4g} + {g[2]:.4g} | {t[0]:.4g} p^{t[1]:.4g} "
-                    f"+ {t[2]:.4g} s | {f.get('loglog_slope', float('nan')):.3f} | "
+        ratio = f["ratio_to_paper"]
+        rows.append(f"| {law} | {_curve(g)} | {_curve(t)} s | {f['loglog_slope']:.3f} | "
                     + (f"{min(ratio):.3g} … {max(ratio):.3g}" if ratio else "—") + " |")
     pg, pt = fits["paper"]["gamma"], fits["paper"]["tau"]
     pipe = fits["laws"].get("pipe", next(iter(fits["laws"].values())))
@@ -101,14 +110,13 @@ Linked, not re-run here: the 7,500-sphere bed of 003 compressed by YADE to seven
 (0.28–405 bar), each packing heated between the bottom wall and the plate with the `pipe`, `bob`
 and `argento` laws; γ = k_eff/k_p and τ fitted per pressure, then power laws over p (bar).
 Everything — setup, the 21 cases, the profiles, the figures and the discussion — is in
-[docs/campaign.md](campaign.md); the fits as its report gives them
-(`{source.relative_to(ROOT)}`):
+[docs/campaign.md](campaign.md); the fits from the campaign's record
+(`{path.relative_to(ROOT)}`):
 
-| law | γ(p) | τ(p) | log-log slope of γ | γ / paper's γ (low → high p) |
+| law | γ(p) | τ(p) | log-log slope of γ | γ_paper / paper's γ (low → high p) |
 |---|---|---|---|---|
 {chr(10).join(rows)}
-| paper (003) | {pg[0]:.4g} p^{pg[1]:.4g} + {pg[2]:.4g} (Fig. 7) | {pt[0]:.4g} p^{pt[1]:.4g} \
-{'+' if pt[2] >= 0 else '−'} {abs(pt[2]):.4g} s (Fig. 10) | falling | 1 |
+| paper (003) | {_curve(pg)} (Fig. 7) | {_curve(pt)} s (Fig. 10) | falling | 1 |
 
 ![γ(p)](img/campaign_7500_gamma_p.png)
 
@@ -120,7 +128,7 @@ within 7 % on the same contacts.
 
 The campaign is the first step of `make validate` (`tdem campaign runs/campaign_7500.toml`,
 resumable; YADE ~3 min (2026-12-01; 6.3 min with the generator before 2026-11), thermal ~3 min)."""
-    ratio = pipe.get("ratio_to_paper", [])
+    ratio = pipe["ratio_to_paper"]
     seeds = parse_seeds(DOC.read_text())
     if "gamma_exponent" in seeds and "tau_exponent" in seeds:
         (gb, gs), (tb, ts) = seeds["gamma_exponent"], seeds["tau_exponent"]
@@ -139,7 +147,8 @@ change with pressure."""
                      + (f"; γ_paper / paper's γ {min(pr):.2g}–{max(pr):.3g}" if pr else ""))
     else:
         our_error = (f"pipe: γ ∝ p^{pipe['gamma'][1]:.3g}, τ ∝ p^{pipe['tau'][1]:.3g}"
-                     + (f"; γ / paper's γ {min(ratio):.2g}–{max(ratio):.3g}" if ratio else ""))
+                     + (f"; γ_paper / paper's γ {min(ratio):.2g}–{max(ratio):.3g}" if ratio
+                        else ""))
     return CaseResult(
         our_n="7,500" + (f" × {seeds['seeds']} seeds" if "seeds" in seeds else ""),
         our_error=our_error,
@@ -148,5 +157,5 @@ change with pressure."""
                 "predicts, theirs falls; a resistance used as a conductance reproduces the "
                 "paper's trends (docs/campaign.md)",
         section_md=section, numbers=dict(fits, seeds=seeds,
-                                         source=str(source.relative_to(ROOT))),
+                                         source=str(path.relative_to(ROOT))),
         command="the campaign itself: `tdem campaign runs/campaign_7500.toml`")

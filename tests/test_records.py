@@ -1,0 +1,152 @@
+"""Records (tdem_post/records.py, issue 26): a record written from its fields is read back equal,
+and a file whose field is missing, renamed, unknown or of another type is refused in one line
+naming the file and the field (never a NaN column). Case 12 reads the campaign's record, so its
+numbers are the record's, whatever the report's text looks like (a negative fit constant, once
+written "−" in report.md, silently dropped that law's fit when case 12 parsed the markdown)."""
+import dataclasses
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from tdem.campaign_record import CampaignRecord, CaseRow
+from tdem_post.records import (RecordError, column, markdown_table, read_csv, record_from_json,
+                               to_dict, write_csv, write_json)
+from validation import case12_campaign, framework
+
+COMMITTED = case12_campaign.COMMITTED
+
+
+def same(a, b) -> bool:
+    """Equal records, NaN equal to NaN (compared as their JSON)."""
+    return json.dumps(to_dict(a)) == json.dumps(to_dict(b))
+
+
+def test_the_campaign_record_round_trips_through_json_and_csv(tmp_path):
+    record = record_from_json(CampaignRecord, COMMITTED)
+    assert len(record.rows) == len(record.laws) * 7 and isinstance(record.rows[0], CaseRow)
+    write_json(tmp_path / "c.json", record)
+    again = record_from_json(CampaignRecord, tmp_path / "c.json")
+    assert same(again, record)
+    assert json.loads((tmp_path / "c.json").read_text()) == json.loads(COMMITTED.read_text())
+    write_csv(tmp_path / "results.csv", record.rows)
+    rows = read_csv(CaseRow, tmp_path / "results.csv")
+    assert all(same(a, b) for a, b in zip(rows, record.rows, strict=True))
+    # an unseeded campaign's table has no seed column; its rows read back with seed None
+    assert "seed" not in (tmp_path / "results.csv").read_text().splitlines()[0].split(",")
+    assert rows[0].seed is None
+
+
+def _edited(tmp_path, edit) -> Path:
+    data = json.loads(COMMITTED.read_text())
+    edit(data)
+    path = tmp_path / "campaign.json"
+    path.write_text(json.dumps(data))
+    return path
+
+
+@pytest.mark.parametrize("edit, field, says", [
+    (lambda d: d["rows"][0].update(gama=d["rows"][0].pop("gamma")), "gamma", "missing"),
+    (lambda d: d["rows"][3].update(extra=1.0), "extra", "unknown field"),
+    (lambda d: d["fits"][1].pop("tau_s"), "tau_s", "missing"),
+    (lambda d: d["fits"][0]["gamma"].update(b="0.36"), "b", "expected a number"),
+    (lambda d: d.pop("paper_gamma"), "paper_gamma", "missing"),
+    (lambda d: d["rows"][0].update(n_particles=7500.0), "n_particles", "expected an integer"),
+])
+def test_a_missing_renamed_or_mistyped_field_is_one_line(tmp_path, edit, field, says):
+    path = _edited(tmp_path, edit)
+    with pytest.raises(RecordError) as e:
+        record_from_json(CampaignRecord, path)
+    msg = str(e.value)
+    assert msg.startswith(f"{path}: ") and f"{field}: {says}" in msg and "\n" not in msg
+
+
+@pytest.mark.parametrize("column_name", ["gamma", "gamma_mean_field_argento", "flags"])
+def test_a_results_csv_without_a_column_is_refused(tmp_path, column_name):
+    import pandas as pd
+    record = record_from_json(CampaignRecord, COMMITTED)
+    write_csv(tmp_path / "results.csv", record.rows)
+    table = pd.read_csv(tmp_path / "results.csv", keep_default_na=False, dtype=str)
+    table.drop(columns=[column_name]).to_csv(tmp_path / "results.csv", index=False)
+    with pytest.raises(RecordError, match=rf"results.csv: {column_name}: missing column"):
+        read_csv(CaseRow, tmp_path / "results.csv")
+
+
+def test_a_summary_without_a_key_the_row_needs_names_the_summary():
+    summary = _summary()
+    row = CaseRow.from_summary(summary)
+    assert row.gamma == summary["gamma"] and row.gamma_ci95_high == summary["gamma_ci95"][1]
+    assert row.gamma_mean_field_bob == summary["gamma_mean_field"]["bob"]
+    del summary["tau_slab_s"]
+    with pytest.raises(RecordError, match=r"c/post/summary.json: tau_slab_s: missing"):
+        CaseRow.from_summary(summary)
+    summary = _summary()
+    summary["gamma"] = None                     # post's "not measurable": NaN in the table
+    assert CaseRow.from_summary(summary).gamma != CaseRow.from_summary(summary).gamma
+
+
+def _summary() -> dict:
+    """A case's summary as the campaign holds it (post's keys the row reads, with the target)."""
+    return dict(thermal="c/thermal.h5", pressure_pa=1.01e5, pressure_target_pa=1e5, law="pipe",
+                n_particles=300, mean_coordination=4.0, solid_fraction=0.56,
+                mean_normal_force_n=1.2, gamma=0.0118, gamma_ci95=[0.0117, 0.0119],
+                gamma_residual_rms_k=1.5, gamma_paper=0.022, gamma_steady=0.0124,
+                gamma_affine=0.013, gamma_affine_transverse=0.011, fabric_nz2=0.37,
+                fabric_nz2_conductance=0.38, contact_stress_axial_pa=6.7e4, tau_s=1298.0,
+                tau_series_s=None, tau_slab_s=1358.0, length_m=0.15,
+                gamma_mean_field=dict(bob=0.0108, argento=0.0094, pipe=0.0111), flags="",
+                post_flags="", not_measurable={})
+
+
+def test_markdown_table_from_field_metadata():
+    @dataclasses.dataclass(frozen=True)
+    class Row:
+        seed: int | None = dataclasses.field(metadata=column(
+            md=(0, "seed", lambda r: str(r.seed)), optional=True))
+        length_m: float = dataclasses.field(metadata=column(
+            md=(2, "L (mm)", lambda r: f"{1e3 * r.length_m:.3g}")))
+        law: str = dataclasses.field(metadata=column(md=(1, "law", lambda r: r.law)))
+        note: str = ""
+    assert markdown_table([Row(None, 0.0123, "pipe")]) == [
+        "| law | L (mm) |", "|---|---|", "| pipe | 12.3 |"]
+    assert markdown_table([Row(3, 0.0123, "pipe")])[0] == "| seed | law | L (mm) |"
+
+
+def test_case12_numbers_are_the_campaign_records():
+    record = record_from_json(CampaignRecord, COMMITTED)
+    r = case12_campaign.run(framework.Context(number=12, quick=True))
+    laws = r.numbers["laws"]
+    assert set(laws) == set(record.laws)
+    for law in record.laws:
+        f = record.fits_of(law)
+        assert laws[law]["gamma"] == [f.gamma.a, f.gamma.b, f.gamma.c]
+        assert laws[law]["tau"] == [f.tau_s.a, f.tau_s.b, f.tau_s.c]
+        assert laws[law]["ratio_to_paper"] == list(f.gamma_paper_over_paper)
+        assert laws[law]["loglog_slope"] == f.gamma_loglog_slope
+        assert f"| {law} | {f.gamma.a:.4g} p^{f.gamma.b:.4g} " in r.section_md
+    assert r.numbers["paper"]["gamma"] == [record.paper_gamma[k] for k in "abc"]
+    assert r.numbers["source"] == str(COMMITTED.relative_to(framework.ROOT))
+    # the record's rising gamma against the paper's falling one
+    assert r.numbers["paper"]["gamma"][1] < 0 < laws["pipe"]["gamma"][1]
+
+
+def test_case12_keeps_a_negative_fit_constant_and_refuses_a_missing_fit(tmp_path, monkeypatch):
+    def negative(d):
+        for f in d["fits"]:
+            if f["law"] == "bob":
+                f["gamma"]["c"] = -0.00125
+    path = _edited(tmp_path, negative)
+    shutil.copy(path, tmp_path / "neg.json")
+    monkeypatch.setattr(case12_campaign, "COMMITTED", tmp_path / "neg.json")
+    monkeypatch.setattr(case12_campaign, "ROOT", tmp_path)
+    r = case12_campaign.run(framework.Context(number=12, quick=True))
+    assert r.numbers["laws"]["bob"]["gamma"][2] == -0.00125
+    assert "| bob | " in r.section_md and "− 0.00125 |" in r.section_md
+    assert len(r.numbers["laws"]["bob"]["ratio_to_paper"]) == 7
+
+    def unfitted(d):
+        d["fits"][0]["gamma"] = None
+    (tmp_path / "neg.json").write_text(_edited(tmp_path, unfitted).read_text())
+    with pytest.raises(RuntimeError, match=r"neg.json: fits: \w+: gamma not fitted"):
+        case12_campaign.run(framework.Context(number=12, quick=True))
