@@ -43,7 +43,6 @@ from .errors import UserError
 from thermal_kernel.atomic import savefig_atomic, write_text_atomic
 from thermal_kernel.scene import read_toml
 
-PAPER_TAU = dict(a=1.945, b=0.1084, c=-1.332)       # 003 Fig. 10: tau = a p^b + c (p in bar)
 # flags of a run's thermal.h5 that make its numbers suspect (the others, e.g. rattlers or
 # floating_clusters, describe the network); "unknown": a run written before flags existed
 SUSPECT_FLAGS = ("max_principle", "energy_ledger", "dt_above_bound", "non_finite",
@@ -575,6 +574,7 @@ def campaign_record(campaign_path: Path, conf: dict, rows: list, seconds: float)
     ``seed``): one row per case (sorted by seed, law, pressure) and the fits over pressure per
     law (and seed)."""
     from tdem_post.fits import PAPER_GAMMA, power_law
+    from tdem_post.paper_compare import PAPER_TAU     # 003 Fig. 10 (p in bar)
     from tdem_post.records import frame
     from .campaign_record import CampaignRecord, CaseRow, LawFits
     cases = [CaseRow.from_summary(r, r.get("seed")) for r in rows]
@@ -630,6 +630,7 @@ def _write_report_md(out_dir: Path, record, table, fits) -> None:
     p_col = "pressure_target_pa" if seeded else "pressure_pa"
     from tdem_post.fits import power_law
     from tdem_post.records import markdown_table
+    from .campaign_record import COMPARED_MEAN_FIELDS
     lines = [f"# Pressure campaign: {record.campaign}", "",
              f"{table['n_particles'].iloc[0]} particles, pressures "
              f"{', '.join(f'{p / 1e5:.3g}' for p in sorted(table[p_col].unique()))} bar"
@@ -707,9 +708,10 @@ def _write_report_md(out_dir: Path, record, table, fits) -> None:
         lines.append(
             f"- {law}: γ_paper / paper's γ(p) (003 Fig. 7, same convention) = "
             f"{ratios(law_fits.gamma_paper_over_paper)} (from low to high pressure); "
-            f"γ_mf(bob) / γ = {ratios(g['gamma_mean_field_bob'].to_numpy() / gamma)}; "
-            f"γ_mf(argento) / γ = {ratios(g['gamma_mean_field_argento'].to_numpy() / gamma)}; "
-            f"γ_steady / γ = {ratios(g['gamma_steady'].to_numpy() / gamma)}; "
+            + "".join(f"γ_mf({mf}) / γ = "
+                      f"{ratios(g[f'gamma_mean_field_{mf}'].to_numpy() / gamma)}; "
+                      for mf in COMPARED_MEAN_FIELDS)
+            + f"γ_steady / γ = {ratios(g['gamma_steady'].to_numpy() / gamma)}; "
             f"γ_aff / γ_steady = {ratios(g['gamma_affine'].to_numpy() / g['gamma_steady'])}; "
             f"3 ⟨n_z²⟩ = {ratios(3 * g['fabric_nz2'].to_numpy())}; "
             f"τ / τ_slab = {ratios(g['tau_s'].to_numpy() / g['tau_slab_s'].to_numpy())}")
@@ -796,6 +798,8 @@ def _plots(out_dir, table, fits, rows=()):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from tdem_post.fits import PAPER_GAMMA, power_law
+    from tdem_post.paper_compare import PAPER_TAU
+    from .campaign_record import COMPARED_MEAN_FIELDS
     seeded = "seed" in table.columns
     pmin = table.pressure_pa.min() / 1e5
     pmax = table.pressure_pa.max() / 1e5
@@ -848,10 +852,9 @@ def _plots(out_dir, table, fits, rows=()):
             g0 = table[table.law == table.law.iloc[0]]
             if seeded:
                 g0 = g0[g0.seed == g0.seed.min()]
-            ax.plot(g0.pressure_pa / 1e5, g0.gamma_mean_field_bob, "s", mfc="none", color="k",
-                    label="mean field, bob")
-            ax.plot(g0.pressure_pa / 1e5, g0.gamma_mean_field_argento, "^", mfc="none",
-                    color="k", label="mean field, argento")
+            for mf, marker in zip(COMPARED_MEAN_FIELDS, "s^v<>", strict=False):
+                ax.plot(g0.pressure_pa / 1e5, g0[f"gamma_mean_field_{mf}"], marker, mfc="none",
+                        color="k", label=f"mean field, {mf}")
         ax.plot(grid, power_law(grid, **paper), "k--", label="paper (003)")
         ax.set_xscale("log")
         ax.set_yscale("log")

@@ -18,6 +18,9 @@ from tdem_post.post_run import MEAN_FIELD_LAWS
 from tdem_post.records import RecordError, column
 
 NAN = float("nan")
+# the mean fields report.md's ratio line and the gamma(p) figure compare with gamma: the two
+# contact formulas (pipe's is in the table); every name comes from MEAN_FIELD_LAWS
+COMPARED_MEAN_FIELDS = tuple(law for law in MEAN_FIELD_LAWS if law != "pipe")
 RECORD = "campaign.json"        # the campaign's record, beside report.md
 
 

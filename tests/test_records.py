@@ -150,3 +150,20 @@ def test_case12_keeps_a_negative_fit_constant_and_refuses_a_missing_fit(tmp_path
     (tmp_path / "neg.json").write_text(_edited(tmp_path, unfitted).read_text())
     with pytest.raises(RuntimeError, match=r"neg.json: fits: \w+: gamma not fitted"):
         case12_campaign.run(framework.Context(number=12, quick=True))
+
+
+def test_mean_field_columns_and_paper_curves_have_one_home():
+    """The mean-field columns are MEAN_FIELD_LAWS' (post's list), in its order; 003's curves are
+    defined once (PAPER_GAMMA in tdem_post/fits.py, PAPER_TAU in tdem_post/paper_compare.py)."""
+    import re
+    from tdem_post.post_run import MEAN_FIELD_LAWS
+    names = [f.name for f in dataclasses.fields(CaseRow) if f.name.startswith("gamma_mean_f")]
+    assert names == [f"gamma_mean_field_{law}" for law in MEAN_FIELD_LAWS]
+    record = record_from_json(CampaignRecord, COMMITTED)
+    assert all(f"| γ_mf {law} |" in markdown_table(record.rows)[0] for law in MEAN_FIELD_LAWS)
+    root = framework.ROOT
+    for name in ("PAPER_TAU", "PAPER_GAMMA", "MEAN_FIELD_LAWS"):
+        homes = [str(p.relative_to(root)) for d in ("tdem", "tdem_post", "validation")
+                 for p in sorted((root / d).rglob("*.py"))
+                 if re.search(rf"^{name}\s*=", p.read_text(), re.M)]
+        assert len(homes) == 1, (name, homes)
