@@ -255,6 +255,7 @@ def _remove_empty(folders) -> None:
 
 def _run_series(campaign_path, conf, scenes, out_dir, *, threads, yade_threads, quiet, repost,
                 jobs, run_args):
+    from .campaign_record import CaseRow
     start = time.time()
     seeds = conf["seeds"]
     series = [(None, out_dir)] if seeds is None else [(s, out_dir / f"seed_{s}") for s in seeds]
@@ -263,7 +264,7 @@ def _run_series(campaign_path, conf, scenes, out_dir, *, threads, yade_threads, 
         with ThreadPoolExecutor(max_workers=jobs) as pool:
             list(pool.map(lambda sd: build_packings(campaign_path, sd[1], threads=yade_threads,
                                                     quiet=True, seed=sd[0]), series))
-    rows, k = [], 0
+    cases, k = [], 0
     for seed, sdir in series:
         packings = conf["packings"]
         if packings is None:
@@ -280,10 +281,9 @@ def _run_series(campaign_path, conf, scenes, out_dir, *, threads, yade_threads, 
                                     run_args, packing_hash=hashes[packing],
                                     label=f"[{k}/{n_cases}] "
                                           + (f"seed {seed} " if seed is not None else ""))
-                if seed is not None:
-                    summary["seed"] = seed
-                rows.append(summary)
-    return write_report(out_dir, campaign_path, conf, rows, time.time() - start)
+                cases.append((summary, CaseRow.from_summary(
+                    summary, target_pressure(packing, summary.pressure_pa), seed)))
+    return write_report(out_dir, campaign_path, conf, cases, time.time() - start)
 
 
 def check_cases(campaign_path: Path, scenes: dict, packings: list) -> None:
@@ -412,30 +412,32 @@ def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label
         changed = _stale(old, thermal_path, packing, inputs)
         if changed:
             why = f"the {' and the '.join(changed)} changed since it ran"
-    if old is not None and why is None and (repost or old.get("n_bins") != conf["n_bins"]
-                                            or old.get("post_sha256") != post):
+    kept = None                     # the summary as the current record, if it reads as one
+    if old is not None and why is None and not (repost or old.get("n_bins") != conf["n_bins"]
+                                                or old.get("post_sha256") != post):
+        kept = _read_case_summary(summary_path)
+    if old is not None and why is None and kept is None:
         summary, why = _repost(old, thermal_path, conf, inputs, summary_path, label, name,
                                repost)
         if summary is not None:
-            return _with_target(summary, packing)
-    elif old is not None and why is None:
-        summary = old
-        summary["flags"] = run_flags(thermal_path, summary.get("flags"))
-        print(f"{label}{name}: done before (gamma {_g(summary.get('gamma'))}), kept"
-              + (f"; flags: {summary['flags']}" if summary["flags"] else ""), flush=True)
-        return _with_target(summary, packing)
+            return summary
+    elif kept is not None:
+        summary = dataclasses.replace(kept, flags=run_flags(thermal_path, kept.flags))
+        print(f"{label}{name}: done before (gamma {_g(summary.gamma)}), kept"
+              + (f"; flags: {summary.flags}" if summary.flags else ""), flush=True)
+        return summary
     if summary_path.exists():       # stale: never left beside a new run
         summary_path.unlink()
     summary = _compute(scene, conf, case_dir, packing, threads, run_args, name, inputs,
                        summary_path)
-    ci = summary.get("gamma_ci95") or (None, None)
-    print(f"{label}{name}: gamma {_g(summary.get('gamma'))}"
-          + (f" [{_g(ci[0])}, {_g(ci[1])}]" if summary.get("gamma") is not None else "")
-          + f", steady {_g(summary.get('gamma_steady'))}, tau {_g(summary.get('tau_s'))} s "
-          f"({summary['case_wall_seconds']:.1f} s)"
-          + (f"; flags: {summary['flags']}" if summary["flags"] else "")
+    ci = summary.gamma_ci95 or (None, None)
+    print(f"{label}{name}: gamma {_g(summary.gamma)}"
+          + (f" [{_g(ci[0])}, {_g(ci[1])}]" if summary.gamma is not None else "")
+          + f", steady {_g(summary.gamma_steady)}, tau {_g(summary.tau_s)} s "
+          f"({summary.case_wall_seconds:.1f} s)"
+          + (f"; flags: {summary.flags}" if summary.flags else "")
           + (f"; recomputed: {why}" if why else ""), flush=True)
-    return _with_target(summary, packing)
+    return summary
 
 
 def _g(value) -> str:
@@ -444,8 +446,27 @@ def _g(value) -> str:
     return "not measurable" if value is None else f"{value:.4g}"
 
 
-def _with_target(summary: dict, packing: Path) -> dict:
-    summary["pressure_target_pa"] = target_pressure(packing, summary["pressure_pa"])
+def _read_case_summary(path: Path):
+    """The case's post/summary.json as a :class:`~tdem.campaign_record.CaseSummary`, or None
+    when it does not read as one (a key missing, unknown or of another type: it is posted
+    again)."""
+    from tdem_post.records import RecordError, record_from_json
+    from .campaign_record import CaseSummary
+    try:
+        return record_from_json(CaseSummary, path)
+    except RecordError:
+        return None
+
+
+def _case_summary(posted: dict, summary_path: Path, **campaign):
+    """The campaign's :class:`~tdem.campaign_record.CaseSummary` of a case: post's summary
+    (``posted``, :func:`~tdem_post.post_run.write_post`) with the campaign's keys, written to
+    ``summary_path``."""
+    from tdem_post.records import from_dict, write_json
+    from .campaign_record import CaseSummary
+    summary = from_dict(CaseSummary, dict(posted, **campaign), str(summary_path))
+    summary_path.parent.mkdir(parents=True, exist_ok=True)
+    write_json(summary_path, summary)
     return summary
 
 
@@ -459,14 +480,10 @@ def _compute(scene, conf, case_dir, packing, threads, run_args, name, inputs, su
                        run_args=dict(run_args, case=name))
     run_seconds = time.time() - t0
     post = analyse(result.output, n_bins=conf["n_bins"])
-    summary = write_post(post)
-    summary["case_wall_seconds"] = time.time() - t0
-    summary["thermal_wall_seconds"] = run_seconds
-    summary["flags"] = post.run.flags
-    summary.update(inputs, post_sha256=post_sha256())
-    summary_path.parent.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(summary_path, json.dumps(summary, indent=1))
-    return summary
+    posted = write_post(post)
+    return _case_summary(posted, summary_path, case_wall_seconds=time.time() - t0,
+                         thermal_wall_seconds=run_seconds, flags=post.run.flags, **inputs,
+                         post_sha256=post_sha256())
 
 
 def _repost(old, thermal_path, conf, inputs, summary_path, label, name, asked):
@@ -488,18 +505,20 @@ def _repost(old, thermal_path, conf, inputs, summary_path, label, name, asked):
                                    " non-finite")
     except (ThermalFileError, PackingError, SceneError, NetworkError) as e:
         return None, f"its thermal.h5 could not be post-processed again ({e})"
-    summary = write_post(post)
-    for key in ("case_wall_seconds", "thermal_wall_seconds"):
-        summary[key] = old.get(key, float("nan"))
-    summary["flags"] = post.run.flags            # (analysed: the file is a complete run)
-    summary.update(inputs, post_sha256=post_sha256())
-    write_text_atomic(summary_path, json.dumps(summary, indent=1))
+    summary = _case_summary(
+        write_post(post), summary_path,
+        **{key: old.get(key, float("nan")) for key in ("case_wall_seconds",
+                                                        "thermal_wall_seconds")},
+        flags=post.run.flags, **inputs, post_sha256=post_sha256())    # (flags: analysed, the
+    #                                                                    file is a complete run)
     what = ("post-processed again" if asked else
             f"n_bins {old.get('n_bins')} -> {conf['n_bins']}: post-processed again"
             if old.get("n_bins") != conf["n_bins"] else
-            "the post-processing (tdem_post) changed since it was posted: post-processed again")
+            "the post-processing (tdem_post) changed since it was posted: post-processed again"
+            if old.get("post_sha256") != post_sha256() else
+            "its summary.json is not the current summary's record: post-processed again")
     print(f"{label}{name}: thermal run kept, {what}: gamma "
-          f"{_g(old.get('gamma'))} -> {_g(summary.get('gamma'))} ({time.time() - t0:.1f} s)",
+          f"{_g(old.get('gamma'))} -> {_g(summary.gamma)} ({time.time() - t0:.1f} s)",
           flush=True)
     return summary, None
 
@@ -569,17 +588,15 @@ def _fit(p_bar, y):
 
 
 def campaign_record(campaign_path: Path, conf: dict, rows: list, seconds: float):
-    """The campaign's :class:`~tdem.campaign_record.CampaignRecord` from its cases' summaries
-    (``rows``: post/summary.json with ``pressure_target_pa``, wall times and, with seeds,
-    ``seed``): one row per case (sorted by seed, law, pressure) and the fits over pressure per
-    law (and seed)."""
+    """The campaign's :class:`~tdem.campaign_record.CampaignRecord` from its cases' rows
+    (:class:`~tdem.campaign_record.CaseRow`): the rows sorted by seed, law and pressure, and the
+    fits over pressure per law (and seed)."""
     from tdem_post.fits import PAPER_GAMMA, power_law
     from tdem_post.paper_compare import PAPER_TAU     # 003 Fig. 10 (p in bar)
     from tdem_post.records import frame
-    from .campaign_record import CampaignRecord, CaseRow, LawFits
-    cases = [CaseRow.from_summary(r, r.get("seed")) for r in rows]
-    seeded = any(c.seed is not None for c in cases)
-    cases = sorted(cases, key=lambda c: ((c.seed,) if seeded else ()) + (c.law, c.pressure_pa))
+    from .campaign_record import CampaignRecord, LawFits
+    seeded = any(c.seed is not None for c in rows)
+    cases = sorted(rows, key=lambda c: ((c.seed,) if seeded else ()) + (c.law, c.pressure_pa))
     table = frame(cases)
     fits = []
     for key, g in table.groupby(["law", "seed"] if seeded else ["law"]):
@@ -599,20 +616,20 @@ def campaign_record(campaign_path: Path, conf: dict, rows: list, seconds: float)
                           fits=tuple(fits), rows=tuple(cases))
 
 
-def write_report(out_dir: Path, campaign_path: Path, conf: dict, rows: list, seconds: float):
+def write_report(out_dir: Path, campaign_path: Path, conf: dict, cases: list, seconds: float):
     """The campaign's record (campaign.json, :func:`campaign_record`), and from it results.csv,
-    the figures and report.md."""
+    the figures and report.md. ``cases``: (CaseSummary, CaseRow) of each case, in run order."""
     from tdem_post.records import frame, write_csv, write_json
     from .campaign_record import RECORD
 
-    record = campaign_record(campaign_path, conf, rows, seconds)
+    record = campaign_record(campaign_path, conf, [row for _, row in cases], seconds)
     write_json(out_dir / RECORD, record)
     write_csv(out_dir / "results.csv", record.rows)
     table = frame(record.rows)
     seeded = record.seeds is not None
     fits = {((f.law, f.seed) if seeded else f.law): dict(gamma=f.gamma, tau=f.tau_s)
             for f in record.fits}
-    _plots(out_dir, table, fits, rows)
+    _plots(out_dir, table, fits, cases)
     _write_report_md(out_dir, record, table, fits)
     print(f"tdem campaign: report {out_dir / 'report.md'}", flush=True)
     print(table[(["seed"] if seeded else []) + ["pressure_pa", "law", "gamma",
@@ -791,7 +808,7 @@ def _seed_summary(table, fits, seeds):
     return lines
 
 
-def _plots(out_dir, table, fits, rows=()):
+def _plots(out_dir, table, fits, cases=()):
     """gamma_p.png and tau_p.png (per seed and mean +- sd when the campaign has seeds),
     contact_angles.png (the contact-angle PDF per pressure, 003 Fig. 5)."""
     import matplotlib
@@ -871,26 +888,25 @@ def _plots(out_dir, table, fits, rows=()):
         fig.tight_layout()
         savefig_atomic(fig, out_dir / f"{fname}.png", dpi=110)
         plt.close(fig)
-    _plot_contact_angles(out_dir, rows)
+    _plot_contact_angles(out_dir, cases)
 
 
-def _plot_contact_angles(out_dir, rows):
+def _plot_contact_angles(out_dir, cases):
     """PDF of the angle between a contact normal and the bed's axis, per pressure (003 Fig. 5);
     with seeds, the mean over the seeds and its +- sd band. One law's rows are enough (the
-    fabric is the packing's)."""
-    rows = [r for r in rows if r.get("contact_angle_pdf")]
-    if not rows:
+    fabric is the packing's). ``cases``: (CaseSummary, CaseRow) pairs."""
+    cases = [(s, row) for s, row in cases if s.contact_angle_pdf]
+    if not cases:
         return
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    law = rows[0]["law"]
+    law = cases[0][1].law
     by_p = {}
-    for r in rows:
-        if r["law"] == law:
-            by_p.setdefault(r["pressure_target_pa"], []).append(
-                np.asarray(r["contact_angle_pdf"]))
-    edges = np.asarray(rows[0]["contact_angle_edges"])
+    for s, row in cases:
+        if row.law == law:
+            by_p.setdefault(row.pressure_target_pa, []).append(np.asarray(s.contact_angle_pdf))
+    edges = np.asarray(cases[0][0].contact_angle_edges)
     centres = 0.5 * (edges[1:] + edges[:-1])
     fig, ax = plt.subplots(figsize=(6, 4.2))
     lines = ["pressure_pa,n_seeds," + ",".join(f"pdf_{c:.4f}" for c in centres)]

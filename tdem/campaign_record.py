@@ -11,11 +11,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from tdem_post.fits import PowerFit
-from tdem_post.post_run import MEAN_FIELD_LAWS
-from tdem_post.records import RecordError, column
+from tdem_post.post_run import MEAN_FIELD_LAWS, PostSummary
+from tdem_post.records import column
 
 NAN = float("nan")
 # the mean fields report.md's ratio line and the gamma(p) figure compare with gamma: the two
@@ -77,23 +76,32 @@ def _row_fields() -> list:
     ]
 
 
-def _from_summary(cls, summary: dict, seed: int | None = None):
-    """A case's row from its post summary (post/summary.json, with the campaign's
-    ``pressure_target_pa`` and wall times); post's None ("not measurable") is NaN. A key the
-    row needs and the summary lacks is a RecordError naming the summary file and the key."""
-    where = Path(summary.get("thermal", "?")).parent / "post" / "summary.json"
+def _optional():
+    return field(default=None, metadata=column(optional=True))
 
+
+@dataclass(frozen=True, kw_only=True)
+class CaseSummary(PostSummary):
+    """A campaign case's post/summary.json: post's :class:`PostSummary` and what the campaign
+    adds (absent from a summary written by ``tdem post``, or before they were recorded)."""
+    case_wall_seconds: float | None = _optional()       # thermal run and post
+    thermal_wall_seconds: float | None = _optional()
+    scene_sha256: str | None = _optional()      # tdem.campaign.scene_sha256 of the case's scene
+    packing_sha256: str | None = _optional()    # of the packing file's bytes
+    post_sha256: str | None = _optional()       # of the tdem_post code that posted it
+
+
+def _from_summary(cls, summary: CaseSummary, pressure_target_pa: float,
+                  seed: int | None = None):
+    """A case's row from its summary and the series' nominal pressure; post's None ("not
+    measurable") is NaN."""
     def get(key, k=None):
-        try:
-            v = summary[key]
-        except KeyError:
-            raise RecordError(f"{where}: {key}: missing (a summary of other post code: "
-                              "`tdem campaign --repost` posts the case again)") from None
+        v = getattr(summary, key)
         if v is not None and k is not None:
             v = v[k]
         return NAN if v is None else v
     return cls(
-        seed=seed, pressure_pa=get("pressure_pa"), pressure_target_pa=get("pressure_target_pa"),
+        seed=seed, pressure_pa=get("pressure_pa"), pressure_target_pa=float(pressure_target_pa),
         law=get("law"), n_particles=get("n_particles"),
         mean_coordination=get("mean_coordination"), solid_fraction=get("solid_fraction"),
         mean_normal_force_n=get("mean_normal_force_n"), gamma=get("gamma"),
@@ -107,12 +115,10 @@ def _from_summary(cls, summary: dict, seed: int | None = None):
         length_m=get("length_m"),
         **{f"gamma_mean_field_{law}": get("gamma_mean_field", law) for law in MEAN_FIELD_LAWS},
         # unknown (NaN) for a case posted by `tdem post` rather than run by the campaign
-        thermal_wall_seconds=summary.get("thermal_wall_seconds", NAN),
-        case_wall_seconds=summary.get("case_wall_seconds", NAN),
-        flags=summary.get("flags", "unknown") or "none",
-        post_flags=summary.get("post_flags") or "",
-        not_measurable="; ".join(f"{k}: {v}" for k, v in
-                                 (summary.get("not_measurable") or {}).items()))
+        thermal_wall_seconds=get("thermal_wall_seconds"),
+        case_wall_seconds=get("case_wall_seconds"),
+        flags=summary.flags or "none", post_flags=summary.post_flags,
+        not_measurable="; ".join(f"{k}: {v}" for k, v in summary.not_measurable.items()))
 
 
 # one case (pressure x law [x seed]) of a campaign: a row of results.csv and of report.md

@@ -8,8 +8,9 @@
 Each quantity has its compute function and typed result: slab_of -> Slab, profiles_of ->
 Profiles, fit_profiles -> GammaResult, steady_etc -> EffectiveConductivity
 (thermal_kernel.effective, length convention "held_centres"), tau_of -> Tau, flux_field ->
-FluxField, fabric_of -> Fabric, mean_field -> {law: gamma_mf}; PostResult.summary() is the one
-mapping to post/summary.json's keys.
+FluxField, fabric_of -> Fabric, mean_field -> {law: gamma_mf}; PostResult.record() ->
+PostSummary is post/summary.json (its fields are the file's keys, written and read by
+tdem_post.records).
 
 From ``thermal.h5`` alone (:func:`thermal_kernel.output.read_thermal`: the scene as it ran,
 stored in the file, and the packing it names, checked against the content hash it stored):
@@ -49,7 +50,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import errno
-import json
 import math
 import os
 import shutil
@@ -80,6 +80,7 @@ from .flux import HALO_RADII, coefficient_of_variation, halo_radii, particle_flu
 from .fits import (GammaFit, characteristic_time_network, characteristic_time_series,
                    fit_gamma)
 from .profiles import binned_profile, partial_volumes
+from .records import column, json_text, to_dict
 
 # the laws of the mean-field estimates: post, the CLI and the campaign report all use this list
 MEAN_FIELD_LAWS = ("bob", "argento", "pipe")
@@ -214,7 +215,7 @@ class Fabric:
 
 @dataclass(frozen=True, eq=False)
 class PostResult:
-    """Everything :func:`analyse` computes from one run; :meth:`summary` is post/summary.json."""
+    """Everything :func:`analyse` computes from one run; :meth:`record` is post/summary.json."""
     thermal: Path
     run: ThermalRun
     packing: object
@@ -239,60 +240,122 @@ class PostResult:
     post_flags: tuple            # post's own flags (gamma_model_form, solid_fraction, ...)
 
     def summary(self) -> dict:
+        """post/summary.json's content (:meth:`record` as JSON data)."""
+        return to_dict(self.record())
+
+    def record(self) -> PostSummary:
+        """The run's :class:`PostSummary` (post/summary.json)."""
         g = self.gamma
         fit = g.fit if g else None
-        flux = {"flux_halo_ratio": self.flux.halo_ratio,
-                "flux_halo_radius": self.flux.halo_radius,
-                "flux_interior_particles": self.flux.interior_particles}
-        if self.flux.cov_raw is not None:
-            flux.update(flux_cov_raw=self.flux.cov_raw,
-                        flux_cov_raw_volume_weighted=self.flux.cov_raw_volume,
-                        flux_cov_halo=self.flux.cov_halo,
-                        flux_mean_over_q_per_area=self.flux.mean_over_q_per_area)
+        cov = self.flux.cov_raw is not None
         other = g.other if g else None
-        return {
-            "thermal": str(self.thermal), "packing": str(self.packing.path),
-            "law": self.run.law, "method": self.run.method,
-            # the run's own flags (thermal.h5, comma-separated) and post's
-            "flags": self.run.flags, "post_flags": ",".join(self.post_flags),
-            "not_measurable": dict(self.not_measurable),
-            "n_particles": int(self.packing.n_particles), "pressure_pa": self.pressure_pa,
-            "solid_fraction": self.solid_fraction,
-            "solid_fraction_between_walls": self.solid_fraction_between_walls,
-            "mean_coordination": self.mean_coordination,
-            "mean_normal_force_n": self.mean_normal_force_n, "rattlers": self.rattlers,
-            "bed_capacity_j_m3k": self.bed_capacity_j_m3k,
-            "gamma": fit.gamma if fit else None, "gamma_ci95": list(fit.ci95) if fit else None,
-            # 003 App. A writes alpha = kappa_eff/(rho c_p) with rho the particle density
-            # (Table 1): the same fitted diffusivity read in that convention
-            "gamma_paper": g.gamma_paper if fit else None,
-            "gamma_paper_ci95": g.gamma_paper_ci95 if fit else None,
-            "gamma_per_time": g.per_time if fit else None,
-            "gamma_outputs_used_s": g.used_s if fit else None,
-            "gamma_outputs_left_out": g.left_out if fit else None,
-            "gamma_residual_rms_k": fit.residual_rms_k if fit else None,
-            # the same bed heated from the other wall: the slab model's form error
-            "gamma_other_orientation": other.gamma if other else None,
-            "gamma_other_orientation_ci95": list(other.ci95) if other else None,
-            "gamma_model_form_range": g.model_form_range if fit else None,
-            "gamma_model_form_spread": g.model_form_spread if fit else None,
-            "gamma_steady": self.gamma_steady, "steady_balance": self.steady.balance,
-            "tau_s": self.tau.tau_s, "tau_series_s": self.tau.tau_series_s,
-            # the slab's own mid-plane time with the fitted diffusivity, L^2/(8 alpha)
-            "tau_slab_s": g.tau_slab_s if fit else None,
-            "gamma_mean_field": dict(self.mean_field),
-            "gamma_affine": self.fabric.gamma_affine,
-            "gamma_affine_transverse": self.fabric.gamma_affine_transverse,
-            "fabric_nz2": self.fabric.nz2, "fabric_nz2_conductance": self.fabric.nz2_conductance,
-            "contact_angle_edges": self.fabric.angle_edges,
-            "contact_angle_pdf": self.fabric.angle_pdf,
-            # Love-Weber stress of the particle contacts over the bed between the walls, along
-            # the axis (compare with the plate's pressure)
-            "contact_stress_axial_pa": self.fabric.contact_stress_axial_pa,
-            "length_m": self.slab.length_m, "wall_gap_m": self.slab.wall_gap_m,
-            "n_bins": self.n_bins, "run_wall_seconds": self.run.wall_seconds,
-            **flux,
-        }
+        return PostSummary(
+            thermal=str(self.thermal), packing=str(self.packing.path), law=self.run.law,
+            method=self.run.method, flags=self.run.flags, post_flags=",".join(self.post_flags),
+            not_measurable=dict(self.not_measurable),
+            n_particles=int(self.packing.n_particles), pressure_pa=self.pressure_pa,
+            solid_fraction=self.solid_fraction,
+            solid_fraction_between_walls=self.solid_fraction_between_walls,
+            mean_coordination=self.mean_coordination,
+            mean_normal_force_n=self.mean_normal_force_n, rattlers=self.rattlers,
+            bed_capacity_j_m3k=self.bed_capacity_j_m3k,
+            gamma=fit.gamma if fit else None, gamma_ci95=list(fit.ci95) if fit else None,
+            gamma_paper=g.gamma_paper if fit else None,
+            gamma_paper_ci95=g.gamma_paper_ci95 if fit else None,
+            gamma_per_time=g.per_time if fit else None,
+            gamma_outputs_used_s=g.used_s if fit else None,
+            gamma_outputs_left_out=g.left_out if fit else None,
+            gamma_residual_rms_k=fit.residual_rms_k if fit else None,
+            gamma_other_orientation=other.gamma if other else None,
+            gamma_other_orientation_ci95=list(other.ci95) if other else None,
+            gamma_model_form_range=g.model_form_range if fit else None,
+            gamma_model_form_spread=g.model_form_spread if fit else None,
+            gamma_steady=self.gamma_steady, steady_balance=self.steady.balance,
+            tau_s=self.tau.tau_s, tau_series_s=self.tau.tau_series_s,
+            tau_slab_s=g.tau_slab_s if fit else None,
+            gamma_mean_field=dict(self.mean_field),
+            gamma_affine=self.fabric.gamma_affine,
+            gamma_affine_transverse=self.fabric.gamma_affine_transverse,
+            fabric_nz2=self.fabric.nz2, fabric_nz2_conductance=self.fabric.nz2_conductance,
+            contact_angle_edges=self.fabric.angle_edges,
+            contact_angle_pdf=self.fabric.angle_pdf,
+            contact_stress_axial_pa=self.fabric.contact_stress_axial_pa,
+            length_m=self.slab.length_m, wall_gap_m=self.slab.wall_gap_m,
+            n_bins=self.n_bins, run_wall_seconds=self.run.wall_seconds,
+            flux_halo_ratio=self.flux.halo_ratio, flux_halo_radius=self.flux.halo_radius,
+            flux_interior_particles=self.flux.interior_particles,
+            flux_cov_raw=self.flux.cov_raw if cov else None,
+            flux_cov_raw_volume_weighted=self.flux.cov_raw_volume if cov else None,
+            flux_cov_halo=self.flux.cov_halo if cov else None,
+            flux_mean_over_q_per_area=self.flux.mean_over_q_per_area if cov else None)
+
+
+def _optional():
+    return dataclasses.field(default=None, metadata=column(optional=True))
+
+
+@dataclass(frozen=True, kw_only=True)
+class PostSummary:
+    """post/summary.json: one run's post-processed numbers (:meth:`PostResult.record`), its keys
+    these fields in this order; None: not measurable (``not_measurable`` says why). Written and
+    read by tdem_post.records (a missing or unknown key is refused in one line)."""
+    thermal: str                 # the run's thermal.h5
+    packing: str
+    law: str
+    method: str
+    flags: str                   # the run's own flags (thermal.h5, comma-separated)
+    post_flags: str              # post's own (comma-separated)
+    not_measurable: dict[str, str]       # {key: why} of what this run cannot give
+    n_particles: int
+    pressure_pa: float
+    solid_fraction: float
+    solid_fraction_between_walls: float
+    mean_coordination: float
+    mean_normal_force_n: float
+    rattlers: int
+    bed_capacity_j_m3k: float
+    gamma: float | None
+    gamma_ci95: list[float] | None
+    # 003 App. A writes alpha = kappa_eff/(rho c_p) with rho the particle density (Table 1): the
+    # same fitted diffusivity read in that convention
+    gamma_paper: float | None
+    gamma_paper_ci95: list[float] | None
+    gamma_per_time: list | None          # [t_s, gamma, ci95 low, ci95 high] per output
+    gamma_outputs_used_s: list[float] | None
+    gamma_outputs_left_out: list | None  # [[t_s, why], ...]
+    gamma_residual_rms_k: float | None
+    # the same bed heated from the other wall: the slab model's form error
+    gamma_other_orientation: float | None
+    gamma_other_orientation_ci95: list[float] | None
+    gamma_model_form_range: list[float] | None
+    gamma_model_form_spread: float | None
+    gamma_steady: float
+    steady_balance: float
+    tau_s: float | None
+    tau_series_s: float | None
+    tau_slab_s: float | None             # L^2/(8 alpha), the slab's with the fitted diffusivity
+    gamma_mean_field: dict[str, float]   # {law of MEAN_FIELD_LAWS: gamma_mf}
+    gamma_affine: float
+    gamma_affine_transverse: float
+    fabric_nz2: float
+    fabric_nz2_conductance: float
+    contact_angle_edges: list[float]     # rad
+    contact_angle_pdf: list[float]
+    # Love-Weber stress of the particle contacts over the bed between the walls, along the axis
+    # (compare with the plate's pressure)
+    contact_stress_axial_pa: float
+    length_m: float
+    wall_gap_m: float
+    n_bins: int
+    run_wall_seconds: float
+    flux_halo_ratio: float
+    flux_halo_radius: str
+    flux_interior_particles: int
+    flux_cov_raw: float | None = _optional()       # (absent: no interior particle)
+    flux_cov_raw_volume_weighted: float | None = _optional()
+    flux_cov_halo: float | None = _optional()
+    flux_mean_over_q_per_area: float | None = _optional()
+    files: list[str] | None = _optional()          # what write_post wrote beside it
 
 
 # ----------------------------------------------------------------------------- compute
@@ -835,22 +898,24 @@ def write_post(result: PostResult, plots: bool = True) -> dict:
         if _stale(old):
             shutil.rmtree(old, ignore_errors=True)
     tmp = parent / f".post.tmp-{os.getpid()}"
-    summary = result.summary()
-    summary["files"] = ["summary.json"]
+    record = result.record()
+    summary = to_dict(record)           # (the figures' labels read it)
+    files = ["summary.json"]
     slab, fit = result.slab, result.gamma.fit if result.gamma else None
     try:
         tmp.mkdir()
         if plots and fit is not None:
-            summary["files"] += ["profiles.png", "profiles.csv"]
+            files += ["profiles.png", "profiles.csv"]
             p = result.profiles
             _plot_profiles(tmp, p.times_s, p.edges_m, p.values_k, fit, slab.length_m,
                            slab.bottom.value, slab.top.value,
                            result.run.scene.initial_temperature, summary)
         if plots:
-            summary["files"] += ["flux_section.png", "flux_section.csv"]
+            files += ["flux_section.png", "flux_section.csv"]
             _plot_flux_section(tmp, result.packing, slab.axis, result.flux.q_raw,
                                result.flux.q_halo, summary)
-        (tmp / "summary.json").write_text(json.dumps(summary, indent=1))
+        record = dataclasses.replace(record, files=files)
+        (tmp / "summary.json").write_text(json_text(record))
         _swap_in(tmp, out_dir)
     except BaseException as e:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -858,7 +923,7 @@ def write_post(result: PostResult, plots: bool = True) -> dict:
             name = str(e.filename or tmp).replace(str(tmp), str(out_dir), 1)
             raise OSError(e.errno, e.strerror or str(e), name) from None
         raise
-    return summary
+    return to_dict(record)
 
 
 def post_run(thermal_h5, n_bins: int = 10, plots: bool = True, halo_ratio: float = 3.0,

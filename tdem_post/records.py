@@ -4,6 +4,7 @@ One serializer writes a record from its fields (``dataclasses.fields`` / ``asdic
 reads it back into its dataclass:
 
     write_json(path, record)            record_from_json(cls, path) -> record
+    json_text(record) -> str
     to_dict(record) -> dict             from_dict(cls, data, where) -> record
     write_csv(path, records)            read_csv(cls, path) -> [record, ...]
     markdown_table(records) -> [line, ...]
@@ -14,11 +15,13 @@ column. JSON keeps nested records, tuples and dicts; a CSV row is a flat record 
 None as an empty cell, NaN as an empty cell of a float column).
 
 Field metadata (:func:`column`) says how a field shows in a markdown table (its place, heading
-and cell text) and whether its CSV column is left out when no row has a value (``optional``).
+and cell text) and whether it is ``optional``: left out of the JSON when None (and absent read as
+None), its CSV column left out when no row has a value.
 """
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import json
 import math
 import types
@@ -35,17 +38,35 @@ class RecordError(ValueError):
 def column(*, md: tuple | None = None, optional: bool = False) -> dict:
     """Metadata of a record field: ``md = (place, heading, cell)`` puts it in
     :func:`markdown_table` (``place`` sorts the columns, ``cell(record) -> str`` its text);
-    ``optional``: its CSV column is left out when every row's value is None."""
+    ``optional``: left out of the JSON when None (absent: read as None), its CSV column left out
+    when every row's value is None."""
     return {"md": md, "optional": optional}
 
 
 def to_dict(record) -> dict:
-    """The record as plain JSON data (nested records as dicts), field by field."""
-    return dataclasses.asdict(record)
+    """The record as plain JSON data (nested records as dicts), field by field in their order;
+    an optional field that is None is left out."""
+    return {f.name: _plain(getattr(record, f.name)) for f in dataclasses.fields(record)
+            if not (f.metadata.get("optional") and getattr(record, f.name) is None)}
+
+
+def _plain(v):
+    if dataclasses.is_dataclass(v) and not isinstance(v, type):
+        return to_dict(v)
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    return v
+
+
+def json_text(record) -> str:
+    """The record's JSON text (one field per key, indented by one)."""
+    return json.dumps(to_dict(record), indent=1)
 
 
 def write_json(path: Path, record) -> None:
-    write_text_atomic(Path(path), json.dumps(to_dict(record), indent=1))
+    write_text_atomic(Path(path), json_text(record))
 
 
 def record_from_json(cls, path: Path):
@@ -63,17 +84,21 @@ def from_dict(cls, data, where: str):
     if not isinstance(data, dict):
         raise RecordError(f"{where}: expected a {cls.__name__} record (an object), got "
                           f"{type(data).__name__}")
-    names = [f.name for f in dataclasses.fields(cls) if f.init]
-    missing = [n for n in names if n not in data]
-    if missing:
-        raise RecordError(f"{where}: {missing[0]}: missing (a {cls.__name__} has "
-                          f"{', '.join(names)})")
+    fields = [f for f in dataclasses.fields(cls) if f.init]
+    names = [f.name for f in fields]
+    missing = [f.name for f in fields if f.name not in data and not f.metadata.get("optional")]
     unknown = [k for k in data if k not in names]
+    if missing:
+        near = difflib.get_close_matches(missing[0], unknown, n=1)
+        raise RecordError(f"{where}: {missing[0]}: missing (a field of every {cls.__name__}"
+                          + (f"; the file has {near[0]!r}" if near else "") + ")")
     if unknown:
-        raise RecordError(f"{where}: {unknown[0]}: unknown field of a {cls.__name__} (known: "
-                          f"{', '.join(names)})")
+        near = difflib.get_close_matches(unknown[0], names, n=1)
+        raise RecordError(f"{where}: {unknown[0]}: unknown field of a {cls.__name__}"
+                          + (f" (did you mean {near[0]!r}?)" if near else ""))
     hints = typing.get_type_hints(cls)
-    return cls(**{n: _value(hints[n], data[n], f"{where}: {n}") for n in names})
+    return cls(**{n: _value(hints[n], data[n], f"{where}: {n}") if n in data else None
+                  for n in names})
 
 
 def _value(tp, v, where):

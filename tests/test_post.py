@@ -220,6 +220,19 @@ output_times = [20.0, 40.0, 80.0, 150.0, 300.0, 600.0]
         phi * z_mean * h / (2 * math.pi * radius * 205.0), rel=1e-9)
     assert (math.pi / 6) * 6 * h / (2 * math.pi * (pitch / 2) * 205.0) == pytest.approx(
         gamma_exact, rel=1e-12)
+    # summary.json is post's PostSummary record, written from its fields in their order and
+    # read back to the same text (issue 26)
+    import dataclasses
+    from tdem_post.post_run import PostSummary
+    from tdem_post.records import json_text, record_from_json
+    path = tmp_path / "out" / "post" / "summary.json"
+    record = record_from_json(PostSummary, path)
+    assert json_text(record) == path.read_text() and record.gamma == s["gamma"]
+    assert list(s) == [f.name for f in dataclasses.fields(PostSummary) if f.name in s]
+    # a 3 x 3 lattice has no interior sphere for the flux CoV: the keys are absent, as before
+    assert s["files"] == ["summary.json"] and "flux_cov_raw" not in s
+    assert record.flux_cov_raw is None and record.flux_interior_particles == s[
+        "flux_interior_particles"]
 
 
 def test_post_of_a_steady_run_reports_the_steady_etc_and_no_fit(tmp_path, capsys):

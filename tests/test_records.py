@@ -73,30 +73,41 @@ def test_a_results_csv_without_a_column_is_refused(tmp_path, column_name):
         read_csv(CaseRow, tmp_path / "results.csv")
 
 
-def test_a_summary_without_a_key_the_row_needs_names_the_summary():
-    summary = _summary()
-    row = CaseRow.from_summary(summary)
-    assert row.gamma == summary["gamma"] and row.gamma_ci95_high == summary["gamma_ci95"][1]
-    assert row.gamma_mean_field_bob == summary["gamma_mean_field"]["bob"]
-    del summary["tau_slab_s"]
-    with pytest.raises(RecordError, match=r"c/post/summary.json: tau_slab_s: missing"):
-        CaseRow.from_summary(summary)
-    summary = _summary()
-    summary["gamma"] = None                     # post's "not measurable": NaN in the table
-    assert CaseRow.from_summary(summary).gamma != CaseRow.from_summary(summary).gamma
+def test_a_case_summary_is_its_record_and_a_renamed_key_is_posted_again(tmp_path, monkeypatch,
+                                                                        capsys):
+    """A campaign case's summary.json is its CaseSummary, byte for byte; its row is results.csv's;
+    a summary.json whose key was renamed is refused by the reader (one line, the file and the
+    key), and the campaign posts that case again instead of reading a NaN column."""
+    import pandas as pd
+    from tdem import campaign as camp
+    from tdem.campaign_record import CaseSummary
+    from tdem_post.records import json_text
+    from test_campaign import BEDS, NO_PACK
+    monkeypatch.setattr(camp, "build_packings", lambda *a, **k: BEDS[:1])
+    path = tmp_path / "c.toml"
+    path.write_text(NO_PACK + "theta = 0.5\n")
+    camp.run_campaign(path, tmp_path / "out", threads=1, quiet=True)
+    summary_json = tmp_path / "out" / "cases" / f"{BEDS[0].stem}_pipe" / "post" / "summary.json"
+    summary = record_from_json(CaseSummary, summary_json)
+    assert json_text(summary) == summary_json.read_text()
+    assert summary.scene_sha256 and summary.case_wall_seconds > 0 and summary.files
+    row = CaseRow.from_summary(summary, 1.6e6)
+    assert same(row, read_csv(CaseRow, tmp_path / "out" / "results.csv")[0])
+    assert row.gamma_mean_field_bob == summary.gamma_mean_field["bob"]
+    before = pd.read_csv(tmp_path / "out" / "results.csv")
 
-
-def _summary() -> dict:
-    """A case's summary as the campaign holds it (post's keys the row reads, with the target)."""
-    return dict(thermal="c/thermal.h5", pressure_pa=1.01e5, pressure_target_pa=1e5, law="pipe",
-                n_particles=300, mean_coordination=4.0, solid_fraction=0.56,
-                mean_normal_force_n=1.2, gamma=0.0118, gamma_ci95=[0.0117, 0.0119],
-                gamma_residual_rms_k=1.5, gamma_paper=0.022, gamma_steady=0.0124,
-                gamma_affine=0.013, gamma_affine_transverse=0.011, fabric_nz2=0.37,
-                fabric_nz2_conductance=0.38, contact_stress_axial_pa=6.7e4, tau_s=1298.0,
-                tau_series_s=None, tau_slab_s=1358.0, length_m=0.15,
-                gamma_mean_field=dict(bob=0.0108, argento=0.0094, pipe=0.0111), flags="",
-                post_flags="", not_measurable={})
+    data = json.loads(summary_json.read_text())
+    data["gamma_stedy"] = data.pop("gamma_steady")
+    summary_json.write_text(json.dumps(data, indent=1))
+    with pytest.raises(RecordError) as e:
+        record_from_json(CaseSummary, summary_json)
+    assert str(e.value) == (f"{summary_json}: gamma_steady: missing (a field of every "
+                            "CaseSummary; the file has 'gamma_stedy')")
+    capsys.readouterr()
+    camp.run_campaign(path, tmp_path / "out", threads=1, quiet=True)
+    assert "not the current summary's record: post-processed again" in capsys.readouterr().out
+    after = pd.read_csv(tmp_path / "out" / "results.csv")
+    assert after.gamma_steady.iloc[0] == before.gamma_steady.iloc[0] > 0
 
 
 def test_markdown_table_from_field_metadata():
