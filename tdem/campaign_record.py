@@ -4,8 +4,10 @@ and the table, stored as ``campaign.json`` beside report.md. results.csv, report
 docs/validation.md are written from, or read from, these records (tdem_post.records: one
 serializer, one reader that refuses a missing or unknown field).
 
-A field declares its CSV column and, with ``md``, its column in report.md's table: adding a
-per-case quantity is a field here and its value in :meth:`CaseRow.from_summary`.
+A field declares its CSV column and, with ``md``, its column in report.md's table; a field named
+as a key of the case's summary takes its value. Adding a per-case quantity: a field of
+:class:`~tdem_post.post_run.PostSummary` and its value in ``PostResult.record()``
+(tdem_post/post_run.py), and the same field here (3 edits in 2 files).
 """
 from __future__ import annotations
 
@@ -93,32 +95,26 @@ class CaseSummary(PostSummary):
 
 def _from_summary(cls, summary: CaseSummary, pressure_target_pa: float,
                   seed: int | None = None):
-    """A case's row from its summary and the series' nominal pressure; post's None ("not
-    measurable") is NaN."""
+    """A case's row from its summary and the series' nominal pressure: a field named as one
+    of the summary's is its value (post's None, "not measurable", is NaN); the others are
+    derived here (:data:`_DERIVED`)."""
     def get(key, k=None):
         v = getattr(summary, key)
         if v is not None and k is not None:
             v = v[k]
         return NAN if v is None else v
-    return cls(
-        seed=seed, pressure_pa=get("pressure_pa"), pressure_target_pa=float(pressure_target_pa),
-        law=get("law"), n_particles=get("n_particles"),
-        mean_coordination=get("mean_coordination"), solid_fraction=get("solid_fraction"),
-        mean_normal_force_n=get("mean_normal_force_n"), gamma=get("gamma"),
+    derived = dict(
+        seed=seed, pressure_target_pa=float(pressure_target_pa),
         gamma_ci95_low=get("gamma_ci95", 0), gamma_ci95_high=get("gamma_ci95", 1),
-        gamma_residual_rms_k=get("gamma_residual_rms_k"), gamma_paper=get("gamma_paper"),
-        gamma_steady=get("gamma_steady"), gamma_affine=get("gamma_affine"),
-        gamma_affine_transverse=get("gamma_affine_transverse"), fabric_nz2=get("fabric_nz2"),
-        fabric_nz2_conductance=get("fabric_nz2_conductance"),
-        contact_stress_axial_pa=get("contact_stress_axial_pa"), tau_s=get("tau_s"),
-        tau_series_s=get("tau_series_s"), tau_slab_s=get("tau_slab_s"),
-        length_m=get("length_m"),
         **{f"gamma_mean_field_{law}": get("gamma_mean_field", law) for law in MEAN_FIELD_LAWS},
-        # unknown (NaN) for a case posted by `tdem post` rather than run by the campaign
-        thermal_wall_seconds=get("thermal_wall_seconds"),
-        case_wall_seconds=get("case_wall_seconds"),
-        flags=summary.flags or "none", post_flags=summary.post_flags,
+        flags=summary.flags or "none",      # the run's thermal.h5 flags, "none" when clean
         not_measurable="; ".join(f"{k}: {v}" for k, v in summary.not_measurable.items()))
+    return cls(**{f.name: derived[f.name] if f.name in derived else get(f.name)
+                  for f in dataclasses.fields(cls)})
+
+
+_DERIVED = {"seed", "pressure_target_pa", "gamma_ci95_low", "gamma_ci95_high", "flags",
+            "not_measurable", *(f"gamma_mean_field_{law}" for law in MEAN_FIELD_LAWS)}
 
 
 # one case (pressure x law [x seed]) of a campaign: a row of results.csv and of report.md
@@ -127,6 +123,13 @@ CaseRow = dataclasses.make_dataclass(
     namespace={"__module__": __name__, "from_summary": classmethod(_from_summary),
                "__doc__": "One case (pressure x law [x seed]): a row of results.csv and of "
                           "report.md's table; NaN where post found a value not measurable."})
+
+
+# every other field of a row is a summary's key (a misspelt field fails here, at import)
+_unknown = {f.name for f in dataclasses.fields(CaseRow)} - _DERIVED \
+    - {f.name for f in dataclasses.fields(CaseSummary)}
+if _unknown:
+    raise TypeError(f"CaseRow fields neither derived nor a summary's: {sorted(_unknown)}")
 
 
 @dataclass(frozen=True)
