@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 APT_PACKAGES := yade python3-h5py python3-scipy python3-venv liggghts openmpi-bin
 
-.PHONY: demo test test-fast coverage deps apt validate bench bench-packings bench-walled bench-bed clean
+.PHONY: demo test test-fast coverage deps apt validate bench bench-packings bench-walled bench-bed bench-peers clean
 
 demo: deps
 	$(BIN)/tdem demo
@@ -68,6 +68,12 @@ bench-packings: deps
 # time (~10 min): bench/results/bed_series_7500_idle.{csv,md}, quoted by docs/packings.md.
 bench-bed: deps
 	$(BIN)/python bench/bench_bed.py --scene runs/bed_7500.toml --seeds 1 --stem bed_series_7500_idle --force
+
+# Peers side by side (issue 27): YADE's ThermalEngine, LIGGGHTS' conduction fix and tdem on the
+# same LIGGGHTS-made beds of 2e3, 1e4 and 5e4 spheres, one run, both cores (~20 min; the beds
+# are kept in bench/out/peers and reused): bench/results/peers.{csv,md}, docs/peers.md's table.
+bench-peers: deps
+	$(BIN)/python bench/bench_peers.py
 
 # Long validation: the 7,500-sphere pressure campaign of the pipe-model paper (YADE ~3 min,
 # thermal ~3 min), quoted in docs/campaign.md; the ETC of composites on the 10,000-sphere dense

@@ -162,7 +162,11 @@ def child(task: str, d: Path, law: str) -> dict:
             out["time_s"] = time.perf_counter() - t
             out.update(steps=r.steps, cu_per_s=r.contact_updates_per_second,
                        error=_err(r.temperature_k[-1], ref))
-            np.save(d / f"tdem_explicit_{law}.npy", r.temperature_k[-1])
+            np.save(d / f"tdem_explicit_{law}_{ARGS.threads}.npy", r.temperature_k[-1])
+            if ARGS.threads == 1:
+                out["peak_rss_kb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+                out["rss_before_solve_kb"] = rss_before
+                return out
             # the steady question by the same march: chunks of `steps` until within 1 %
             state, total, t_total, chunks = r.state, r.steps, out["time_s"], 1
             while _err(state.temperature_k, steady) >= TOL and chunks < 4000:
@@ -194,11 +198,12 @@ def child(task: str, d: Path, law: str) -> dict:
     return out
 
 
-def run_child(task, d, law):
-    env = dict(os.environ, NUMBA_NUM_THREADS="2", OMP_NUM_THREADS="1",
+def run_child(task, d, law, threads=2):
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS="1",
                OPENBLAS_NUM_THREADS="1")
     r = subprocess.run([sys.executable, __file__, "--child", task, "--dir", str(d), "--law", law,
-                        "--steps", str(ARGS.steps)], capture_output=True, text=True, env=env)
+                        "--steps", str(ARGS.steps), "--threads", str(threads)],
+                       capture_output=True, text=True, env=env)
     if r.returncode != 0:
         sys.exit(f"bench_peers: tdem {task} ({law}) failed: {r.stderr[-2000:]}")
     return json.loads(r.stdout.strip().splitlines()[-1])
@@ -303,8 +308,10 @@ def measure(size: str) -> list[dict]:
             f"error {100 * prep['explicit_error']:.3f} %, reference error ~"
             f"{100 * prep['ref_error_estimate']:.1e} %, build {prep['build_s']:.2f} s")
         tdem = {m: run_child(m, d, law) for m in ("explicit", "implicit", "steady")}
+        tdem["explicit1"] = run_child("explicit", d, law, threads=1)
         ref = np.load(d / f"ref_{law}.npz")["transient"]
-        t_expl = np.load(d / f"tdem_explicit_{law}.npy")
+        t_expl = np.load(d / f"tdem_explicit_{law}_2.npy")
+        t_expl1 = np.load(d / f"tdem_explicit_{law}_1.npy")
         contacts, steps = prep["contacts"], prep["steps"]
         steady_steps = tdem["explicit"]["steady_steps"]
         base = dict(size=size, n_particles=prep["n_particles"], contacts=contacts, law=law,
@@ -329,8 +336,16 @@ def measure(size: str) -> list[dict]:
                              peak_rss_mb=p["peak_rss_kb"] / 1024,
                              answer_vs_tdem=_err(p["temperature_k"], t_expl) * SPAN
                              / float(np.abs(t_expl).max()),
-                             note=extra))
+                             note=f"{extra}; load {os.getloadavg()[0]:.1f}"))
         e, i, s = tdem["explicit"], tdem["implicit"], tdem["steady"]
+        e1 = tdem["explicit1"]
+        rows.append(dict(base, code="tdem 1 thread", method="explicit", time_s=e1["time_s"],
+                         cu_per_s=e1["cu_per_s"], error_pct=100 * e1["error"],
+                         transient_1pct_s=e1["time_s"], steady_1pct_s=math.nan,
+                         steady_projected=False, peak_rss_mb=e1["peak_rss_kb"] / 1024,
+                         answer_vs_tdem=float(np.abs(t_expl1 - t_expl).max()
+                                              / np.abs(t_expl).max()),
+                         note=f"load {os.getloadavg()[0]:.1f}"))
         rows.append(dict(base, code="tdem 2 threads", method="explicit", time_s=e["time_s"],
                          cu_per_s=e["cu_per_s"], error_pct=100 * e["error"],
                          transient_1pct_s=e["time_s"], steady_1pct_s=e["steady_time_s"],
@@ -347,7 +362,7 @@ def measure(size: str) -> list[dict]:
                          steady_1pct_s=s["time_s"], steady_projected=False,
                          peak_rss_mb=s["peak_rss_kb"] / 1024, answer_vs_tdem=math.nan,
                          note=f"steady error {100 * s['steady_error']:.1e} %"))
-        for row in rows[-(len(peers) + 3):]:
+        for row in rows[-(len(peers) + 4):]:
             log(f"    {row['code']:<18} {row['method']:<24} {row['time_s']:9.4f} s  "
                 f"{row['cu_per_s']:9.3g} cu/s  err {row['error_pct']:.3g} %  "
                 f"{row['peak_rss_mb']:.0f} MB  answer {row['answer_vs_tdem']:.2g}  "
@@ -369,23 +384,33 @@ def fmt(v):
 
 
 def ratio_lines(rows):
+    """One line per size and peer: each side's best configuration (threads, ranks) named."""
     out = []
     for size in dict.fromkeys(r["size"] for r in rows):
         for law in LAWS:
             sel = [r for r in rows if r["size"] == size and r["law"] == law]
             if not sel:
                 continue
-            tdem_e = next(r for r in sel if r["code"].startswith("tdem")
-                          and r["method"] == "explicit")
-            tdem_i = next(r for r in sel if r["method"].startswith("implicit"))
-            tdem_s = next(r for r in sel if r["method"] == "steady")
-            for p in (r for r in sel if not r["code"].startswith("tdem")):
-                out.append(
-                    f"| {size} | {p['code']} | {tdem_e['cu_per_s'] / p['cu_per_s']:.1f} | "
-                    f"{p['transient_1pct_s'] / min(tdem_e['time_s'], tdem_i['time_s']):.0f} | "
-                    f"{p['steady_1pct_s'] / tdem_s['time_s']:.0f} | "
-                    f"{p['peak_rss_mb'] / tdem_e['peak_rss_mb']:.2f} | "
-                    f"{p['answer_vs_tdem']:.1e} |")
+            expl = [r for r in sel if r["code"].startswith("tdem") and r["method"] == "explicit"]
+            t_e = max(expl, key=lambda r: r["cu_per_s"])
+            t_i = next(r for r in sel if r["method"].startswith("implicit"))
+            t_s = next(r for r in sel if r["method"] == "steady")
+            peers = [r for r in sel if not r["code"].startswith("tdem")]
+            p = max(peers, key=lambda r: r["cu_per_s"])
+            fastest = min((t_e, t_i), key=lambda r: r["transient_1pct_s"])
+            alone = ""
+            if "ThermalEngine alone" in p["note"]:
+                engine = max(float(r["note"].split("ThermalEngine alone ")[1].split()[0])
+                             for r in peers)
+                alone = f" ({t_e['cu_per_s'] / engine:.0f} x ThermalEngine alone)"
+            out.append(
+                f"| {size} | {p['contacts']} | {p['code']} | {t_e['code']} | "
+                f"{t_e['cu_per_s'] / p['cu_per_s']:.0f}{alone} | "
+                f"{p['transient_1pct_s'] / fastest['transient_1pct_s']:.0f} "
+                f"({fastest['method'].split(',')[0]}, {fastest['code'][5:]}) | "
+                f"{min(r['steady_1pct_s'] for r in peers) / t_s['steady_1pct_s']:.0f} | "
+                f"{p['peak_rss_mb'] / t_e['peak_rss_mb']:.2f} | "
+                f"{max(r['answer_vs_tdem'] for r in peers):.1e} |")
     return out
 
 
@@ -399,7 +424,8 @@ def write_outputs(rows, elapsed):
             w.writerow([r[c] for c in COLUMNS])
     when = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     host = (f"{platform.node()}, {os.cpu_count()} cores, {platform.platform()}; one run of "
-            f"`make bench-peers` ({elapsed / 60:.1f} min), {when}")
+            f"`make bench-peers` ({elapsed / 60:.1f} min), {when}; load average (1 min) at the "
+            f"end {os.getloadavg()[0]:.1f} (other jobs shared the 2 cores)")
     table = ["| size | N | contacts | law | code | method | dt (s) | steps | time (s) | "
              "contact-updates/s | error (% of span) | to 1 %: transient (s) | to 1 %: steady "
              "(s) | peak RSS (MB) | answer vs tdem explicit (rel.) |",
@@ -411,12 +437,12 @@ def write_outputs(rows, elapsed):
                      f"{fmt(r['time_s'])} | {fmt(r['cu_per_s'])} | {fmt(r['error_pct'])} | "
                      f"{fmt(r['transient_1pct_s'])} | {steady} | {fmt(r['peak_rss_mb'])} | "
                      f"{fmt(r['answer_vs_tdem'])} |")
-    ratios = ["| size | peer | tdem explicit / peer, contact-updates/s | peer / tdem, time to "
-              "1 % (transient; tdem's faster of explicit and implicit) | peer / tdem, time to "
-              "1 % (steady; tdem steady, peer projected) | peer / tdem explicit, peak RSS | "
-              "answer: peer vs tdem explicit, same law (max rel.) |",
-              "|---|---|---|---|---|---|---|"] + ratio_lines(rows)
-    block = "\n".join([f"Measured on {host}.", "", "**Ratios** (tdem 2 numba threads):", "",
+    ratios = ["| size | contacts | peer (its fastest) | tdem explicit (its fastest) | "
+              "contact-updates/s, tdem / peer (whole step) | time to 1 %, transient: peer / "
+              "tdem (tdem's fastest way) | time to 1 %, steady: peer (projected) / tdem steady | "
+              "peak RSS, peer / tdem | answer: peer vs tdem, same law (max rel.) |",
+              "|---|---|---|---|---|---|---|---|---|"] + ratio_lines(rows)
+    block = "\n".join([f"Measured on {host}.", "", "**Ratios**:", "",
                        *ratios, "", "**All rows** (bench/results/peers.csv):", "", *table])
     (RESULTS / "peers.md").write_text(
         "# Peers side by side (bench/bench_peers.py; docs/peers.md explains)\n\n" + block + "\n")
@@ -453,6 +479,7 @@ def parse():
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("--dir", help=argparse.SUPPRESS)
     ap.add_argument("--law", help=argparse.SUPPRESS)
+    ap.add_argument("--threads", type=int, default=2, help=argparse.SUPPRESS)
     return ap.parse_args()
 
 
