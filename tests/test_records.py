@@ -192,3 +192,36 @@ def test_case12_agreement_is_computed_from_the_record():
     r = case12_campaign.run(framework.Context(number=12, quick=True))
     assert f"steady γ agree within {agree['steady']} %" in r.section_md.replace("\n", " ")
     assert f"predict γ within {agree['mean_field']} %" in r.section_md.replace("\n", " ")
+
+
+def test_case12_reads_a_seeded_campaigns_record(tmp_path, monkeypatch):
+    """With a five-seed campaign's record (runs/out/campaign_7500_seeds/campaign.json), case 12
+    takes the seed exponents and ratios from it, not from docs/campaign.md's prose: here a
+    record of two seeds whose pipe exponents are 0.35 and 0.37."""
+    data = json.loads(COMMITTED.read_text())
+    data["seeds"] = [1, 2]
+    data["rows"] = [dict(r, seed=s) for s in (1, 2) for r in data["rows"]]
+    fits = []
+    for s, shift in ((1, -0.01), (2, 0.01)):
+        for f in data["fits"]:
+            f = json.loads(json.dumps(f))
+            f["seed"] = s
+            f["gamma"]["b"] = round(0.36 + shift, 10)
+            f["gamma_paper_over_paper"] = [v * (1 + shift) for v in f["gamma_paper_over_paper"]]
+            fits.append(f)
+    data["fits"] = fits
+    (tmp_path / "seeds.json").write_text(json.dumps(data))
+    monkeypatch.setattr(case12_campaign, "FRESH", tmp_path / "absent.json")
+    monkeypatch.setattr(case12_campaign, "SEEDS_FRESH", tmp_path / "seeds.json")
+    monkeypatch.setattr(case12_campaign, "ROOT", tmp_path)
+    monkeypatch.setattr(case12_campaign, "COMMITTED", tmp_path / "one.json")
+    (tmp_path / "one.json").write_text(COMMITTED.read_text())
+    monkeypatch.setattr(case12_campaign, "DOC", tmp_path / "no_campaign.md")
+    r = case12_campaign.run(framework.Context(number=12, quick=False))
+    b, sd = r.numbers["seeds"]["gamma_exponent"]
+    assert b == pytest.approx(0.36, abs=1e-12) and sd == pytest.approx(0.02 / 2 ** 0.5)
+    assert r.numbers["seeds_source"] == "seeds.json" and r.our_n == "7,500 × 2 seeds"
+    record = record_from_json(CampaignRecord, COMMITTED)
+    assert r.numbers["seeds"]["gamma_paper_ratio"] == pytest.approx(
+        record.fits_of("pipe").gamma_paper_over_paper, rel=1e-12)
+    assert "γ ∝ p^(0.36 ± 0.014)" in r.section_md
