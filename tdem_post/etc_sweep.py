@@ -25,7 +25,7 @@ import numpy as np
 from thermal_kernel.calibrate import flux_test
 from thermal_kernel.packing import Packing
 from thermal_kernel.scene import Material, Scene, SceneError
-from yade_scripts.placement import random_sequential_addition  # the one placement routine
+from thermal_kernel.placement import random_sequential_addition  # the one placement routine
 
 from .etc import bruggeman, hashin_shtrikman, maxwell
 from thermal_kernel.atomic import savefig_atomic
@@ -44,7 +44,7 @@ def dispersion_phase(packing: Packing, volume_fraction: float, diameter_m: float
                      max_attempts: int = 200_000) -> np.ndarray:
     """Phase 1 for the particles whose centre lies in one of a random set of non-overlapping
     spheres of ``diameter_m``, wholly inside the box, of total volume ``volume_fraction`` of it
-    (seeded random sequential addition, yade_scripts/placement.py: candidates uniform in the box
+    (seeded random sequential addition, thermal_kernel/placement.py: candidates uniform in the box
     shrunk by r, at most ``max_attempts`` in all; it jams near 0.3 for d = L/6)."""
     lo, hi = packing.domain_lo, packing.domain_hi
     r = 0.5 * diameter_m

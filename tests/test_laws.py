@@ -8,7 +8,13 @@ import math
 import numpy as np
 import pytest
 
-from thermal_kernel.lattice import simple_cubic_packing
+from thermal_kernel.hand_inputs import POISSON, YOUNG_PA
+from thermal_kernel.hand_inputs import capacity as _c
+from thermal_kernel.hand_inputs import conductance as _h
+from thermal_kernel.hand_inputs import hertz_radius_equal_spheres as _zeta
+from thermal_kernel.hand_inputs import lattice_inputs as _lattice
+from thermal_kernel.hand_inputs import one_contact as _one
+from thermal_kernel.hand_inputs import wall_conductance as _g
 from thermal_kernel.laws import LAWS, UnknownLawError, get_law
 from thermal_kernel.laws.base import ContactInput, ParticleInput, WallContactInput
 from thermal_kernel.laws.terreros import local_volume_fraction, transmission_surface_nd
@@ -22,7 +28,7 @@ GEOMETRIC = {"terreros", "haddad", "yade"}
 # linear scaling with conductivity (a resistance used as a conductance scales as 1/k: tested).
 DIAGNOSTIC = {"pipe_resistance_as_conductance"}
 
-E, NU = 5e10, 0.2
+E, NU = YOUNG_PA, POISSON                  # the hand-computed values' material (003 Table 1)
 E_STAR = E / (2 * (1 - NU ** 2))           # two bodies of one material
 
 
@@ -70,21 +76,6 @@ def _walls(seed=2, k=20):
     return WallContactInput(radius_m=r, overlap_m=overlap, normal_force_n=force,
                             conductivity_particle=rng.uniform(1, 200, k),
                             conductivity_wall=rng.uniform(1, 200, k), young_pa=E, poisson=NU)
-
-
-def _h(name, contacts, **params):
-    law = get_law(name)
-    return np.asarray(law.conductance(contacts, {**law.defaults, **params}))
-
-
-def _c(name, particles, **params):
-    law = get_law(name)
-    return np.asarray(law.capacity(particles, {**law.defaults, **params}))
-
-
-def _g(name, walls, **params):
-    law = get_law(name)
-    return np.asarray(law.wall_conductance(walls, {**law.defaults, **params}))
 
 
 # --- registry ---------------------------------------------------------------------------------
@@ -190,14 +181,6 @@ def test_wall_conductance_battery(name):
 
 # --- hand-computed values, one (or more) per law -----------------------------------------------
 
-def _one(r_i, r_j, d, k_i, k_j, force=0.0, n_i=6, n_j=6):
-    a = lambda x: np.array([x], dtype=float)  # noqa: E731
-    return ContactInput(radius_i_m=a(r_i), radius_j_m=a(r_j), distance_m=a(d),
-                        overlap_m=a(r_i + r_j - d), normal_force_n=a(force),
-                        conductivity_i=a(k_i), conductivity_j=a(k_j), neighbours_i=a(n_i),
-                        neighbours_j=a(n_j), young_pa=E, poisson=NU)
-
-
 def test_terreros_by_hand():
     # 000, sec. 4.4: S_i = S^nd R_i^2 with S^nd(6) = 4.0, S^nd(9) = 2.29545 (Table 1)
     c = _one(1e-3, 0.8e-3, 1.75e-3, 10.0, 10.0, n_i=6, n_j=9)
@@ -228,11 +211,6 @@ def test_haddad_by_hand():
                       neighbours=np.array([7]), solid_fraction=0.64)
     assert _c("haddad", p)[0] == pytest.approx(0.9 * 7800 * 4 / 3 * math.pi * 1e-9 / 0.64,
                                                rel=1e-12)
-
-
-def _zeta(force, radius):
-    # 003, eq. 34-35, 40: zeta = (3 F_n (1 - sigma^2) R_P / (4 E))^(1/3), equal spheres
-    return (3 * force * (1 - NU ** 2) * radius / (4 * E)) ** (1 / 3)
 
 
 def test_pipe_by_hand_equal_spheres():
@@ -374,23 +352,6 @@ def test_terreros_table_interpolates_and_clamps():
     # outside the table: clamped to rows 1 and 20
     assert transmission_surface_nd(0) == 19.98076 and local_volume_fraction(0) == 0.08502
     assert transmission_surface_nd(30) == 0.75810 and local_volume_fraction(30) == 0.86109
-
-
-def _lattice(shape=(5, 5, 5), a=2e-3, lam=134.0, rho=2790.0, cp=880.0):
-    pk = simple_cubic_packing(shape, spacing_m=a)
-    nb = np.bincount(pk.pair.reshape(-1), minlength=pk.n_particles)
-    i, j = pk.pair[:, 0], pk.pair[:, 1]
-    m, n = pk.pair.shape[0], pk.n_particles
-    contacts = ContactInput(
-        radius_i_m=pk.radius[i], radius_j_m=pk.radius[j],
-        distance_m=np.linalg.norm(pk.branch, axis=1), overlap_m=pk.overlap,
-        normal_force_n=pk.normal_force, conductivity_i=np.full(m, lam),
-        conductivity_j=np.full(m, lam), neighbours_i=nb[i], neighbours_j=nb[j],
-        young_pa=pk.attrs["young_pa"], poisson=pk.attrs["poisson"])
-    particles = ParticleInput(radius_m=pk.radius, density=np.full(n, rho),
-                              heat_capacity=np.full(n, cp), conductivity=np.full(n, lam),
-                              neighbours=nb, solid_fraction=pk.attrs["solid_fraction"])
-    return pk, nb, contacts, particles
 
 
 def test_terreros_on_a_simple_cubic_lattice_is_the_7_point_stencil():

@@ -12,11 +12,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .errors import SceneError  # its home is below the boundary kinds, which raise it too
 from .physical import TEMPERATURE_MAX_K
-
-
-class SceneError(ValueError):
-    """A bad scene file; ``str(e)`` is one line naming the file and the key."""
 
 
 METHODS = ("explicit", "implicit", "steady")

@@ -3,14 +3,19 @@ and of Batchelor-O'Brien, Argento and Chaudhuri (004) against their closed forms
 
 Exact case: the inputs and formulas are those of tests/test_laws.py (``test_pipe_by_hand_*``,
 ``test_bob_argento_ott_by_hand``, ``test_pipe_is_1033_times_bob_for_equal_spheres``,
-``test_chaudhuri_by_hand``), computed with the test's own helpers (``_one``, ``_h``, ``_zeta``,
-``E``, ``NU``) and reported as relative errors instead of asserted.
+``test_chaudhuri_by_hand``), computed with the helpers the tests use
+(``thermal_kernel/hand_inputs.py``: ``one_contact``, ``conductance``,
+``hertz_radius_equal_spheres``, ``YOUNG_PA``, ``POISSON``) and reported as relative errors
+instead of asserted.
 """
 from __future__ import annotations
 
 import math
 
-from .framework import CaseInfo, CaseResult, Context, test_module
+from thermal_kernel.hand_inputs import (POISSON, YOUNG_PA, conductance,
+                                        hertz_radius_equal_spheres, one_contact)
+
+from .framework import CaseInfo, CaseResult, Context
 from .framework import Judgement
 
 CASE = CaseInfo(number=11, title="pipe / BOB / Argento / Chaudhuri two-sphere values",
@@ -23,23 +28,26 @@ TESTS = ("tests/test_laws.py::test_pipe_by_hand_equal_spheres", "test_pipe_by_ha
 
 def measure() -> list[tuple[str, float, float, str]]:
     """(quantity, tdem, closed form, reference) for each two-sphere value."""
-    t = test_module("test_laws")
-    E, NU = t.E, t.NU
+    E, NU = YOUNG_PA, POISSON
+
+    def h(name, contact):
+        return float(conductance(name, contact)[0])
+
     rows = []
     r, kappa, force = 2e-3, 205.0, 10.0                     # 003 Table 1 particle, F_n = 10 N
-    c = t._one(r, r, 2 * r - 1e-6, kappa, kappa, force=force)
-    zeta = t._zeta(force, r)
+    c = one_contact(r, r, 2 * r - 1e-6, kappa, kappa, force=force)
+    zeta = hertz_radius_equal_spheres(force, r)
     k_n = 4 * E / (6 * (1 - NU ** 2)) * math.sqrt(r / 2)     # eq. 39
     chain = kappa / 0.6846 * math.sqrt(r) * (force / k_n) ** (1 / 3)   # eq. 36-38
-    pipe = float(t._h("pipe", c)[0])
-    bob = float(t._h("bob", c)[0])
+    pipe = h("pipe", c)
+    bob = h("bob", c)
     rows.append(("pipe, equal spheres: H (eq. 36-39 chain)", pipe, chain, "003 eq. 36-39"))
     rows.append(("pipe, equal spheres: H / (κ ζ) (eq. 40: 2.066)", pipe / (kappa * zeta),
                  math.sqrt(2) / 0.6846, "003 eq. 40 (2.066 printed)"))
     rows.append(("BOB: H / (κ ζ)", bob / (kappa * zeta), 2.0, "003 eq. 34"))
-    rows.append(("Argento: H / (κ ζ), β = 0.899", float(t._h("argento", c)[0]) / (kappa * zeta),
+    rows.append(("Argento: H / (κ ζ), β = 0.899", h("argento", c) / (kappa * zeta),
                  math.pi / (2 * 0.899), "003 eq. 35"))
-    rows.append(("Ott (Argento, β = 0.952): H / (κ ζ)", float(t._h("ott", c)[0]) / (kappa * zeta),
+    rows.append(("Ott (Argento, β = 0.952): H / (κ ζ)", h("ott", c) / (kappa * zeta),
                  math.pi / (2 * 0.952), "003 eq. 35"))
     rows.append(("pipe / BOB, equal spheres (1.033)", pipe / bob, math.sqrt(2) / (2 * 0.6846),
                  "003 eq. 40 / eq. 34"))
@@ -49,12 +57,12 @@ def measure() -> list[tuple[str, float, float, str]]:
     r_star = r_i * r_j / (r_i + r_j)
     a_l = math.sqrt(2) * (3 * f * r_star / (4 * e_star)) ** (1 / 3)
     rows.append(("pipe, unequal spheres and κ: H (eq. 18-20)",
-                 float(t._h("pipe", t._one(r_i, r_j, 3e-3 - 1e-6, k_i, k_j, force=f))[0]),
+                 h("pipe", one_contact(r_i, r_j, 3e-3 - 1e-6, k_i, k_j, force=f)),
                  1 / (0.6846 / (2 * k_i * a_l) + 0.6846 / (2 * k_j * a_l)), "003 eq. 18-20"))
     # Chaudhuri (004): 4 k1 k2 / (k1 + k2) (3 F r* / (4 E*))^(1/3)
     e_star2 = 1 / (2 * (1 - NU ** 2) / E)
-    rows.append(("Chaudhuri: H", float(t._h("chaudhuri", t._one(1e-3, 2e-3, 3e-3 - 1e-6, 1.0, 3.0,
-                                                                force=5.0))[0]),
+    rows.append(("Chaudhuri: H",
+                 h("chaudhuri", one_contact(1e-3, 2e-3, 3e-3 - 1e-6, 1.0, 3.0, force=5.0)),
                  3.0 * (3 * 5.0 * (2e-3 / 3) / (4 * e_star2)) ** (1 / 3), "004"))
     return rows
 

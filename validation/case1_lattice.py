@@ -2,14 +2,17 @@
 7-point finite-difference stencil of the heat equation.
 
 Exact case: the numbers are those of tests/test_laws.py::
-test_terreros_on_a_simple_cubic_lattice_is_the_7_point_stencil, computed with the test's own
-helpers (``_lattice``, ``_h``, ``_c``) and reported as errors instead of asserted.
+test_terreros_on_a_simple_cubic_lattice_is_the_7_point_stencil, computed with the helpers the
+test uses (``thermal_kernel/hand_inputs.py``: ``lattice_inputs``, ``conductance``, ``capacity``)
+and reported as errors instead of asserted.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .framework import CaseInfo, CaseResult, Context, test_module
+from thermal_kernel.hand_inputs import capacity, conductance, lattice_inputs
+
+from .framework import CaseInfo, CaseResult, Context
 from .framework import Judgement
 
 CASE = CaseInfo(number=1, title="simple-cubic lattice = 7-point stencil", paper="000 sec. 3",
@@ -18,10 +21,9 @@ TEST = "tests/test_laws.py::test_terreros_on_a_simple_cubic_lattice_is_the_7_poi
 
 
 def measure(shape=(5, 5, 5), a=2e-3, lam=134.0, rho=2790.0, cp=880.0) -> dict:
-    t = test_module("test_laws")
-    pk, nb, contacts, particles = t._lattice(shape=shape, a=a, lam=lam, rho=rho, cp=cp)
-    h = t._h("terreros", contacts)
-    cap = t._c("terreros", particles)
+    pk, nb, contacts, particles = lattice_inputs(shape=shape, a=a, lam=lam, rho=rho, cp=cp)
+    h = conductance("terreros", contacts)
+    cap = capacity("terreros", particles)
     interior = (contacts.neighbours_i == 6) & (contacts.neighbours_j == 6)
     # the balance of the centre particle against the Laplacian of T = x^2 + 2 y^2 - z^2 (= 4)
     x, y, z = pk.position.T

@@ -343,17 +343,6 @@ def today() -> str:
     return time.strftime("%Y-%m-%d")
 
 
-def test_module(name: str):
-    """tests/<name>.py loaded as a module, for the exact cases that reuse the functions of a test
-    (the same inputs and formulas the test asserts, here measured and reported)."""
-    import importlib.util
-    path = ROOT / "tests" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(f"tdem_tests_{name}", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 # The dense-box family of cases 4 and 6 below 1e5 and at 8e6 (docs/packings.md's paths: "ds" =
 # walled, density-scaled; "reference" = walled, P-wave time step, ~1 h of YADE; "tiled" from a
 # 2,000-sphere cell). A full run measures them only when they are built here (or with

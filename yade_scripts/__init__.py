@@ -9,13 +9,14 @@ YADE starts:
 
 - ``params``: the parameter schemas' machinery; ``dense_params`` / ``bed_params``: the schemas
   and their cross-field checks;
-- ``placement``: random sequential addition, the one placement routine (also used by
-  ``tdem_post/etc_sweep.py``, which loads it by path);
+- ``placement``: random sequential addition, the one placement routine, whose home is
+  ``thermal_kernel/placement.py`` (numpy only; the ETC sweep of ``tdem_post`` uses it too);
 - ``dense_geometry`` / ``bed_geometry``: radii, domains, clouds, phases, contacts from arrays;
 - ``neighbours``, ``tiling``: neighbour search, periodic-cell tiling;
 - ``tdem_dump`` / ``tdem_yade``: the packing writer, and the dump of any user's YADE scene.
 
-This folder imports neither ``thermal_kernel`` nor ``tdem_post`` as packages: it loads the
-single packing writer (``thermal_kernel/packing_h5.py``) by path and speaks to the rest only
+Of ``thermal_kernel`` this folder imports only its numpy-only modules (``placement``;
+``tests/test_layers.py`` holds the list and keeps them numpy-only), never ``tdem_post``; it loads
+the single packing writer (``thermal_kernel/packing_h5.py``) by path and speaks to the rest only
 through the packing file.
 """

@@ -15,7 +15,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..scene import TEMPERATURE_MAX_K, SceneError
+from ..errors import SceneError
+from ..physical import TEMPERATURE_MAX_K
 
 FACES = {"xmin": (0, -1), "xmax": (0, +1), "ymin": (1, -1), "ymax": (1, +1),
          "zmin": (2, -1), "zmax": (2, +1)}

@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+from ..section import cross_section, section_problem
 from .base import FACES, BoundaryKind, BuildContext, Rows, members
 
 
@@ -41,10 +42,9 @@ class FluxBoundary(BoundaryKind):
     def face_area(self, ctx: BuildContext, where: str) -> float:
         """A (m^2): the bed's section normal to the face's axis -- pi R^2 for a cylinder wall
         along that axis, else the face of the domain's box (the section
-        :func:`~thermal_kernel.calibrate.cross_section` gives calibrate and post). A packing
+        :func:`~thermal_kernel.section.cross_section` gives calibrate and post). A packing
         whose section varies along the axis (a sphere container, a cylinder across it) has
         no such area: refused."""
-        from ..calibrate import cross_section, section_problem
         if self.on not in FACES:
             raise ctx.error(f"{where}.on", f"a flux boundary needs a domain face "
                                            f"({', '.join(FACES)}), got {self.on!r}")
