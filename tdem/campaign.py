@@ -18,7 +18,7 @@ Steps, each kept so that an interrupted campaign resumes where it stopped:
    post-processed again from its thermal.h5 when only ``n_bins`` or the post-processing's code
    (tdem_post, its hash) changed. Every case is checked
    on its packing (the walls its boundaries name, the law's inputs) before any case runs;
-3. ``campaign.json``, the campaign's record (:mod:`tdem.campaign_record`: a row per case and
+3. ``campaign.json``, the campaign's record (:mod:`tdem_post.campaign_record`: a row per case and
    the fits over pressure), and from it ``results.csv`` (one row per case),
    ``gamma_p.png``/``tau_p.png`` (+ CSV) and ``report.md``
    with the power-law fits next to the paper's curves (003, Fig. 7 and 10) and the mean-field
@@ -255,7 +255,7 @@ def _remove_empty(folders) -> None:
 
 def _run_series(campaign_path, conf, scenes, out_dir, *, threads, yade_threads, quiet, repost,
                 jobs, run_args):
-    from .campaign_record import CaseRow
+    from tdem_post.campaign_record import CaseRow
     start = time.time()
     seeds = conf["seeds"]
     series = [(None, out_dir)] if seeds is None else [(s, out_dir / f"seed_{s}") for s in seeds]
@@ -447,11 +447,11 @@ def _g(value) -> str:
 
 
 def _read_case_summary(path: Path):
-    """The case's post/summary.json as a :class:`~tdem.campaign_record.CaseSummary`, or None
+    """The case's post/summary.json as a :class:`~tdem_post.campaign_record.CaseSummary`, or None
     when it does not read as one (a key missing, unknown or of another type: it is posted
     again)."""
     from tdem_post.records import RecordError, record_from_json
-    from .campaign_record import CaseSummary
+    from tdem_post.campaign_record import CaseSummary
     try:
         return record_from_json(CaseSummary, path)
     except RecordError:
@@ -459,11 +459,11 @@ def _read_case_summary(path: Path):
 
 
 def _case_summary(posted: dict, summary_path: Path, **campaign):
-    """The campaign's :class:`~tdem.campaign_record.CaseSummary` of a case: post's summary
+    """The campaign's :class:`~tdem_post.campaign_record.CaseSummary` of a case: post's summary
     (``posted``, :func:`~tdem_post.post_run.write_post`) with the campaign's keys, written to
     ``summary_path``."""
     from tdem_post.records import from_dict, write_json
-    from .campaign_record import CaseSummary
+    from tdem_post.campaign_record import CaseSummary
     summary = from_dict(CaseSummary, dict(posted, **campaign), str(summary_path))
     summary_path.parent.mkdir(parents=True, exist_ok=True)
     write_json(summary_path, summary)
@@ -588,13 +588,13 @@ def _fit(p_bar, y):
 
 
 def campaign_record(campaign_path: Path, conf: dict, rows: list, seconds: float):
-    """The campaign's :class:`~tdem.campaign_record.CampaignRecord` from its cases' rows
-    (:class:`~tdem.campaign_record.CaseRow`): the rows sorted by seed, law and pressure, and the
-    fits over pressure per law (and seed)."""
+    """The campaign's :class:`~tdem_post.campaign_record.CampaignRecord` from its cases' rows
+    (:class:`~tdem_post.campaign_record.CaseRow`): the rows sorted by seed, law and pressure,
+    and the fits over pressure per law (and seed)."""
     from tdem_post.fits import PAPER_GAMMA, power_law
     from tdem_post.paper_compare import PAPER_TAU     # 003 Fig. 10 (p in bar)
     from tdem_post.records import frame
-    from .campaign_record import CampaignRecord, LawFits
+    from tdem_post.campaign_record import CampaignRecord, LawFits
     seeded = any(c.seed is not None for c in rows)
     cases = sorted(rows, key=lambda c: ((c.seed,) if seeded else ()) + (c.law, c.pressure_pa))
     table = frame(cases)
@@ -620,7 +620,7 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, cases: list, se
     """The campaign's record (campaign.json, :func:`campaign_record`), and from it results.csv,
     the figures and report.md. ``cases``: (CaseSummary, CaseRow) of each case, in run order."""
     from tdem_post.records import frame, write_csv, write_json
-    from .campaign_record import RECORD
+    from tdem_post.campaign_record import RECORD
 
     record = campaign_record(campaign_path, conf, [row for _, row in cases], seconds)
     write_json(out_dir / RECORD, record)
@@ -647,7 +647,7 @@ def _write_report_md(out_dir: Path, record, table, fits) -> None:
     p_col = "pressure_target_pa" if seeded else "pressure_pa"
     from tdem_post.fits import power_law
     from tdem_post.records import markdown_table
-    from .campaign_record import COMPARED_MEAN_FIELDS
+    from tdem_post.campaign_record import COMPARED_MEAN_FIELDS
     lines = [f"# Pressure campaign: {record.campaign}", "",
              f"{table['n_particles'].iloc[0]} particles, pressures "
              f"{', '.join(f'{p / 1e5:.3g}' for p in sorted(table[p_col].unique()))} bar"
@@ -816,7 +816,7 @@ def _plots(out_dir, table, fits, cases=()):
     import matplotlib.pyplot as plt
     from tdem_post.fits import PAPER_GAMMA, power_law
     from tdem_post.paper_compare import PAPER_TAU
-    from .campaign_record import COMPARED_MEAN_FIELDS
+    from tdem_post.campaign_record import COMPARED_MEAN_FIELDS
     seeded = "seed" in table.columns
     pmin = table.pressure_pa.min() / 1e5
     pmax = table.pressure_pa.max() / 1e5

@@ -1,6 +1,6 @@
-"""Errors that reach the user as one line and a non-zero exit (never a traceback)."""
+"""Errors that reach the user as one line and a non-zero exit (never a traceback): tdem's name
+for :class:`thermal_kernel.errors.UserError`, whose home is below ``tdem`` and ``validation``
+(both raise it; ``tdem`` imports ``validation``, never the reverse)."""
+from thermal_kernel.errors import UserError
 
-
-class UserError(Exception):
-    """Bad input or a failed external step; ``str(e)`` names the file, the field and what was
-    expected."""
+__all__ = ["UserError"]

@@ -191,7 +191,7 @@ def test_report_of_a_clean_campaign(tmp_path, monkeypatch):
     assert dict(zip(table.pressure_pa, table["flags"])) == _case_flags(out)
     assert "No run flagged" in report and "runs flagged" not in report
     # results.csv and report.md's table are the campaign's record (campaign.json), read back
-    from tdem.campaign_record import CampaignRecord, CaseRow
+    from tdem_post.campaign_record import CampaignRecord, CaseRow
     from tdem_post.records import markdown_table, read_csv, record_from_json, to_dict
     record = record_from_json(CampaignRecord, out / "campaign.json")
     assert json.dumps([to_dict(r) for r in read_csv(CaseRow, out / "results.csv")]) == \

@@ -1,5 +1,6 @@
-"""The import layers of docs/architecture.md: thermal_kernel <- tdem_post <- tdem, validation on
-top, and yade_scripts/ (run under YADE) importing of the others only the kernel's numpy-only
+"""The import layers of docs/architecture.md: thermal_kernel <- tdem_post <- validation <- tdem
+(the command line on top: `tdem validate` imports validation, validation never imports tdem),
+and yade_scripts/ (run under YADE) importing of the others only the kernel's numpy-only
 modules. An upward import, an import circle, a project module loading a test, or a by-path load
 not listed here fails."""
 import ast
@@ -15,7 +16,7 @@ FORBIDDEN = {
     "thermal_kernel": {"tdem_post", "tdem", "validation", "yade_scripts", "tests"},
     "tdem_post": {"tdem", "validation", "yade_scripts", "tests"},
     "tdem": {"tests"},
-    "validation": {"tests"},
+    "validation": {"tdem", "tests"},       # tdem imports it (`tdem validate`): one direction
     "yade_scripts": {"tdem_post", "tdem", "validation", "tests"},
 }
 # What YADE's Python (Debian's, numpy but no numba) may import of thermal_kernel: modules of
@@ -132,6 +133,14 @@ def test_no_import_circles():
     # thermal_kernel/errors.py) or boundaries.flux -> calibrate -> boundaries (the section
     # geometry's home is thermal_kernel/section.py)
     assert circles(import_graph()) == KNOWN_CIRCLES
+
+
+def test_the_packages_import_each_other_one_way():
+    packages = {package: {m.split(".")[0] for p in _sources(package)
+                          for m in imported_modules(p)} & set(PACKAGES) - {package}
+                for package in PACKAGES}
+    assert circles(packages) == []
+    assert "validation" in packages["tdem"] and "tdem" not in packages["validation"]
 
 
 def test_yade_scripts_import_only_the_numpy_only_kernel_modules():

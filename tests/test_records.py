@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tdem.campaign_record import CampaignRecord, CaseRow
+from tdem_post.campaign_record import CampaignRecord, CaseRow
 from tdem_post.records import (RecordError, column, markdown_table, read_csv, record_from_json,
                                to_dict, write_csv, write_json)
 from validation import case12_campaign, framework
@@ -80,7 +80,7 @@ def test_a_case_summary_is_its_record_and_a_renamed_key_is_posted_again(tmp_path
     key), and the campaign posts that case again instead of reading a NaN column."""
     import pandas as pd
     from tdem import campaign as camp
-    from tdem.campaign_record import CaseSummary
+    from tdem_post.campaign_record import CaseSummary
     from tdem_post.records import json_text
     from test_campaign import BEDS, NO_PACK
     monkeypatch.setattr(camp, "build_packings", lambda *a, **k: BEDS[:1])

@@ -227,7 +227,7 @@ def test_case12_reads_the_seed_campaign():
     """The five-seed numbers of docs/campaign.md reach case 12 (both pages say the same): γ rises
     on every seed's fit (exponent minus two sd > 0) where 003's falls, and a ratio per pressure.
     (The single-seed fits come from the campaign's record: tests/test_records.py.)"""
-    from tdem.campaign_record import CampaignRecord
+    from tdem_post.campaign_record import CampaignRecord
     from tdem_post.records import record_from_json
     from validation.case12_campaign import COMMITTED, DOC, parse_seeds
     seeds = parse_seeds(DOC.read_text())

@@ -88,8 +88,11 @@ def _campaign_7500(work: Path) -> Path | None:
         for law in conf["laws"]:
             path = out / "cases" / f"{packing.stem.removeprefix('packing_')}_{law}" / "post" \
                 / "summary.json"
-            try:        # the records (issue 26)
-                from tdem.campaign_record import CaseRow, CaseSummary
+            try:        # the records (issue 26; their module was tdem.campaign_record first)
+                try:
+                    from tdem_post.campaign_record import CaseRow, CaseSummary
+                except ImportError:
+                    from tdem.campaign_record import CaseRow, CaseSummary
                 from tdem_post.records import record_from_json
                 s = record_from_json(CaseSummary, path)
                 cases.append((s, CaseRow.from_summary(

@@ -3,7 +3,8 @@ linked, not re-run.
 
 The campaign (`tdem campaign runs/campaign_7500.toml`, the first step of `make validate`: YADE
 ~3 min, thermal ~3 min) writes its record, ``campaign.json`` beside its report
-(:class:`tdem.campaign_record.CampaignRecord`: the cases' rows and the γ(p), τ(p) fits per law).
+(:class:`tdem_post.campaign_record.CampaignRecord`: the cases' rows and the γ(p), τ(p) fits per
+law).
 This case reads that record - never the report's text - and puts its numbers in the summary:
 ``runs/out/campaign_7500/campaign.json`` when a campaign has run here, else the committed copy of
 one, ``validation/records/campaign_7500.json`` (copy a fresh campaign.json there to update it).
@@ -16,7 +17,7 @@ from __future__ import annotations
 import math
 import re
 
-from tdem.campaign_record import RECORD, CampaignRecord
+from tdem_post.campaign_record import RECORD, CampaignRecord
 from tdem_post.post_run import MEAN_FIELD_LAWS
 from tdem_post.records import record_from_json
 

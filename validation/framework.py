@@ -26,7 +26,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from tdem.errors import UserError
+from thermal_kernel.errors import UserError
 from thermal_kernel.atomic import write_text_atomic
 
 ROOT = Path(__file__).resolve().parent.parent

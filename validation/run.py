@@ -34,7 +34,7 @@ import time
 import traceback
 from pathlib import Path
 
-from tdem.errors import UserError
+from thermal_kernel.errors import UserError
 from thermal_kernel.atomic import write_text_atomic
 
 from . import framework

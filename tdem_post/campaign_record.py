@@ -2,7 +2,8 @@
 ``results.csv`` and of report.md's table), and :class:`CampaignRecord`, the fits over pressure
 and the table, stored as ``campaign.json`` beside report.md. results.csv, report.md and case 12 of
 docs/validation.md are written from, or read from, these records (tdem_post.records: one
-serializer, one reader that refuses a missing or unknown field).
+serializer, one reader that refuses a missing or unknown field). Its home is the results layer,
+below both ``tdem.campaign`` (which writes it) and case 12 of ``validation`` (which reads it).
 
 A field declares its CSV column and, with ``md``, its column in report.md's table; a field named
 as a key of the case's summary takes its value. Adding a per-case quantity: a field of
