@@ -22,8 +22,9 @@ Measured, each in its own process (its peak RSS is the memory column):
   steps / loop time (the whole step); its Pair share is printed.
 - YADE 2023.02a (law `yade`) on 1 and 2 threads: the same march (bench/peers_yade.py); time
   = O.run's wall time (the whole step), and ThermalEngine's own execTime.
-- tdem (2 numba threads): explicit, the same march; implicit, the fewest Crank-Nicolson steps
-  over [0, t_end] (1, 2, 4, ...) within 1 %; steady, one solve. Time = the solver call (the
+- tdem: explicit, the same march (1 and 2 numba threads); implicit, the fewest Crank-Nicolson
+  steps over [0, t_end] (1, 2, 4, ...) within 1 %, with a direct factorisation and with AMG-CG;
+  steady, one solve, direct and AMG-CG. Time = the solver call (the
   network assembled before it, excluded; its build time is printed).
 Steady question: tdem's explicit march measured to within 1 % of the steady field (chunks of
 `steps`); the peers' time is projected as that number of steps x their measured time per step
@@ -176,21 +177,24 @@ def child(task: str, d: Path, law: str) -> dict:
                 state, total, chunks = r.state, total + r.steps, chunks + 1
             out.update(steady_steps=total, steady_time_s=t_total,
                        steady_error=_err(state.temperature_k, steady))
-        elif task == "implicit":
-            run_implicit(net, T_init, [t_end], dt=t_end, theta=0.5, scheme="rannacher")
+        elif task in ("implicit", "implicit_amg"):
+            how = "amg" if task.endswith("amg") else "direct"
+            run_implicit(net, T_init, [t_end], dt=t_end, theta=0.5, scheme="rannacher",
+                         method=how)
             for m in range(0, 14):
                 t = time.perf_counter()
                 r = run_implicit(net, T_init, [t_end], dt=t_end / 2 ** m, theta=0.5,
-                                 scheme="rannacher")
+                                 scheme="rannacher", method=how)
                 sec = time.perf_counter() - t
                 e = _err(r.temperature_k[-1], ref)
                 if e < TOL:
                     break
             out.update(time_s=sec, steps=r.steps, error=e)
-        elif task == "steady":
-            solve_steady(net, T_init)                            # warm (imports, JIT)
+        elif task in ("steady", "steady_amg"):
+            how = "amg" if task.endswith("amg") else "direct"
+            solve_steady(net, T_init, method=how)                # warm (imports, JIT)
             t = time.perf_counter()
-            r = solve_steady(net, T_init)
+            r = solve_steady(net, T_init, method=how)
             out.update(time_s=time.perf_counter() - t, steady_error=_err(r.temperature_k[-1],
                                                                          steady))
         out["rss_before_solve_kb"] = rss_before
@@ -307,7 +311,8 @@ def measure(size: str) -> list[dict]:
             f"{prep['dt_max']:.4g} s, dt {prep['dt']:.4g} s x {prep['steps']} steps, explicit "
             f"error {100 * prep['explicit_error']:.3f} %, reference error ~"
             f"{100 * prep['ref_error_estimate']:.1e} %, build {prep['build_s']:.2f} s")
-        tdem = {m: run_child(m, d, law) for m in ("explicit", "implicit", "steady")}
+        tdem = {m: run_child(m, d, law) for m in ("explicit", "implicit", "implicit_amg",
+                                                  "steady", "steady_amg")}
         tdem["explicit1"] = run_child("explicit", d, law, threads=1)
         ref = np.load(d / f"ref_{law}.npz")["transient"]
         t_expl = np.load(d / f"tdem_explicit_{law}_2.npy")
@@ -337,8 +342,7 @@ def measure(size: str) -> list[dict]:
                              answer_vs_tdem=_err(p["temperature_k"], t_expl) * SPAN
                              / float(np.abs(t_expl).max()),
                              note=f"{extra}; load {os.getloadavg()[0]:.1f}"))
-        e, i, s = tdem["explicit"], tdem["implicit"], tdem["steady"]
-        e1 = tdem["explicit1"]
+        e, e1 = tdem["explicit"], tdem["explicit1"]
         rows.append(dict(base, code="tdem 1 thread", method="explicit", time_s=e1["time_s"],
                          cu_per_s=e1["cu_per_s"], error_pct=100 * e1["error"],
                          transient_1pct_s=e1["time_s"], steady_1pct_s=math.nan,
@@ -352,17 +356,23 @@ def measure(size: str) -> list[dict]:
                          steady_projected=False, peak_rss_mb=e["peak_rss_kb"] / 1024,
                          answer_vs_tdem=0.0,
                          note=f"RSS before the solve {e['rss_before_solve_kb'] / 1024:.0f} MB"))
-        rows.append(dict(base, code="tdem 2 threads", method=f"implicit CN, {i['steps']} steps",
-                         time_s=i["time_s"], cu_per_s=math.nan, error_pct=100 * i["error"],
-                         transient_1pct_s=i["time_s"], steady_1pct_s=math.nan,
-                         steady_projected=False, peak_rss_mb=i["peak_rss_kb"] / 1024,
-                         answer_vs_tdem=math.nan, note=""))
-        rows.append(dict(base, code="tdem 2 threads", method="steady", time_s=s["time_s"],
-                         cu_per_s=math.nan, error_pct=math.nan, transient_1pct_s=math.nan,
-                         steady_1pct_s=s["time_s"], steady_projected=False,
-                         peak_rss_mb=s["peak_rss_kb"] / 1024, answer_vs_tdem=math.nan,
-                         note=f"steady error {100 * s['steady_error']:.1e} %"))
-        for row in rows[-(len(peers) + 4):]:
+        for key, how in (("implicit", "direct"), ("implicit_amg", "AMG-CG")):
+            i = tdem[key]
+            rows.append(dict(base, code="tdem 2 threads",
+                             method=f"implicit CN ({how}), {i['steps']} steps",
+                             time_s=i["time_s"], cu_per_s=math.nan, error_pct=100 * i["error"],
+                             transient_1pct_s=i["time_s"], steady_1pct_s=math.nan,
+                             steady_projected=False, peak_rss_mb=i["peak_rss_kb"] / 1024,
+                             answer_vs_tdem=math.nan, note=""))
+        for key, how in (("steady", "direct"), ("steady_amg", "AMG-CG")):
+            s = tdem[key]
+            rows.append(dict(base, code="tdem 2 threads", method=f"steady ({how})",
+                             time_s=s["time_s"], cu_per_s=math.nan, error_pct=math.nan,
+                             transient_1pct_s=math.nan, steady_1pct_s=s["time_s"],
+                             steady_projected=False, peak_rss_mb=s["peak_rss_kb"] / 1024,
+                             answer_vs_tdem=math.nan,
+                             note=f"steady error {100 * s['steady_error']:.1e} %"))
+        for row in rows[-(len(peers) + 6):]:
             log(f"    {row['code']:<18} {row['method']:<24} {row['time_s']:9.4f} s  "
                 f"{row['cu_per_s']:9.3g} cu/s  err {row['error_pct']:.3g} %  "
                 f"{row['peak_rss_mb']:.0f} MB  answer {row['answer_vs_tdem']:.2g}  "
@@ -393,8 +403,10 @@ def ratio_lines(rows):
                 continue
             expl = [r for r in sel if r["code"].startswith("tdem") and r["method"] == "explicit"]
             t_e = max(expl, key=lambda r: r["cu_per_s"])
-            t_i = next(r for r in sel if r["method"].startswith("implicit"))
-            t_s = next(r for r in sel if r["method"] == "steady")
+            t_i = min((r for r in sel if r["method"].startswith("implicit")),
+                      key=lambda r: r["time_s"])
+            t_s = min((r for r in sel if r["method"].startswith("steady")),
+                      key=lambda r: r["time_s"])
             peers = [r for r in sel if not r["code"].startswith("tdem")]
             p = max(peers, key=lambda r: r["cu_per_s"])
             fastest = min((t_e, t_i), key=lambda r: r["transient_1pct_s"])
@@ -408,7 +420,8 @@ def ratio_lines(rows):
                 f"{t_e['cu_per_s'] / p['cu_per_s']:.0f}{alone} | "
                 f"{p['transient_1pct_s'] / fastest['transient_1pct_s']:.0f} "
                 f"({fastest['method'].split(',')[0]}, {fastest['code'][5:]}) | "
-                f"{min(r['steady_1pct_s'] for r in peers) / t_s['steady_1pct_s']:.0f} | "
+                f"{min(r['steady_1pct_s'] for r in peers) / t_s['steady_1pct_s']:.0f} "
+                f"({t_s['method']}) | "
                 f"{p['peak_rss_mb'] / t_e['peak_rss_mb']:.2f} | "
                 f"{max(r['answer_vs_tdem'] for r in peers):.1e} |")
     return out
