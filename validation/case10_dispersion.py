@@ -419,10 +419,10 @@ def _speed_vs_error(rs) -> str:
             f"{t[-1]:.0f} s per steady solve)")
     top = n >= 50_000
     if top.sum() >= 2:
-        p, c = I.fit_order(n[top], e[top])
+        p, c = framework.fit_order(n[top], e[top])
         if np.isfinite(p) and p < -0.05:
             n_target = (PAPER_TARGET / c) ** (1.0 / p)
-            q, _ = I.fit_order(n[top], t[top])
+            q, _ = framework.fit_order(n[top], t[top])
             t_target = t[-1] * (n_target / n[-1]) ** q
             text += (f"; the fit |err| ∝ N^{p:.2f} over N ≥ 1e5 projects 0.5 % at N ≈ "
                      f"{n_target:.1e} (≈ {t_target:.0e} s per solve at the measured N^{q:.2f})")
@@ -483,7 +483,7 @@ def _plots(ctx, runs, reals):
     rs = sorted(runs, key=lambda r: r["n"])
     n = np.array([r["n"] for r in rs], float)
     e = np.array([max(abs(x["err_ref"]) for x in r["rows"]) for r in rs])
-    p, _ = I.fit_order(n, e)
+    p, _ = framework.fit_order(n, e)
     ax.loglog(n, 100 * e, "o-", label=f"max over f of |error| (N^{p:.2f})")
     for j, f in enumerate(fs):
         ax.loglog(n, [100 * abs(r["rows"][j]["err_ref"]) for r in rs], ".:", lw=0.8,

@@ -41,7 +41,7 @@ from thermal_kernel.solvers.implicit import run_implicit
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement
+from .framework import Judgement, fit_order
 
 CASE = CaseInfo(number=2, title="beam heated at one end", paper="000 sec. 5.1, Table 2, eq. 8",
                 paper_n="19,465", paper_error='"good agreement" (Fig. 9)',
@@ -62,25 +62,12 @@ QUICK_PACKING = fw.ROOT / "tests" / "data" / "dense_cylinder.h5"
 
 
 def scene_text(packing: str, law: str, ct: float) -> str:
-    params = f"[law_params]\nct = {ct!r}\n" if law == "haddad" else ""
-    return f"""
-packing = "{packing}"
-law = "{law}"
-{params}
-[material]
-conductivity = {LAMBDA}
-density = {RHO}
-heat_capacity = {CAP}
-[initial]
-temperature = {T_INIT}
-[[boundary]]
-kind = "temperature"
-name = "hot"
-on = "zmin"
-value = {T_HOT}
-[solver]
-method = "steady"
-"""
+    return fw.scene_toml(
+        packing, law, law_params=dict(ct=ct) if law == "haddad" else None,
+        material=dict(conductivity=LAMBDA, density=RHO, heat_capacity=CAP),
+        initial=dict(temperature=T_INIT),
+        boundary=[dict(kind="temperature", name="hot", on="zmin", value=T_HOT)],
+        solver=dict(method="steady"))
 
 
 def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: float = 0.0025,
@@ -170,15 +157,6 @@ class _Joined:
 
 
 # ---------------------------------------------------------------------------- the case
-def _fit_order(n, e):
-    n, e = np.asarray(n, float), np.asarray(e, float)
-    ok = (e > 0) & np.isfinite(e)
-    if ok.sum() < 2:
-        return float("nan"), float("nan")
-    slope, icept = np.polyfit(np.log(n[ok]), np.log(e[ok]), 1)
-    return float(slope), float(np.exp(icept))
-
-
 def _plot(ctx, stem, draw, csv_header, csv_rows):
     import matplotlib
     matplotlib.use("Agg")
@@ -431,7 +409,7 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s,
                      float(np.min(e)), float(np.max(e)),
                      float(np.mean([r["run_seconds"] + r["calibration_seconds"] for r in rs]))))
     conv = np.array(conv)
-    order, const = _fit_order(conv[:, 0], conv[:, 1])
+    order, const = fit_order(conv[:, 0], conv[:, 1])
 
     def draw_conv(ax):
         ax.errorbar(conv[:, 0], 100 * conv[:, 1], yerr=[100 * (conv[:, 1] - conv[:, 2]),

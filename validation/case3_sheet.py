@@ -113,32 +113,14 @@ def source_energy_exact(t_end: float = T_END, samples: int = 20001) -> float:
 
 
 def scene_text(packing: str, ct: float) -> str:
-    return f"""
-packing = "{packing}"
-law = "haddad"
-[law_params]
-ct = {ct!r}
-[material]
-conductivity = {LAMBDA}
-density = {RHO}
-heat_capacity = {CAP}
-[initial]
-temperature = {T0}
-[[boundary]]
-kind = "source"
-name = "source"
-shape = "cylinder"
-value = {Q}
-centre_m = [{X_SRC!r}, {-Y0!r}, {LZ / 2!r}]
-radius_m = {R_SRC!r}
-depth_m = {LZ!r}
-axis = [0, 0, 1]
-velocity_m_s = [{V_SRC!r}, 0, 0]
-[solver]
-method = "implicit"
-end_time = {T_END}
-dt = 0.01
-"""
+    return fw.scene_toml(
+        packing, "haddad", law_params=dict(ct=ct),
+        material=dict(conductivity=LAMBDA, density=RHO, heat_capacity=CAP),
+        initial=dict(temperature=T0),
+        boundary=[dict(kind="source", name="source", shape="cylinder", value=Q,
+                       centre_m=[X_SRC, -Y0, LZ / 2], radius_m=R_SRC, depth_m=LZ,
+                       axis=[0, 0, 1], velocity_m_s=[V_SRC, 0, 0])],
+        solver=dict(method="implicit", end_time=T_END, dt=0.01))
 
 
 def load_sheet(packing_path):
@@ -282,7 +264,8 @@ def run(ctx: Context) -> CaseResult:
 
 def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, point_index,
             grids, pack_s, total_s) -> CaseResult:
-    from .case2_beam import _fit_order, _plot, _rel
+    from .case2_beam import _plot, _rel
+    from .framework import fit_order
     names = list(POINTS)
     # continuum convergence at the check-points themselves (rows 0..2)
     rise_pt = np.array([np.max(ref[i] - T0) for i in range(3)])
@@ -318,7 +301,7 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
                      *[row[p]["dispersion"] for p in names], row["seconds"]))
     conv = np.array(conv)
     worst = conv[:, 1:4].max(axis=1)
-    order, const = _fit_order(conv[:, 0], worst) if len(conv) > 1 else (float("nan"),) * 2
+    order, const = fit_order(conv[:, 0], worst) if len(conv) > 1 else (float("nan"),) * 2
 
     # figure 1: T(t) at A, B, C (Fig. 12-14): continuum, DEM seed means per N
     rows = []

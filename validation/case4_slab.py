@@ -36,7 +36,7 @@ from thermal_kernel.atomic import open_atomic, savefig_atomic, write_text_atomic
 
 from .framework import (IMG, ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today, write_csv)
-from .framework import Judgement
+from .framework import Judgement, fit_order, scene_toml
 
 CASE = CaseInfo(number=4, title="cube slab, eq. 17", paper="002 sec. 2.2", paper_n="1e5",
                 paper_error="max rel. error 0.7 %",
@@ -74,32 +74,14 @@ TARGET_Z = 7.5
 
 
 def scene_text(packing: str, ct: float, target_z: float | None = None) -> str:
-    neighbours = ("" if target_z is None else
-                  f"[neighbours]\ntarget_z_with_gaps = {float(target_z)!r}\n")
-    return f"""
-packing = "{packing}"
-law = "haddad"
-[law_params]
-ct = {ct!r}
-{neighbours}[material]
-conductivity = {LAMBDA}
-density = {RHO}
-heat_capacity = {CAP}
-[initial]
-temperature = {T1}
-[[boundary]]
-kind = "temperature"
-name = "cold"
-on = "xmin"
-value = {T1}
-[[boundary]]
-kind = "temperature"
-name = "hot"
-on = "xmax"
-value = {T2}
-[solver]
-method = "steady"
-"""
+    return scene_toml(
+        packing, "haddad", law_params=dict(ct=ct),
+        neighbours=None if target_z is None else dict(target_z_with_gaps=float(target_z)),
+        material=dict(conductivity=LAMBDA, density=RHO, heat_capacity=CAP),
+        initial=dict(temperature=T1),
+        boundary=[dict(kind="temperature", name="cold", on="xmin", value=T1),
+                  dict(kind="temperature", name="hot", on="xmax", value=T2)],
+        solver=dict(method="steady"))
 
 
 def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 0.806,
@@ -234,12 +216,6 @@ def _legacy_rows() -> list[dict]:
         if held:
             row["length_held_m"] = held
     return rows
-
-
-def fit_order(n, e):
-    """e = a N^p by least squares in log-log: (p, a)."""
-    p, loga = np.polyfit(np.log(n), np.log(e), 1)
-    return float(p), float(np.exp(loga))
 
 
 def _figures(ctx: Context, rows: list[dict]) -> dict:

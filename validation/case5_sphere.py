@@ -31,15 +31,15 @@ max and RMS of |T_p - T_exact(r_p)| (the paper's Fig. 8c measure is the max), an
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from thermal_kernel.atomic import open_atomic, replacing, savefig_atomic, write_text_atomic
+from thermal_kernel.atomic import open_atomic, savefig_atomic
 from tdem_post.analytic import sphere_centre_temperature, sphere_temperature
 from thermal_kernel.calibrate import flux_test
 from thermal_kernel.network import assemble
@@ -50,7 +50,7 @@ from thermal_kernel.solvers.explicit import run_explicit
 from thermal_kernel.solvers.implicit import run_implicit
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
     register_packing
-from validation.framework import Judgement
+from validation.framework import Judgement, cached, fit_order, scene_toml
 
 CASE = CaseInfo(number=5, title="sphere with held surface, eq. 18-19",
                 paper="002 sec. 2.3, eq. 18-19, Fig. 7-8", paper_n="1e5, 1e6",
@@ -96,30 +96,14 @@ TARGET_Z = 7.5
 
 
 def scene_text(packing: str, ct: float, surface: str | None = "surface") -> str:
-    held = f"""
-[[boundary]]
-kind = "temperature"
-name = "surface"
-on = "{surface}"
-value = {TS_C + KELVIN}
-""" if surface else ""
-    return f"""
-packing = "{packing}"
-law = "haddad"
-[law_params]
-ct = {float(ct)!r}
-[neighbours]
-target_z_with_gaps = {TARGET_Z!r}
-[material]
-conductivity = {LAMBDA}
-density = {RHO}
-heat_capacity = {CAP}
-[initial]
-temperature = {T0_C + KELVIN}
-{held}
-[solver]
-method = "steady"
-"""
+    return scene_toml(
+        packing, "haddad", law_params=dict(ct=float(ct)),
+        neighbours=dict(target_z_with_gaps=TARGET_Z),
+        material=dict(conductivity=LAMBDA, density=RHO, heat_capacity=CAP),
+        initial=dict(temperature=T0_C + KELVIN),
+        boundary=[dict(kind="temperature", name="surface", on=surface,
+                       value=TS_C + KELVIN)] if surface else [],
+        solver=dict(method="steady"))
 
 
 SCENE_PATH = ROOT / "validation" / "case5_scene.toml"        # named in messages only
@@ -260,35 +244,7 @@ def sphere_run(packing_path, ct, *, method="explicit", steps=None, threads=1,
 
 
 # ----------------------------------------------------------------- the case
-def _cached(path: Path, make):
-    """A run's record from ``path`` (JSON; its particle field in the .npz beside it) when it was
-    made by this VERSION of the case, else made now and saved: the case resumes run by run."""
-    npz = path.with_suffix(".npz")
-    if path.exists():
-        rec = json.loads(path.read_text())
-        if rec.get("version") == VERSION:
-            if npz.exists():
-                with np.load(npz) as z:
-                    rec["_field"] = (z["r"], z["dem"], z["exact"])
-            return rec
-    rec = make()
-    rec["version"] = VERSION
-    if "_field" in rec:
-        r, dem, exact = rec["_field"]
-        with replacing(npz, keep_suffix=True) as tmp:     # (numpy adds .npz to other names)
-            np.savez_compressed(tmp, r=r, dem=dem, exact=exact)
-    write_text_atomic(path, json.dumps({k: v for k, v in rec.items() if not k.startswith("_")},
-                                       indent=1, default=float))
-    return rec
-
-
-def _fit_order(ns, errs):
-    ns, errs = np.asarray(ns, float), np.abs(np.asarray(errs, float))
-    ok = errs > 0
-    if ok.sum() < 2:
-        return float("nan")
-    return float(np.polyfit(np.log(ns[ok]), np.log(errs[ok]), 1)[0])
-
+_cached = partial(cached, version=VERSION, arrays=("r", "dem", "exact"))   # its particle field
 
 
 def judge(numbers: dict) -> Judgement:
@@ -476,7 +432,7 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
                          ("max_abs_error_c", "max |error| (paper's measure)", "s"),
                          ("rms_error_c", "RMS error", "^")):
         e = np.abs([r[key] for r in ours])
-        orders[key] = _fit_order([ns[i] for i in big], [e[i] for i in big])
+        orders[key] = fit_order([ns[i] for i in big], [e[i] for i in big])[0]
         ax.loglog(ns, e, mk + "-", label=f"{lab}, slope {orders[key]:.2f}")
     for lab in ("paper", "ours, held planes", "ours, domain length"):
         pr = [r for r in rows if r["label"] == lab]

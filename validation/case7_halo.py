@@ -22,14 +22,13 @@ is calibrated), so Fig. 11's "mean close to the analytical value" is mean |q| / 
 from __future__ import annotations
 
 import csv
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from thermal_kernel.atomic import open_atomic, savefig_atomic, write_text_atomic
+from thermal_kernel.atomic import open_atomic, savefig_atomic
 from tdem_post.flux import (coefficient_of_variation, contact_moments, halo_flux, halo_radii,
                             reference_radius)
 from thermal_kernel.calibrate import cross_section
@@ -40,7 +39,7 @@ from thermal_kernel.scene import load_scene
 from thermal_kernel.solvers.steady import solve_steady
 from validation.case4_slab import scene_text as slab_scene_text
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
-    register_packing
+    cached, register_packing
 
 CASE = CaseInfo(number=7, title="Halo CoV vs halo/DE radius ratio",
                 paper="002 sec. 3, eq. 20-23, Fig. 10-11", paper_n="1e5, 5e5",
@@ -215,15 +214,6 @@ def halo_cov(packing_path, ratios=RATIOS, max_eval=MAX_EVAL, seed=1, kinds=KINDS
             "z_rows": z_rows, "neighbours": choice.summary() if choice else None}
 
 
-def _cached(path: Path, make):
-    if path.exists():
-        rec = json.loads(path.read_text())
-        if rec.get("version") == VERSION:
-            return rec
-    rec = make()
-    rec["version"] = VERSION
-    write_text_atomic(path, json.dumps(rec, indent=1, default=float))
-    return rec
 
 
 def run(ctx: Context) -> CaseResult:
@@ -234,7 +224,7 @@ def run(ctx: Context) -> CaseResult:
         path = ctx.packing(name)
         ctx.progress(f"N {n}: steady slab and Halo fluxes at {len(RATIOS)} ratios, "
                      f"{' and '.join(KINDS)} radius")
-        rec = _cached(ctx.out / f"halo_{name}.json", lambda path=path: halo_cov(path))
+        rec = cached(ctx.out / f"halo_{name}.json", lambda path=path: halo_cov(path), VERSION)
         rec.update(name=name, n_nominal=n)
         recs.append(rec)
     return _report(ctx, recs)

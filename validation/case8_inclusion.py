@@ -175,7 +175,7 @@ def _plots(ctx, runs):
         n = np.array([r["n"] for r in runs_s], float)
         e = np.array([max_err(r, key[s]) for r in runs_s])
         fit = _fitted(runs_s)
-        p, c0 = I.fit_order([r["n"] for r in fit], [max_err(r, key[s]) for r in fit])
+        p, c0 = framework.fit_order([r["n"] for r in fit], [max_err(r, key[s]) for r in fit])
         orders[s] = p
         ax.loglog(n, 100 * e, mk + "-", color=col,
                   label=f"{lab}: N^{p:.2f}" if np.isfinite(p) else lab)
@@ -337,7 +337,7 @@ def _needed_n(runs, series, key, goal=0.005):
     rs = _fitted([r for r in runs if r["series"] == series])
     if len(rs) < 2:
         return None
-    p, c = I.fit_order([r["n"] for r in rs], [max_err(r, key) for r in rs])
+    p, c = framework.fit_order([r["n"] for r in rs], [max_err(r, key) for r in rs])
     if not (np.isfinite(p) and p < 0):
         return None
     return float((goal / c) ** (1.0 / p))

@@ -343,6 +343,73 @@ def today() -> str:
     return time.strftime("%Y-%m-%d")
 
 
+def _toml(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)            # a TOML basic string
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, float) and not value == value:
+        return "nan"
+    if isinstance(value, float) and abs(value) == float("inf"):
+        return "inf" if value > 0 else "-inf"
+    return repr(value)
+
+
+def scene_toml(packing, law: str, **tables) -> str:
+    """A case's scene as the TOML text a user would write (docs/scenes.md), for
+    ``thermal_kernel.scene.load_scene(path, text=...)``: ``packing`` and ``law``, then each of
+    ``tables`` in the order given, a dict as a table ``[name]`` and a list of dicts as an array
+    of tables ``[[name]]`` (``boundary=[...]``); a table that is None or empty is left out."""
+    lines = [f"packing = {_toml(str(packing))}", f"law = {_toml(law)}"]
+    for name, table in tables.items():
+        for t in (table if isinstance(table, list) else [table] if table else []):
+            lines.append(f"[[{name}]]" if isinstance(table, list) else f"[{name}]")
+            lines += [f"{key} = {_toml(value)}" for key, value in t.items()]
+    return "\n".join(lines) + "\n"
+
+
+def fit_order(n, err) -> tuple[float, float]:
+    """Convergence order: (p, C) of |err| = C N^p by least squares in log-log, over the points
+    with N > 0 and a finite |err| > 0 (NaN, NaN with fewer than two). The one fit of every
+    case's observed order."""
+    import numpy as np
+    n, err = np.asarray(n, float), np.abs(np.asarray(err, float))
+    ok = (n > 0) & (err > 0) & np.isfinite(n) & np.isfinite(err)
+    if ok.sum() < 2:
+        return float("nan"), float("nan")
+    p, logc = np.polyfit(np.log(n[ok]), np.log(err[ok]), 1)
+    return float(p), float(np.exp(logc))
+
+
+def cached(path: Path, make, version: int, arrays: tuple[str, ...] = ()) -> dict:
+    """A run's record from ``path`` (JSON) when it was made by this ``version`` of its case, else
+    ``make()`` saved there with its version: a case resumes run by run. Keys starting with "_"
+    stay out of the JSON; with ``arrays`` (names), the record's ``"_field"`` (a tuple of arrays)
+    is kept in the .npz beside it under those names and read back."""
+    import numpy as np
+
+    from thermal_kernel.atomic import replacing
+    path = Path(path)
+    npz = path.with_suffix(".npz")
+    if path.exists():
+        rec = json.loads(path.read_text())
+        if rec.get("version") == version:
+            if arrays and npz.exists():
+                with np.load(npz) as z:
+                    rec["_field"] = tuple(z[a] for a in arrays)
+            return rec
+    rec = make()
+    rec["version"] = version
+    if arrays and "_field" in rec:
+        with replacing(npz, keep_suffix=True) as tmp:     # (numpy adds .npz to other names)
+            np.savez_compressed(tmp, **dict(zip(arrays, rec["_field"])))
+    write_text_atomic(path, json.dumps({k: v for k, v in rec.items() if not k.startswith("_")},
+                                       indent=1, default=float))
+    return rec
+
+
 # The dense-box family of cases 4 and 6 below 1e5 and at 8e6 (docs/packings.md's paths: "ds" =
 # walled, density-scaled; "reference" = walled, P-wave time step, ~1 h of YADE; "tiled" from a
 # 2,000-sphere cell). A full run measures them only when they are built here (or with

@@ -37,30 +37,16 @@ from validation.framework import ROOT
 
 # The matrix of 002 sec. 4 (lambda 33 W/m/K; rho and c do not matter at steady state), law
 # haddad with the paper's C_t (it cancels in k_eff / k_m), harmonic interfaces (002 eq. 24).
-SCENE_TEXT = """
-packing = "{packing}"
-law = "haddad"
-[law_params]
-ct = 0.806
-[material]
-conductivity = 33.0
-density = 7800.0
-heat_capacity = 0.9
-[initial]
-temperature = 303.15
-[[boundary]]
-kind = "temperature"
-name = "cold"
-on = "ymin"
-value = 298.15
-[[boundary]]
-kind = "temperature"
-name = "hot"
-on = "ymax"
-value = 308.15
-[solver]
-method = "steady"
-"""
+def scene_text(packing) -> str:
+    return framework.scene_toml(
+        packing, "haddad", law_params=dict(ct=0.806),
+        material=dict(conductivity=33.0, density=7800.0, heat_capacity=0.9),
+        initial=dict(temperature=303.15),
+        boundary=[dict(kind="temperature", name="cold", on="ymin", value=298.15),
+                  dict(kind="temperature", name="hot", on="ymax", value=308.15)],
+        solver=dict(method="steady"))
+
+
 K_MATRIX = 33.0
 SINGLE_FRACTION = 4.0 * math.pi / 81.0       # a = L/3 in a cube of side L: 15.51 % (002 sec. 4)
 
@@ -73,7 +59,7 @@ def load(path, target_z: float | None = None):
     """(scene, packing) of the flux test on the packing file ``path``, its neighbours cut to the
     bulk coordination ``target_z`` ([neighbours] target_z_with_gaps; None: every dumped pair)."""
     path = str(Path(path).resolve())
-    text = SCENE_TEXT.format(packing=path)
+    text = scene_text(path)
     if target_z is not None:
         text += f"[neighbours]\ntarget_z_with_gaps = {float(target_z)!r}\n"
     scene = load_scene(ROOT / "validation" / "inclusions_scene.toml", text=text)
@@ -212,16 +198,6 @@ def cell_fraction(packing: Packing, phase: np.ndarray, grid: int = 96, k: int = 
 def particle_fraction(packing: Packing, phase: np.ndarray) -> float:
     v = packing.radius ** 3
     return float(v[phase == 1].sum() / v.sum())
-
-
-def fit_order(n, err):
-    """Slope p of log|err| = log C + p log N by least squares (NaN with < 2 points)."""
-    n, err = np.asarray(n, float), np.abs(np.asarray(err, float))
-    ok = (n > 0) & (err > 0)
-    if ok.sum() < 2:
-        return float("nan"), float("nan")
-    p, logc = np.polyfit(np.log(n[ok]), np.log(err[ok]), 1)
-    return float(p), float(np.exp(logc))
 
 
 def write_csv(path, header, rows):

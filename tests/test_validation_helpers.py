@@ -1,0 +1,51 @@
+"""The scaffolding validation/framework.py gives every case: the convergence fit, the run cache
+and the scene text (one home each, issue 26)."""
+import math
+
+import numpy as np
+import pytest
+
+from thermal_kernel.scene import load_scene
+from validation.framework import cached, fit_order, scene_toml
+
+
+def test_fit_order_recovers_a_power_law_and_skips_what_has_no_log():
+    n = np.array([1e3, 1e4, 1e5, 1e6])
+    p, c = fit_order(n, -3.0 * n ** -0.5)               # |err|: the sign does not matter
+    assert p == pytest.approx(-0.5, abs=1e-12) and c == pytest.approx(3.0, rel=1e-10)
+    with_bad = fit_order(np.append(n, [2e6, 3e6, 0.0]),
+                         np.append(3.0 * n ** -0.5, [0.0, math.nan, 1.0]))
+    assert with_bad == pytest.approx((p, c), rel=1e-12)
+    assert all(math.isnan(v) for v in fit_order([1e3, 1e4], [0.1, 0.0]))
+
+
+def test_cached_makes_once_per_version_and_keeps_the_field(tmp_path):
+    made = []
+
+    def make():
+        made.append(1)
+        return {"n": 7, "_field": (np.arange(3.0), np.ones(3))}
+
+    path = tmp_path / "run.json"
+    first = cached(path, make, 1, arrays=("r", "t"))
+    again = cached(path, make, 1, arrays=("r", "t"))
+    assert len(made) == 1 and again["n"] == 7 and again["version"] == 1
+    np.testing.assert_array_equal(again["_field"][0], first["_field"][0])
+    assert "_field" not in path.read_text()               # the arrays live in run.npz
+    cached(path, make, 2)
+    assert len(made) == 2                                  # a new version of the case: made again
+
+
+def test_scene_toml_is_the_scene_a_user_would_write(tmp_path):
+    text = scene_toml(tmp_path / "p.h5", "haddad", law_params=dict(ct=0.806), neighbours=None,
+                      material=dict(conductivity=33.0, density=7800.0, heat_capacity=0.9),
+                      initial=dict(temperature=303.15),
+                      boundary=[dict(kind="temperature", name="cold", on="ymin", value=298.15),
+                                dict(kind="temperature", name="hot", on="ymax", value=308.15)],
+                      solver=dict(method="steady"))
+    scene = load_scene(tmp_path / "s.toml", text=text)
+    assert scene.packing == tmp_path / "p.h5" and scene.law_params == {"ct": 0.806}
+    assert scene.neighbours is None and scene.material(0).conductivity == 33.0
+    assert [(b.name, b.on, b.value) for b in scene.boundaries] == [
+        ("cold", "ymin", 298.15), ("hot", "ymax", 308.15)]
+    assert scene.solver.method == "steady" and scene.initial_temperature == 303.15
