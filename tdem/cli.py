@@ -322,7 +322,8 @@ def _cmd_plot(args):
 
 def _cmd_validate(args):
     from validation.run import validate
-    return validate(args.cases, force=args.force, quick=args.quick, list_only=args.list_only)
+    return validate(args.cases, force=args.force, quick=args.quick, list_only=args.list_only,
+                    threads=_threads(args))
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -49,3 +49,29 @@ def test_scene_toml_is_the_scene_a_user_would_write(tmp_path):
     assert [(b.name, b.on, b.value) for b in scene.boundaries] == [
         ("cold", "ymin", 298.15), ("hot", "ymax", 308.15)]
     assert scene.solver.method == "steady" and scene.initial_temperature == 303.15
+
+
+def test_tdem_validate_gives_the_cases_its_threads(monkeypatch, capsys):
+    # the case modules' own entry points are gone: `tdem validate N --threads T` is theirs
+    import types
+
+    from tdem.cli import main
+    from validation import run
+    from validation.framework import CaseInfo, CaseResult
+    seen = []
+
+    def run_case(ctx):
+        seen.append((ctx.number, ctx.quick, ctx.threads))
+        return CaseResult(our_n="1", our_error="0 %", wall_time="1 s", verdict="met",
+                          section_md="")
+    fake = types.SimpleNamespace(CASE=CaseInfo(number=3, title="t", paper="p", paper_n="1",
+                                               paper_error="1"), run=run_case,
+                                 __file__="case3_fake.py")
+    monkeypatch.setattr(run, "discover", lambda: {3: fake})
+    import numba
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 4)    # any machine: 2 is allowed
+    assert main(["validate", "3", "--quick", "--threads", "2"]) == 0
+    assert main(["validate", "3", "--quick"]) == 0
+    assert seen == [(3, True, 2), (3, True, 1)]
+    assert main(["validate", "3", "--quick", "--threads", "0"]) == 2
+    assert "--threads: expected an integer from 1" in capsys.readouterr().err

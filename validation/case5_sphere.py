@@ -680,23 +680,3 @@ other cells (seeds), not done here. {big_limit}
                  "speed": [{k: v for k, v in r.items() if k != "shells" and not k.startswith("_")}
                            for r in speed]},
         command=".venv/bin/python -m validation.run 5")
-
-
-def main(argv=None):
-    import argparse
-    from validation.framework import save_result
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--threads", type=int, default=1)
-    a = ap.parse_args(argv)
-    t0 = time.perf_counter()
-    res = run(Context(CASE.number, quick=a.quick, threads=a.threads))
-    print(res.our_n, "|", res.our_error, "|", res.verdict)
-    if not a.quick:
-        print(save_result(CASE, res, time.perf_counter() - t0))
-
-
-if __name__ == "__main__":
-    from thermal_kernel.threading_layer import prefer_openmp
-    prefer_openmp()             # an entry point: OpenMP first, NUMBA_THREADING_LAYER* wins
-    main()

@@ -607,10 +607,3 @@ Times: the steady solves of every variant, one thread, shared machine.){carried_
                   f"docs/packings.md); steady solves per realisation, 3 axes: {times}",
         verdict="", section_md=section, numbers=n,
         command="tdem validate 6 (seeds 2-4: TDEM_VALIDATE_ALL_PACKINGS=1)")
-
-
-if __name__ == "__main__":
-    import sys
-
-    from .framework import run_standalone
-    run_standalone(CASE, run, quick="--quick" in sys.argv)

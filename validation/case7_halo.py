@@ -17,7 +17,7 @@ The CoV does not depend on C_t (it scales every flux alike); fluxes are normalis
 macroscopic flux Q / A through the held faces (the paper's 3,300 W/m^2 = lambda dT / L when C_t
 is calibrated), so Fig. 11's "mean close to the analytical value" is mean |q| / (Q/A) ~ 1.
 
-  .venv/bin/python -m validation.case7_halo [--quick]
+  tdem validate 7 [--quick]
 """
 from __future__ import annotations
 
@@ -481,7 +481,7 @@ least one radius inside), a seeded random subset of {MAX_EVAL:,} where more qual
 does not depend on C_t; fluxes are normalised by the macroscopic flux Q/A through the held
 faces. **The paper's curve is not digitised**: its three values stated in the text (27 % raw,
 5 % at ratio ≈ 4, 2 % at ≈ 11) are plotted as stars. Reproduce:
-`.venv/bin/python -m validation.case7_halo`.
+`tdem validate 7`.
 
 CoV of |q| against the halo/DE radius ratio (in brackets: particles evaluated; mean number of
 spheres in a halo):
@@ -584,27 +584,10 @@ consistent, but it is no longer centred on p) — case 9 measures what that does
                  "ratio_at_5pct_own": r5o, "ratio_at_2pct_own": r2o, "slopes": slopes,
                  "target": {f"{n}_{r:g}": v for (n, r), (v, _) in judged.items()},
                  "records": [{k: v for k, v in r.items()} for r in recs]},
-        command=".venv/bin/python -m validation.case7_halo",
+        command="tdem validate 7",
         at_paper_n=at_paper, speed_vs_error=speed, target_met=met)
 
 
 def _pack(name):
     s = pack_seconds(name)
     return "—" if s is None else f"{s:.0f} s"
-
-
-def main(argv=None):
-    import argparse
-    from validation.framework import save_result
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    a = ap.parse_args(argv)
-    t0 = time.perf_counter()
-    res = run(Context(CASE.number, quick=a.quick))
-    print(res.our_n, "|", res.our_error, "|", res.verdict)
-    if not a.quick:
-        print(save_result(CASE, res, time.perf_counter() - t0))
-
-
-if __name__ == "__main__":
-    main()

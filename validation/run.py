@@ -165,7 +165,8 @@ def list_cases(cases: dict) -> None:
     _refuse(unreadable_results())
 
 
-def run_cases(numbers: list[int], cases: dict, force: bool = False, quick: bool = False) -> int:
+def run_cases(numbers: list[int], cases: dict, force: bool = False, quick: bool = False,
+              threads: int = 1) -> int:
     """Run ``numbers`` in order; return the number of cases that failed."""
     failed = 0
     for k, n in enumerate(numbers, 1):
@@ -176,7 +177,7 @@ def run_cases(numbers: list[int], cases: dict, force: bool = False, quick: bool 
             continue
         print(f"{head}: {mod.CASE.title} ({mod.CASE.paper}){' [quick]' if quick else ''} ...",
               flush=True)
-        ctx = Context(number=n, quick=quick)
+        ctx = Context(number=n, quick=quick, threads=threads)
         t0 = time.perf_counter()
         try:
             result = mod.run(ctx)
@@ -221,7 +222,7 @@ def _case_numbers(texts: list[str], cases: dict) -> list[int]:
 
 
 def validate(case_texts: list[str], force: bool = False, quick: bool = False,
-             list_only: bool = False) -> int:
+             list_only: bool = False, threads: int = 1) -> int:
     """What `tdem validate` does; raises UserError for bad input; returns the exit code."""
     cases = discover()
     if list_only:
@@ -232,7 +233,7 @@ def validate(case_texts: list[str], force: bool = False, quick: bool = False,
         # but for those this run writes again (--force), checked before any case runs
         _refuse({n: e for n, e in unreadable_results().items()
                  if not (force and n in numbers)})
-    failed = run_cases(numbers, cases, force=force, quick=quick)
+    failed = run_cases(numbers, cases, force=force, quick=quick, threads=threads)
     if not quick:
         assemble(cases)
         print(f"tdem validate: wrote {_rel(DOC)} and the summary in {_rel(README)}"
@@ -258,6 +259,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="each case's smallest instance; nothing saved, documents untouched")
     p.add_argument("--list", action="store_true", dest="list_only",
                    help="list the cases and whether each has a result")
+    p.add_argument("--threads", type=int, default=1,
+                   help="numba threads of the cases that use them (ctx.threads), default 1")
 
 
 def main(argv=None) -> int:
@@ -265,7 +268,8 @@ def main(argv=None) -> int:
     add_arguments(p)
     a = p.parse_args(argv)
     try:
-        return validate(a.cases, force=a.force, quick=a.quick, list_only=a.list_only)
+        return validate(a.cases, force=a.force, quick=a.quick, list_only=a.list_only,
+                        threads=a.threads)
     except UserError as e:
         print(f"tdem: error: {e}", file=sys.stderr)
         return 2
