@@ -323,7 +323,7 @@ def _cmd_plot(args):
 def _cmd_validate(args):
     from validation.run import validate
     return validate(args.cases, force=args.force, quick=args.quick, list_only=args.list_only,
-                    threads=_threads(args))
+                    threads=_threads(args), action=args.action)
 
 
 def build_parser() -> argparse.ArgumentParser:

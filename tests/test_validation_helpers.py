@@ -75,3 +75,22 @@ def test_tdem_validate_gives_the_cases_its_threads(monkeypatch, capsys):
     assert seen == [(3, True, 2), (3, True, 1)]
     assert main(["validate", "3", "--quick", "--threads", "0"]) == 2
     assert "--threads: expected an integer from 1" in capsys.readouterr().err
+
+
+def test_a_cases_extra_step_runs_through_tdem_validate(monkeypatch, capsys):
+    import types
+
+    from tdem.cli import main
+    from validation import run
+    from validation.framework import Action, CaseInfo
+    done = []
+    fake = types.SimpleNamespace(
+        CASE=CaseInfo(number=3, title="t", paper="p", paper_n="1", paper_error="1"),
+        run=lambda ctx: None, __file__="case3_fake.py",
+        ACTIONS={"rebuild": Action(lambda ctx: done.append((ctx.number, ctx.quick)), "again")})
+    monkeypatch.setattr(run, "discover", lambda: {3: fake, 4: fake})
+    assert main(["validate", "3", "--action", "rebuild", "--quick"]) == 0
+    assert done == [(3, True)]
+    assert main(["validate", "3", "--action", "extend"]) == 2
+    assert "case 3 has no step 'extend' (its steps: rebuild: again)" in capsys.readouterr().err
+    assert main(["validate", "3", "4", "--action", "rebuild"]) == 2 and done == [(3, True)]

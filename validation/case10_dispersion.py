@@ -21,11 +21,10 @@ the observed order is asymptotic; the periodic reading of the same cell (what an
 when the cube is taken as a periodic unit cell) beside it. Maxwell, the Hashin-Shtrikman bounds
 and Bruggeman (tdem_post.analytic) at the nominal f are drawn too.
 
-  .venv/bin/python -m validation.case10_dispersion [--quick]
+  tdem validate 10 [--quick] [--action reference | add-8e6 | bridges | rebuild]
 """
 from __future__ import annotations
 
-import argparse
 import math
 import time
 
@@ -168,7 +167,7 @@ def reference(series):
 
 def realisations(ctx: Context, fractions, grids, periodic_grids) -> dict:
     """The inclusions of each f and their FFT reference (cached under ctx.out by the inclusions'
-    checksum and the grids, so that a run after ``--reference`` only solves the DEM)."""
+    checksum and the grids, so that a run after ``--action reference`` only solves the DEM)."""
     import hashlib
     import json
     cache_path = ctx.out / "fft_reference.json"
@@ -337,7 +336,7 @@ def finish(ctx: Context, reals: dict, runs: list, total: float,
                   f"at N {big['n']:,} ({f_text})",
         wall_time=f"packing {pack or 'shared'} + FFT and thermal {total:.0f} s",
         verdict=j.verdict, section_md=section, numbers=numbers,
-        command=".venv/bin/python -m validation.case10_dispersion",
+        command="tdem validate 10",
         at_paper_n=j.at_paper_n, speed_vs_error=j.speed_vs_error, target_met=j.target_met)
 
 
@@ -716,30 +715,16 @@ def add_8e6() -> None:
     rebuild()
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--reference", action="store_true",
-                    help="the inclusions and their FFT reference only (cached for the full run)")
-    ap.add_argument("--add-8e6", action="store_true",
-                    help="solve box_8e6 alone and add it to the saved result (11 GB, 25 min)")
-    ap.add_argument("--bridges", action="store_true",
-                    help="measure the bridging contacts' share of the error (1e5, 1e6; f 0.4, "
-                         "0.5) and add it to the saved result")
-    ap.add_argument("--rebuild", action="store_true",
-                    help="figures and section again from the saved result (no solve)")
-    a = ap.parse_args(argv)
-    if a.rebuild:
-        return rebuild()
-    if a.add_8e6:
-        return add_8e6()
-    if a.bridges:
-        return add_bridges()
-    if a.reference:
-        run(Context(10, quick=a.quick), reference_only=True)
-        return None
-    framework.run_standalone(CASE, run, a.quick)
-
-
-if __name__ == "__main__":
-    main()
+ACTIONS = {           # tdem validate 10 --action NAME
+    "reference": framework.Action(lambda ctx: run(ctx, reference_only=True),
+                                  "the inclusions and their FFT reference only (cached for the "
+                                  "full run)"),
+    "add-8e6": framework.Action(lambda ctx: add_8e6(),
+                                "solve box_8e6 alone and add it to the saved result (11 GB, "
+                                "25 min)"),
+    "bridges": framework.Action(lambda ctx: add_bridges(),
+                                "measure the bridging contacts' share of the error (1e5, 1e6; "
+                                "f 0.4, 0.5) and add it to the saved result"),
+    "rebuild": framework.Action(lambda ctx: rebuild(),
+                                "figures and section again from the saved result (no solve)"),
+}

@@ -6,6 +6,7 @@ A case is a module ``validation/caseN_<name>.py`` exposing
     CASE = CaseInfo(number=N, title="...", paper="002 sec. 2.2, eq. 17", paper_n="1e5",
                     paper_error="max rel. error 0.7 %")
     def run(ctx: Context) -> CaseResult
+    ACTIONS = {"rebuild": Action(step, "help")}     (optional: `tdem validate N --action NAME`)
 
 ``run`` does the work (packings through ``ctx.packing(name)``, outputs under ``ctx.out``, figures
 as ``ctx.figure(stem)`` -> docs/img/validation_caseN_<stem>.png with a CSV of the plotted numbers
@@ -83,6 +84,15 @@ def judged(result: CaseResult, judgement: Judgement) -> CaseResult:
                                speed_vs_error=judgement.speed_vs_error,
                                target_met=judgement.target_met,
                                verdict=judgement.verdict or result.verdict)
+
+
+@dataclass(frozen=True)
+class Action:
+    """An extra step of a case beside its run (rebuild the section from the saved result, add
+    one more instance to it, ...): ``ACTIONS = {name: Action(step, help)}`` in the case's module,
+    run by ``tdem validate N --action NAME`` with the case's :class:`Context`."""
+    step: object            # Callable[[Context], object]
+    help: str
 
 
 @dataclass

@@ -155,7 +155,9 @@ def list_cases(cases: dict) -> None:
         where = ("no module yet" if mod is None else
                  f"validation/{Path(mod.path).name}: IMPORT ERROR" if isinstance(mod, Broken) else
                  f"validation/{Path(mod.__file__).name}")
-        print(f"case {n:>2}: {info.title} ({info.paper}) — {where}; {_status(n)}", flush=True)
+        steps = ", ".join(getattr(mod, "ACTIONS", {}))
+        print(f"case {n:>2}: {info.title} ({info.paper}) — {where}; {_status(n)}"
+              + (f"; --action {steps}" if steps else ""), flush=True)
     _refuse(unreadable_results())
 
 
@@ -215,14 +217,30 @@ def _case_numbers(texts: list[str], cases: dict) -> list[int]:
     return sorted(numbers)
 
 
+def run_action(number: int, mod, name: str, quick: bool = False, threads: int = 1) -> int:
+    """``tdem validate N --action NAME``: the case's extra step ``name`` (its ACTIONS)."""
+    actions = getattr(mod, "ACTIONS", {})
+    if name not in actions:
+        steps = "; ".join(f"{k}: {a.help}" for k, a in actions.items()) or "none"
+        raise UserError(f"validate: --action: case {number} has no step {name!r} (its steps: "
+                        f"{steps})")
+    actions[name].step(Context(number=number, quick=quick, threads=threads))
+    return 0
+
+
 def validate(case_texts: list[str], force: bool = False, quick: bool = False,
-             list_only: bool = False, threads: int = 1) -> int:
+             list_only: bool = False, threads: int = 1, action: str | None = None) -> int:
     """What `tdem validate` does; raises UserError for bad input; returns the exit code."""
     cases = discover()
     if list_only:
         list_cases(cases)
         return 0
     numbers = _case_numbers(case_texts, cases)
+    if action is not None:
+        if len(case_texts) != 1:
+            raise UserError("validate: --action: expected one case number (the step is that "
+                            f"case's), got {len(case_texts)}")
+        return run_action(numbers[0], cases[numbers[0]], action, quick=quick, threads=threads)
     if not quick:       # the document is assembled from every saved result: all readable,
         # but for those this run writes again (--force), checked before any case runs
         _refuse({n: e for n, e in unreadable_results().items()
@@ -255,6 +273,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="list the cases and whether each has a result")
     p.add_argument("--threads", type=int, default=1,
                    help="numba threads of the cases that use them (ctx.threads), default 1")
+    p.add_argument("--action", metavar="NAME",
+                   help="one extra step of one case instead of its run (the case's ACTIONS, "
+                        "listed by --list: e.g. rebuild its section from the saved result)")
 
 
 def main(argv=None) -> int:
@@ -263,7 +284,7 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     try:
         return validate(a.cases, force=a.force, quick=a.quick, list_only=a.list_only,
-                        threads=a.threads)
+                        threads=a.threads, action=a.action)
     except UserError as e:
         print(f"tdem: error: {e}", file=sys.stderr)
         return 2
