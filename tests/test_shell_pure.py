@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from yade_scripts import params as P
-from yade_scripts import shell
+from yade_scripts import dense_params, shell
 from yade_scripts.dense_geometry import Container
 
 
@@ -38,6 +38,38 @@ def test_split_keeps_whole_spheres_and_layers_them():
     assert not np.any(free & band)
     # the frozen band reaches as far as a free sphere can touch
     assert shell.frozen_band_m(radius, 0.1) >= 2 * radius.max() * 1.1
+
+
+@pytest.mark.parametrize("cut_depth", [0.0, 0.5, 1.0])
+def test_cut_depth_keeps_centres_that_deep_and_the_walls_start_clear_of_them(cut_depth):
+    rng = np.random.default_rng(4)
+    box = Container("box", 1.0, [1.0, 1.0, 1.0])
+    position = rng.random((4000, 3))
+    radius = rng.uniform(0.01, 0.03, 4000)
+    kept, free, band = shell.split(box, position, radius, 0.1, 0.05, cut_depth)
+    distance = np.min(np.concatenate([position, 1.0 - position], axis=1), axis=1)
+    np.testing.assert_array_equal(kept, distance >= cut_depth * radius)
+    lo, hi = shell.walls_start(box, position[kept], radius[kept])
+    # no kept sphere crosses a starting wall, and each wall touches the outermost sphere (or
+    # stays on the carved face when none protrudes)
+    assert np.all(position[kept] - radius[kept, None] >= lo - 1e-15)
+    assert np.all(position[kept] + radius[kept, None] <= hi + 1e-15)
+    outer_lo = np.min(position[kept] - radius[kept, None], axis=0)
+    outer_hi = np.max(position[kept] + radius[kept, None], axis=0)
+    np.testing.assert_allclose(lo, np.minimum(0.0, outer_lo))
+    np.testing.assert_allclose(hi, np.maximum(1.0, outer_hi))
+    if cut_depth == 1.0:
+        np.testing.assert_array_equal(lo, 0.0)
+        np.testing.assert_array_equal(hi, 1.0)
+    else:
+        assert np.all(lo < 0.0) and np.all(hi > 1.0)
+
+
+def test_cut_depth_is_a_fraction_of_the_radius():
+    base = dict(shape="box", n_particles=1000)
+    for bad in (-0.1, 1.5):
+        with pytest.raises(P.ParamError, match="shell_cut_depth"):
+            P.resolve(dense_params.PARAMS, dict(base, shell_cut_depth=bad))
 
 
 def test_merge_keeps_unmoved_contacts_and_takes_the_new_ones():

@@ -492,41 +492,11 @@ def wall_stresses(walls, body, inward, lo, hi):
     return out
 
 
-# The free shell's elastic strain (against the frozen band) per Hertz overlap/radius at the
-# confining pressure: measured on the 1e4 box (seed 1), where an affine stretch of 0.0058 after the
-# 1e8 -> 1e9 Pa stiffening took the walls' stress from 10x to 7.7x the target, i.e. a strain of
-# 0.036 at an overlap scale of 0.0149.
-SHELL_STRAIN = 2.4
-
-
 def hertz_overlap(p, young):
     """Typical overlap / radius of a Hertz contact at the confining pressure and modulus
     ``young``: (p / E*)^(2/3)."""
     e_star = young / (2.0 * (1.0 - p["poisson"] ** 2))
     return (p["confining_pressure_pa"] / e_star) ** (2.0 / 3.0)
-
-
-def expand_shell(free_ids, walls, body, core, strain):
-    """Stretch the free shell outward in each slab between a plane wall and the frozen core by
-    that wall's ``strain`` (core = (lo, hi) corners of the core, in the carved box's frame;
-    nothing inside the core moves), and move the walls with it."""
-    lo, hi = core
-    slab = np.zeros((3, 2))                     # strain of the (axis, lo/hi) slab
-    for w, wall in enumerate(walls):
-        axis = int(np.argmax(np.abs(wall["normal"])))
-        slab[axis, 0 if wall["normal"][axis] > 0 else 1] = strain[w]
-    for b in free_ids:
-        x = O.bodies[b].state.pos
-        new = [x[a] - slab[a, 0] * (lo[a] - x[a]) if x[a] < lo[a] else
-               x[a] + slab[a, 1] * (x[a] - hi[a]) if x[a] > hi[a] else x[a] for a in range(3)]
-        O.bodies[b].state.pos = Vector3(*new)
-    for w, wall in enumerate(walls):
-        axis = int(np.argmax(np.abs(wall["normal"])))
-        pos = O.bodies[body[w]].state.pos
-        new = [pos[0], pos[1], pos[2]]
-        new[axis] = pos[axis] - strain[w] * (lo[axis] - pos[axis]) \
-            if wall["normal"][axis] > 0 else pos[axis] + strain[w] * (pos[axis] - hi[axis])
-        O.bodies[body[w]].state.pos = Vector3(*new)
 
 
 def press_shell(p, box, centres, radii, frozen, shell_m):
@@ -555,11 +525,40 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
     friction_stage = p["friction"] != p["compaction_friction"]
     if friction_stage:
         stages = stages + [stages[-1]]
-    free_ids = [int(b) for k, b in enumerate(sphere_ids) if not frozen[k]]
-    core = (np.full(3, shell_m), box.size - shell_m)     # the frozen band and interior
+    frozen_ids = [int(b) for k, b in enumerate(sphere_ids) if frozen[k]]
+    # Every sphere in YADE, free or frozen, carries the stage's Hertz overlap at the confining
+    # pressure: its radius is scaled by radius_factor(E) (1 at the real modulus, where the cell
+    # was relaxed), as the direct path's radius controller scales every radius at once. Without
+    # it the softened shell is compressed against a band held at the real modulus's overlaps,
+    # and each stiffening stage opens the seam between them (measured: touching Z 3.9-4.4
+    # against 4.8-5.7 there, docs/packings.md).
+    def radius_factor(young):
+        return 1.0 + 0.5 * (hertz_overlap(p, young) - hertz_overlap(p, p["young_pa"]))
+
+    def scale_radii(factor):
+        utils.growParticles(factor, updateMass=False, dynamicOnly=True)     # the free shell
+        for b in frozen_ids:
+            O.bodies[b].shape.radius *= factor
+        collider.doSort = True
+    # grown to the soft stage's factor 1e-3 per control interval (the direct path's growth rate):
+    # grown at once, a sphere was thrown out of the box in the first steps, before the density
+    # scaling had seen its new contacts (the 2,000-sphere test box)
+    grown = 1.0
+    while grown < radius_factor(stages[0]):
+        step_factor = min(1.0 + 1e-3, radius_factor(stages[0]) / grown)
+        scale_radii(step_factor)
+        grown *= step_factor
+        O.run(every, True)
     for k, young in enumerate(stages):
         if young != young_now:
             set_young(mats, young, young_now)
+            if young == p["young_pa"]:
+                # back to the cell's radii exactly
+                for b, r in zip(sphere_ids, radii):
+                    O.bodies[int(b)].shape.radius = float(r)
+                collider.doSort = True
+            else:
+                scale_radii(radius_factor(young) / radius_factor(young_now))
             young_now = young
         final, label, unbalanced_target, overlap_scale = enter_stage(p, mats, stages, k,
                                                                      friction_stage)
@@ -587,18 +586,6 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
                 settled = 0
             if settled >= 2:
                 break
-            if k > 0 and not settled:
-                # the stiffening stages: the shell's elastic strain is SHELL_STRAIN x
-                # overlap_scale x ratio^(2/3) (Hertz); strain it affinely towards the target's
-                # (0.7 of the way), walls with it, as the direct path's radius controller
-                # changes every radius at once (moving the walls alone took hundreds of steps to
-                # reach through the shell, and left its inner part as the last stretch left it)
-                expand_shell(free_ids, walls, body, core, 0.7 * SHELL_STRAIN * overlap_scale
-                             * (np.maximum(ratio, 0.0) ** (2.0 / 3.0) - 1.0))
-                collider.doSort = True
-                for b in wall_of_body:
-                    O.bodies[b].state.vel = Vector3(0, 0, 0)
-                continue
             move = gain * layers * overlap_scale * r_mean * (
                 np.maximum(ratio, 1e-12) ** (-2.0 / 3.0) - 1.0)
             move = np.clip(move, -max_move, np.where(ratio < 0.25, p["shell_press_step"] * r_mean,
@@ -647,7 +634,8 @@ def shell_state(p, state):
     inside), then press walls onto a shell of shell_diameters mean diameters (press_shell);
     returns the state of the pressed domain and the tiling's and shell's attributes."""
     carved, cell_info = tiled_state(p, state)
-    cut = ~carved["box"].inside(carved["position"], carved["radius"])
+    cut = shell.boundary_distance(carved["box"], carved["position"]) \
+        < p["shell_cut_depth"] * carved["radius"]
     # the spheres cut by the surface are removed: carve a little more, so that about
     # n_particles remain
     carved, cell_info = tiled_state(
@@ -655,11 +643,17 @@ def shell_state(p, state):
     box, position, radius = carved["box"], carved["position"], carved["radius"]
     shell_m = p["shell_diameters"] * 2.0 * float(radius.mean())
     band_m = shell.frozen_band_m(radius, p["gap_tolerance"])
-    whole, free, band = shell.split(box, position, radius, shell_m, band_m)
+    whole, free, band = shell.split(box, position, radius, shell_m, band_m,
+                                    p["shell_cut_depth"])
     _, rows, pair = carve(whole, carved["pair"])
     kept = (pair,) + tuple(carved[k][rows] for k in ("branch", "overlap", "normal_force",
                                                      "contact_radius"))
     position, radius, free, band = position[whole], radius[whole], free[whole], band[whole]
+    # spheres that protrude past the surface (shell_cut_depth < 1): the walls start at their
+    # extent, so that none overlaps a wall
+    start_lo, start_hi = shell.walls_start(box, position, radius)
+    position = position - start_lo
+    box = shell.pressed_box(np.zeros(3), start_hi - start_lo)
     sub = np.flatnonzero(free | band)
     log(f"shell: {int((~whole).sum())} spheres cut by the surface removed; {int(free.sum())} "
         f"free in a shell of {shell_m:.4g} m ({p['shell_diameters']:g} mean diameters), "

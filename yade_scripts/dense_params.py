@@ -57,7 +57,7 @@ PARAMS = {
                         "pressed onto a shell of shell_diameters along them (the interior "
                         "stays as tiled; boxes only; its packings do not yet match the direct "
                         "ones, docs/packings.md); auto: direct (shell once it matches)"),
-    "shell_diameters": dict(kind="float", default=4.0, minimum=1.0,
+    "shell_diameters": dict(kind="float", default=6.0, minimum=1.0,
                             help="shell: thickness of the shell relaxed against the walls, in "
                                  "mean diameters"),
     "shell_press_step": dict(kind="float", default=0.01, minimum=1e-4,
@@ -66,6 +66,10 @@ PARAMS = {
     "shell_soft_gain": dict(kind="float", default=0.5, minimum=0.05,
                             help="shell: gain of the walls' pressure controller in the soft first "
                                  "stage (1 = the Hertz compliance of the shell's column)"),
+    "shell_cut_depth": dict(kind="float", default=0.0, minimum=0.0, maximum=1.0,
+                            help="shell: a carved sphere is kept when its centre lies at least "
+                                 "this many of its radii inside the surface (1: wholly inside; "
+                                 "0: centre inside, the walls start at the kept spheres' extent)"),
     "cell_particles": dict(kind="int", default=10000, minimum=20,
                            help="tiled, shell: spheres in the periodic cell that is copied"),
     "cell_packing": dict(kind="str", default="",

@@ -1,7 +1,8 @@
 """Parameter schemas of the packing generators, shared by YADE and by ``tdem pack``.
 
 Each generator has one schema module (``dense_params.py``, ``bed_params.py``) that defines
-``PARAMS = {name: dict(kind=..., default=..., help=..., choices=..., minimum=...)}`` (plain data)
+``PARAMS = {name: dict(kind=..., default=..., help=..., choices=..., minimum=...,
+maximum=...)}`` (plain data)
 and ``check(p)``, its cross-field checks on the resolved parameters (a combination of values,
 e.g. a softened modulus above the real one, or a domain too small for its spheres). ``tdem pack``
 resolves a scene's ``[pack]`` table against the schema and runs the checks (so a user gets a
@@ -24,12 +25,13 @@ class Param:
     """One parameter: expected type ('float', 'int', 'str', 'bool', 'floats', 'list'),
     default (None = required), allowed choices, a one-line help text with its SI unit."""
 
-    def __init__(self, kind, default, help, choices=None, minimum=None):
+    def __init__(self, kind, default, help, choices=None, minimum=None, maximum=None):
         self.kind = kind
         self.default = default
         self.help = help
         self.choices = choices
         self.minimum = minimum
+        self.maximum = maximum
 
     def check(self, key, value):
         kind = self.kind
@@ -67,6 +69,11 @@ class Param:
             for v in values:
                 if isinstance(v, (int, float)) and v < self.minimum:
                     raise ParamError(f"{key}: expected a value >= {self.minimum}, got {v!r}")
+        if self.maximum is not None:
+            values = value if isinstance(value, list) else [value]
+            for v in values:
+                if isinstance(v, (int, float)) and v > self.maximum:
+                    raise ParamError(f"{key}: expected a value <= {self.maximum}, got {v!r}")
         return value
 
 

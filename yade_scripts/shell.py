@@ -62,12 +62,13 @@ def frozen_band_m(radius, gap_tolerance):
     return 2.0 * float(np.max(radius)) * (1.0 + gap_tolerance) * FROZEN_MARGIN
 
 
-def split(box, position, radius, shell_m, band_m):
-    """(whole, shell, band): spheres wholly inside the domain (the only ones kept: a wall can
-    then sit on its surface), and among them those of the free shell (centre within shell_m of
-    the surface) and of the frozen band behind it (the next band_m)."""
+def split(box, position, radius, shell_m, band_m, cut_depth=1.0):
+    """(kept, shell, band): spheres whose centre lies at least cut_depth of their radii inside
+    the domain (1: wholly inside, so a wall can sit on its surface; less: they protrude and the
+    walls start at their extent, walls_start), and among them those of the free shell (centre
+    within shell_m of the surface) and of the frozen band behind it (the next band_m)."""
     distance = boundary_distance(box, position)
-    whole = distance >= radius
+    whole = distance >= cut_depth * radius
     shell = whole & (distance < shell_m)
     band = whole & ~shell & (distance < shell_m + band_m)
     return whole, shell, band
@@ -92,3 +93,11 @@ def pressed_box(lo, hi):
     box.size = size.copy()
     box.centre = box.size / 2
     return box
+
+
+def walls_start(box, position, radius):
+    """(lo, hi) where the plane walls of a box start: its surface, or the extent of the spheres
+    that protrude past it (shell_cut_depth < 1)."""
+    lo = np.minimum(0.0, np.min(position - radius[:, None], axis=0))
+    hi = np.maximum(np.asarray(box.size, dtype=float), np.max(position + radius[:, None], axis=0))
+    return lo, hi
