@@ -70,7 +70,7 @@ bench-bed: deps
 	$(BIN)/python bench/bench_bed.py --scene runs/bed_7500.toml --seeds 1 --stem bed_series_7500_idle --force
 
 # Peers side by side (issue 27): YADE's ThermalEngine, LIGGGHTS' conduction fix and tdem on the
-# same LIGGGHTS-made beds of 2e3, 1e4 and 5e4 spheres, one run, both cores (~20 min; the beds
+# same LIGGGHTS-made beds of 2e3, 1e4 and 5e4 spheres, one run, both cores (~30 min; the beds
 # are kept in bench/out/peers and reused): bench/results/peers.{csv,md}, docs/peers.md's table.
 bench-peers: deps
 	$(BIN)/python bench/bench_peers.py
