@@ -54,15 +54,15 @@ TDEM = ROOT / ".venv" / "bin" / "tdem"
 CELL_DIRS = [ROOT / "runs" / "out" / "dense_box_1e5", ROOT / "validation" / "out" / "packings"]
 
 # (label, path, N, seeds, own cell?, extra [pack] keys): the reference and the shell boxes at 1e4
-# (the shell's defaults on three seeds; one seed of each variant: spheres kept only when wholly
-# inside the carved faces, as before 2026-12-02; walls pressed 3x slower in the soft stage) are
-# compared; the shell at 1e5 and 1e6 are the timed sizes (each copies the 10,000 cell of
-# its seed when one exists)
+# are compared (the shell's defaults; spheres kept only when wholly inside the carved faces, as
+# before 2026-12-02; walls pressed 5x slower once loaded in the soft stage); the shell at 1e5 and
+# 1e6 are the timed sizes (each copies the 10,000 cell of its seed when one exists)
 CASES = [
     ("direct_10000", "direct", 10_000, (1, 2, 3), False, {}),
     ("shell_10000", "shell", 10_000, (1, 2, 3), False, {}),
     ("shell_wholecut_10000", "shell", 10_000, (2,), False, dict(shell_cut_depth=1.0)),
-    ("shell_slow_10000", "shell", 10_000, (2,), False, dict(shell_press_step=0.003)),
+    ("shell_loaded_slow_10000", "shell", 10_000, (1, 2, 3), False,
+     dict(shell_loaded_step=0.002)),
     ("shell_100000", "shell", 100_000, (1,), False, {}),
     ("shell_1000000", "shell", 1_000_000, (1,), False, {}),
 ]

@@ -588,8 +588,15 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
                 break
             move = gain * layers * overlap_scale * r_mean * (
                 np.maximum(ratio, 1e-12) ** (-2.0 / 3.0) - 1.0)
-            move = np.clip(move, -max_move, np.where(ratio < 0.25, p["shell_press_step"] * r_mean,
-                                                     max_move))
+            if k == 0:
+                # the soft stage: shell_press_step while a wall carries almost nothing (its
+                # travel onto the protruding spheres), then shell_loaded_step while the wall
+                # layer jams under it
+                inward_cap = np.where(ratio < 0.05, p["shell_press_step"] * r_mean,
+                                      min(max_move, p["shell_loaded_step"] * r_mean))
+            else:
+                inward_cap = np.where(ratio < 0.25, p["shell_press_step"] * r_mean, max_move)
+            move = np.clip(move, -max_move, inward_cap)
             if settled:
                 move[:] = 0.0
             for w in range(len(walls)):

@@ -63,6 +63,10 @@ PARAMS = {
     "shell_press_step": dict(kind="float", default=0.01, minimum=1e-4,
                              help="shell: how far a wall moves per 50 DEM steps while it carries "
                                   "less than a quarter of the pressure, in mean radii"),
+    "shell_loaded_step": dict(kind="float", default=0.01, minimum=1e-4,
+                              help="shell: in the softened stage, how far a wall moves per 50 DEM "
+                                   "steps at most once it carries 5 % of the pressure, in mean "
+                                   "radii"),
     "shell_soft_gain": dict(kind="float", default=0.5, minimum=0.05,
                             help="shell: gain of the walls' pressure controller in the soft first "
                                  "stage (1 = the Hertz compliance of the shell's column)"),

@@ -4,14 +4,18 @@ its walls. numpy only (runs under YADE and in the tests); the YADE part is
 
 The tiled path (tiling.py) fills the domain with copies of a relaxed periodic cell and carves it:
 its faces are cut surfaces, a different material at the boundary from a packing pressed into a
-container (looser, layered, with real wall forces). Here the carved domain keeps only the spheres
-that lie wholly inside it, so plane walls (or the container's facets) can be put on its surface;
-the spheres within ``shell_diameters`` mean diameters of the surface (the shell) are free, the
-next ``FROZEN_DIAMETERS`` (the frozen band) are held where the cell put them as the shell's inner
-boundary, and the interior does not enter YADE at all. YADE then presses the walls onto the shell
-to the confining pressure (servo-controlled walls, the direct path's softened-modulus stages), so
-the cost grows with the surface, not the volume. Contacts between two spheres that did not move
-keep the cell's values; every contact of a shell sphere and every wall contact is YADE's.
+container (looser, layered, with real wall forces). Here the carved domain keeps the spheres whose
+centre lies at least ``shell_cut_depth`` of their radii inside it (0, the default: every centre
+inside, so the kept material fills the box as the bulk does; 1: only whole spheres, which leaves
+a layer ~0.4 mean diameters short of packing along each face), and plane walls start at the kept
+spheres' extent (walls_start). The spheres within ``shell_diameters`` mean diameters of the
+surface (the shell) are free, the next band (frozen_band_m) is held where the cell put them as the
+shell's inner boundary, and the interior does not enter YADE at all. YADE then presses the walls
+onto the shell to the confining pressure (servo-controlled walls, the direct path's
+softened-modulus stages; every radius in YADE, free or frozen, scaled to the stage's Hertz
+overlap, as the direct path's radius controller scales them all), so the cost grows with the
+surface, not the volume. Contacts between two spheres that did not move keep the cell's values;
+every contact of a shell sphere and every wall contact is YADE's.
 """
 import numpy as np
 
