@@ -52,7 +52,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from tdem.liggghts_heat import (INPUTS, loop_times, read_temperatures,  # noqa: E402
-                                run_liggghts, write_data)
+                                run_liggghts, scene_text, write_data)
 
 WORK = ROOT / "bench" / "out" / "peers"
 RESULTS = ROOT / "bench" / "results"
@@ -68,27 +68,6 @@ TOL = 0.01                      # "within 1 %" of the span
 LAWS = ("liggghts", "yade")
 PEER_OF = {"liggghts": "LIGGGHTS", "yade": "YADE"}
 
-SCENE = '''packing = "{packing}"
-law = "{law}"
-[material]
-conductivity = {k!r}
-density = {rho!r}
-heat_capacity = {cp!r}
-young_pa = {young!r}
-poisson = {nu!r}
-[initial]
-temperature = {t0!r}
-[[boundary]]
-kind = "phase_temperature"
-liggghts_type = 2
-value = {t_hot!r}
-[[boundary]]
-kind = "phase_temperature"
-liggghts_type = 3
-value = {t_cold!r}
-[solver]
-method = "steady"
-'''
 
 
 def log(*args):
@@ -103,8 +82,9 @@ def _tdem_setup(d: Path, law: str):
     from thermal_kernel.problem import build_problem
     from thermal_kernel.scene import load_scene
     scene = d / f"scene_{law}.toml"
-    scene.write_text(SCENE.format(packing=d / "packing.h5", law=law, k=K, rho=RHO, cp=CP,
-                                  young=E_SOFT, nu=NU, t0=T0, t_hot=T_HOT, t_cold=T_COLD))
+    scene.write_text(scene_text(d / "packing.h5", law, conductivity=K, density=RHO,
+                                heat_capacity=CP, young_pa=E_SOFT, poisson=NU, t_initial=T0,
+                                t_hot=T_HOT, t_cold=T_COLD, solver='method = "steady"\n'))
     t = time.perf_counter()
     packing = read_packing(d / "packing.h5")
     problem, _ = build_problem(load_scene(scene), packing)

@@ -23,6 +23,20 @@ INPUTS = Path(__file__).resolve().parent.parent / "runs" / "liggghts_heat"
 FREE, HOT, COLD = 1, 2, 3              # LIGGGHTS atom types of heat.in
 
 
+def scene_text(packing, law, *, conductivity, density, heat_capacity, young_pa, poisson,
+               t_initial, t_hot, t_cold, solver, law_params=""):
+    """tdem's scene of heat.in's bed: the hot and cold layers held by their LIGGGHTS types
+    (phase_temperature), ``solver`` the [solver] table's lines, ``law_params`` a
+    [law_params] table or nothing. SI units."""
+    return (f'packing = "{packing}"\nlaw = "{law}"\n{law_params}[material]\n'
+            f"conductivity = {conductivity!r}\ndensity = {density!r}\n"
+            f"heat_capacity = {heat_capacity!r}\nyoung_pa = {young_pa!r}\n"
+            f"poisson = {poisson!r}\n[initial]\ntemperature = {t_initial!r}\n"
+            + "".join(f'[[boundary]]\nkind = "phase_temperature"\nliggghts_type = {kind}\n'
+                      f"value = {value!r}\n" for kind, value in ((HOT, t_hot), (COLD, t_cold)))
+            + f"[solver]\n{solver}")
+
+
 def mpi_env() -> dict:
     env = dict(os.environ)
     if os.geteuid() == 0:            # Open MPI refuses root unless told

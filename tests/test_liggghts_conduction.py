@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 from tdem.liggghts_heat import (COLD, FREE, HOT, INPUTS, read_temperatures, run_liggghts,
-                                write_data)
+                                scene_text, write_data)
 from thermal_kernel.packing import read_packing
 
 MISSING = [x for x in ("liggghts", "mpirun") if shutil.which(x) is None]
@@ -87,30 +87,11 @@ def test_tdem_reproduces_liggghts_conduction(data_file, tmp_path, ranks, correct
     params = (f"[law_params]\nyoung_softened_pa = {E_SOFT!r}\nyoung_real_pa = {E_REAL!r}\n"
               if correction == "yes" else "")
     scene = tmp_path / "scene.toml"
-    scene.write_text(f'''packing = "{packing}"
-law = "liggghts"
-{params}[material]
-conductivity = {K!r}
-density = {RHO!r}
-heat_capacity = {CP!r}
-young_pa = {E_SOFT!r}
-poisson = {NU!r}
-[initial]
-temperature = {T0!r}
-[[boundary]]
-kind = "phase_temperature"
-liggghts_type = {HOT}
-value = {T_HOT!r}
-[[boundary]]
-kind = "phase_temperature"
-liggghts_type = {COLD}
-value = {T_COLD!r}
-[solver]
-method = "explicit"
-dt = {DT!r}
-end_time = {times[-1]!r}
-output_times = {times!r}
-''')
+    scene.write_text(scene_text(
+        packing, "liggghts", conductivity=K, density=RHO, heat_capacity=CP, young_pa=E_SOFT,
+        poisson=NU, t_initial=T0, t_hot=T_HOT, t_cold=T_COLD, law_params=params,
+        solver=f'method = "explicit"\ndt = {DT!r}\nend_time = {times[-1]!r}\n'
+               f"output_times = {times!r}\n"))
     r = tdem("run", scene, "--out", tmp_path / "run", "--quiet", "--threads", 1)
     assert r.returncode == 0, r.stderr
     with h5py.File(tmp_path / "run" / "thermal.h5") as f:
