@@ -504,7 +504,8 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
     surface pressed onto the shell until each carries the confining pressure (a servo per wall,
     the compliance of a column of shell_diameters contacts in Hertz's law), through the direct
     path's stages (softened modulus, tenfold stiffening, friction on at the real modulus). The
-    radii never change. Returns the pressed state of these spheres (indices into centres)."""
+    radii carry each stage's Hertz overlap and end as given. Returns the pressed state of these
+    spheres (indices into centres)."""
     stages = stiffness_stages(p)
     mats, sphere_ids, wall_of_body, collider = build_scene(p, centres, radii, box, stages[0])
     for k, b in enumerate(sphere_ids):
@@ -637,16 +638,18 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
 
 
 def shell_state(p, state):
-    """method = "shell": tile and carve as method = "tiled" (keeping only the spheres wholly
-    inside), then press walls onto a shell of shell_diameters mean diameters (press_shell);
-    returns the state of the pressed domain and the tiling's and shell's attributes."""
+    """method = "shell": tile and carve as method = "tiled" (keeping the spheres whose centre
+    lies shell_cut_depth of their radii inside), then press walls onto a shell of
+    shell_diameters mean diameters (press_shell); returns the state of the pressed domain and
+    the tiling's and shell's attributes."""
     carved, cell_info = tiled_state(p, state)
-    cut = shell.boundary_distance(carved["box"], carved["position"]) \
-        < p["shell_cut_depth"] * carved["radius"]
-    # the spheres cut by the surface are removed: carve a little more, so that about
-    # n_particles remain
-    carved, cell_info = tiled_state(
-        dict(p, n_particles=int(round(p["n_particles"] / (1.0 - cut.mean())))), state)
+    kept_first, _, _ = shell.split(carved["box"], carved["position"], carved["radius"], 0.0, 0.0,
+                                   p["shell_cut_depth"])
+    if not kept_first.all():
+        # the spheres cut by the surface are removed: carve a little more, so that about
+        # n_particles remain (with the centre-inside carve none is, and the tiling stands)
+        carved, cell_info = tiled_state(
+            dict(p, n_particles=int(round(p["n_particles"] / kept_first.mean()))), state)
     box, position, radius = carved["box"], carved["position"], carved["radius"]
     shell_m = p["shell_diameters"] * 2.0 * float(radius.mean())
     band_m = shell.frozen_band_m(radius, p["gap_tolerance"])

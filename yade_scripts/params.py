@@ -64,16 +64,13 @@ class Param:
         if self.choices is not None and value not in self.choices:
             raise ParamError(f"{key}: expected one of {', '.join(map(str, self.choices))}, "
                              f"got {value!r}")
-        if self.minimum is not None:
-            values = value if isinstance(value, list) else [value]
-            for v in values:
-                if isinstance(v, (int, float)) and v < self.minimum:
-                    raise ParamError(f"{key}: expected a value >= {self.minimum}, got {v!r}")
-        if self.maximum is not None:
-            values = value if isinstance(value, list) else [value]
-            for v in values:
-                if isinstance(v, (int, float)) and v > self.maximum:
-                    raise ParamError(f"{key}: expected a value <= {self.maximum}, got {v!r}")
+        for v in value if isinstance(value, list) else [value]:
+            if not isinstance(v, (int, float)):
+                continue
+            if self.minimum is not None and v < self.minimum:
+                raise ParamError(f"{key}: expected a value >= {self.minimum}, got {v!r}")
+            if self.maximum is not None and v > self.maximum:
+                raise ParamError(f"{key}: expected a value <= {self.maximum}, got {v!r}")
         return value
 
 
