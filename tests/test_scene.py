@@ -55,6 +55,11 @@ def test_good_scene(tmp_path):
     assert [b.name for b in scene.boundaries] == ["temperature:ymin", "flux:ymax"]
     assert scene.solver.output_times == (0.05, 0.1, 0.2)
     assert math.isnan(scene.solver.dt) and scene.solver.safety == 0.9
+    assert scene.solver.backend == "in-process"          # the default (issue 25)
+    petsc = load_scene(_write(tmp_path, GOOD.replace("end_time = 0.2", 'end_time = 0.2\n'
+                                                     'backend = "petsc"'), "p.toml"),
+                       known_laws=LAWS)
+    assert petsc.solver.backend == "petsc"
     assert scene.output == tmp_path / "out" / "scene" / "t.h5"
     with pytest.raises(dataclasses.FrozenInstanceError):
         scene.law = "pipe"   # frozen
@@ -82,6 +87,8 @@ BAD = {
     "bad kind": (GOOD.replace('kind = "flux"', 'kind = "convection"'),
                  "boundary[1].kind: expected one of temperature, flux"),
     "bad method": (GOOD.replace('"explicit"', '"rk4"'), "solver.method: expected one of"),
+    "bad backend": (GOOD.replace("end_time = 0.2", 'end_time = 0.2\nbackend = "mpi"'),
+                    "solver.backend: expected one of in-process, petsc"),
     "decreasing outputs": (GOOD.replace("[0.05, 0.1, 0.2]", "[0.1, 0.05]"),
                            "solver.output_times: expected increasing times"),
     "outputs past end": (GOOD.replace("[0.05, 0.1, 0.2]", "[0.1, 0.3]"),

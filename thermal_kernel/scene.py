@@ -20,6 +20,9 @@ METHODS = ("explicit", "implicit", "steady")
 # implicit time schemes (thermal_kernel/solvers/implicit.py); "auto": theta = 0.5 -> the default
 # second-order scheme "rannacher" (Crank-Nicolson with backward-Euler start-up), else "theta"
 SCHEMES = ("auto", "theta", "rannacher", "tr-bdf2")
+# where the solve runs: "in-process" (numba / scipy, one machine, the default) or "petsc" (MPI
+# ranks through PETSc, thermal_kernel/solvers/petsc_backend.py; `tdem run --ranks N`)
+BACKENDS = ("in-process", "petsc")
 
 
 @dataclass(frozen=True)
@@ -41,6 +44,7 @@ class SolverConfig:
     scheme: str = "theta"                  # implicit: resolved scheme (theta|rannacher|tr-bdf2)
     startup_steps: int | None = None       # rannacher / tr-bdf2: backward-Euler start-up steps
     max_steps: float = 1e9                 # refuse a transient run of more steps, up front
+    backend: str = "in-process"            # in-process | petsc (MPI ranks, docs/scaling.md)
 
 
 @dataclass(frozen=True)
@@ -305,7 +309,8 @@ def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Sce
         method=method, end_time=end_time, output_times=output_times, dt=dt,
         safety=sol.number("safety", default=0.9, positive=True),
         allow_unstable=sol.boolean("allow_unstable", False),
-        theta=sol.number("theta", default=1.0, minimum=0.5))
+        theta=sol.number("theta", default=1.0, minimum=0.5),
+        backend=sol.string("backend", default="in-process", choices=BACKENDS))
     if solver.theta > 1.0:
         sol.fail("theta", f"expected 0.5 <= theta <= 1, got {solver.theta}")
     scheme, startup = _scheme(sol, method, solver.theta, theta_given)
