@@ -223,18 +223,56 @@ def test_exact_cases_run_quickly_and_report_round_off():
     assert "2.066" in r11.our_error
 
 
+def _seeds_in_the_page(text: str) -> dict:
+    """The five-seed numbers as docs/campaign.md ("4. Packing realisations", issue 15) says
+    them (the page is checked against the record here; no case reads it)."""
+    import re
+    out = {}
+    m = re.search(r"exponent b of γ = a p\^b \+ c is ([\d.]+) ± ([\d.]+) "
+                  r"over\s+the (\w+) seeds", text)
+    if m:
+        out["gamma_exponent"] = (float(m.group(1)), float(m.group(2)))
+        out["seeds"] = m.group(3)
+    m = re.search(r"τ = a p\^b \+ c: b = ([−-][\d.]+) ± ([\d.]+)", text)
+    if m:
+        out["tau_exponent"] = (float(m.group(1).replace("−", "-")), float(m.group(2)))
+    m = re.search(r"In 003's convention, γ_paper / 003's γ\(p\) = ([\d., ]+) \(means\)", text)
+    if m:
+        out["gamma_paper_ratio"] = [float(v) for v in m.group(1).split(",")]
+    return out
+
+
 def test_case12_reads_the_seed_campaign():
-    """The five-seed numbers of docs/campaign.md reach case 12 (both pages say the same): γ rises
-    on every seed's fit (exponent minus two sd > 0) where 003's falls, and a ratio per pressure.
-    (The single-seed fits come from the campaign's record: tests/test_records.py.)"""
+    """The five-seed numbers reach case 12 from their committed record, which says what
+    docs/campaign.md says (both pages the same numbers): γ rises on every seed's fit (exponent
+    minus two sd > 0) where 003's falls, and a ratio per pressure. (The single-seed fits come
+    from the campaign's record: tests/test_records.py.)"""
     from tdem_post.campaign_record import CampaignRecord
     from tdem_post.records import record_from_json
-    from validation.case12_campaign import COMMITTED, DOC, parse_seeds
-    seeds = parse_seeds(DOC.read_text())
+    from validation.case12_campaign import COMMITTED, SEEDS_COMMITTED, SeedExponents
+    seeds = record_from_json(SeedExponents, SEEDS_COMMITTED).numbers()
+    page = _seeds_in_the_page((framework.ROOT / "docs" / "campaign.md").read_text())
+    assert seeds == page
     (b, sd), (tb, _) = seeds["gamma_exponent"], seeds["tau_exponent"]
     assert b - 2 * sd > 0 > record_from_json(CampaignRecord, COMMITTED).paper_gamma["b"]
     assert tb < 0
     assert len(seeds["gamma_paper_ratio"]) == 7
+
+
+def test_the_seed_record_refuses_a_missing_field(tmp_path):
+    """The committed SeedExponents round-trips, and a record without one of its fields is
+    refused in one line naming it."""
+    import json
+    from tdem_post.records import RecordError, record_from_json, write_json
+    from validation.case12_campaign import SEEDS_COMMITTED, SeedExponents
+    rec = record_from_json(SeedExponents, SEEDS_COMMITTED)
+    write_json(tmp_path / "s.json", rec)
+    assert record_from_json(SeedExponents, tmp_path / "s.json") == rec
+    data = json.loads(SEEDS_COMMITTED.read_text())
+    del data["tau_exponent_sd"]
+    (tmp_path / "bad.json").write_text(json.dumps(data))
+    with pytest.raises(RecordError, match="tau_exponent_sd: missing"):
+        record_from_json(SeedExponents, tmp_path / "bad.json")
 
 
 def test_a_case_without_the_equal_n_columns_is_judged_by_its_judge(tree):
@@ -303,3 +341,28 @@ def test_case2_is_judged_on_the_larger_cells_once_five_seeds_are_measured():
     few = {k: v for k, v in beams.items() if k in ("1", "2")}
     j = case2_beam.judge(dict(base, series={"cell10k": few}))
     assert j.target_met is False and "worst 1.38 %" in j.verdict
+
+
+def test_no_case_reads_its_inputs_from_docs():
+    """Issue 26: a case's inputs come from its own saved record, a cache under validation/out or
+    the producing case's record, never from docs/ (the figures' CSVs there are outputs, written
+    by ``ctx.figure``): no case module names framework.IMG, and a "docs" path appears only to
+    print a path relative to it."""
+    import ast
+    from pathlib import Path
+    bad = []
+    for path in sorted(Path(framework.__file__).parent.glob("case*_*.py")):
+        tree = ast.parse(path.read_text())
+        inside_relative_to = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                    and node.func.attr == "relative_to":
+                inside_relative_to |= {id(n) for a in node.args for n in ast.walk(a)}
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.Name, ast.Attribute)) and \
+                    getattr(node, "id", getattr(node, "attr", None)) == "IMG":
+                bad.append(f"{path.name}:{node.lineno}: IMG")
+            if isinstance(node, ast.Constant) and node.value == "docs" \
+                    and id(node) not in inside_relative_to:
+                bad.append(f"{path.name}:{node.lineno}: a path under docs/")
+    assert bad == []

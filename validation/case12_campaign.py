@@ -9,13 +9,15 @@ This case reads that record - never the report's text - and puts its numbers in 
 ``runs/out/campaign_7500/campaign.json`` when a campaign has run here, else the committed copy of
 one, ``validation/records/campaign_7500.json`` (copy a fresh campaign.json there to update it).
 The five-seed numbers (exponents over seeds) come from the seed campaign's record,
-``runs/out/campaign_7500_seeds/campaign.json``, when it exists; until then from docs/campaign.md's
-text (:func:`parse_seeds`; that campaign's runs were not kept, and no record of it exists).
+``runs/out/campaign_7500_seeds/campaign.json``, when it exists; until then from the committed
+:class:`SeedExponents` record ``validation/records/campaign_7500_seeds.json`` (that campaign's
+runs were not kept: the record holds the numbers docs/campaign.md reports for it; a test checks
+that the page and the record agree). No input is read from docs/.
 """
 from __future__ import annotations
 
 import math
-import re
+from dataclasses import dataclass
 
 from tdem_post.campaign_record import RECORD, CampaignRecord
 from tdem_post.post_run import MEAN_FIELD_LAWS
@@ -26,12 +28,33 @@ from .framework import Judgement
 
 CASE = CaseInfo(number=12, title="the pressure campaign", paper="003 Fig. 7, 10", paper_n="7,500",
                 paper_error="γ(p), τ(p) fits")
-DOC = ROOT / "docs" / "campaign.md"
 FRESH = ROOT / "runs" / "out" / "campaign_7500" / RECORD
-# the five-seed campaign (runs/campaign_7500_seeds.toml); its numbers come from docs/campaign.md's
-# prose (parse_seeds) until a record of it exists: its runs were not kept
+# the five-seed campaign (runs/campaign_7500_seeds.toml): its record when it has run here, else
+# the committed SeedExponents (its runs were not kept)
 SEEDS_FRESH = ROOT / "runs" / "out" / "campaign_7500_seeds" / RECORD
 COMMITTED = ROOT / "validation" / "records" / "campaign_7500.json"
+SEEDS_COMMITTED = ROOT / "validation" / "records" / "campaign_7500_seeds.json"
+
+
+@dataclass(frozen=True)
+class SeedExponents:
+    """The five-seed campaign's γ(p) and τ(p) over its seeds (pipe law, dimensionless): the
+    exponents b of a p^b + c, mean and sample sd of the per-seed fits, and γ_paper / 003's γ(p)
+    per pressure (low to high, the mean over the seeds)."""
+    campaign: str
+    law: str
+    seeds: str                  # how many, as text ("five": as docs/campaign.md words it)
+    gamma_exponent_mean: float
+    gamma_exponent_sd: float
+    tau_exponent_mean: float
+    tau_exponent_sd: float
+    gamma_paper_over_paper: tuple[float, ...]
+
+    def numbers(self) -> dict:
+        """The case's ``seeds`` numbers (as :func:`seed_numbers` gives them)."""
+        return dict(gamma_exponent=(self.gamma_exponent_mean, self.gamma_exponent_sd),
+                    tau_exponent=(self.tau_exponent_mean, self.tau_exponent_sd),
+                    seeds=self.seeds, gamma_paper_ratio=list(self.gamma_paper_over_paper))
 
 
 def campaign_fits(record: CampaignRecord, source) -> dict:
@@ -74,8 +97,8 @@ def source(quick: bool = False):
 
 
 def seed_numbers(record: CampaignRecord, law: str = "pipe") -> dict:
-    """The numbers :func:`parse_seeds` reads from docs/campaign.md, from a seeded campaign's
-    record: the exponents b of γ(p) and τ(p) fitted per seed (mean ± sample sd over the seeds),
+    """The ``seeds`` numbers of :class:`SeedExponents`, from a seeded campaign's record: the
+    exponents b of γ(p) and τ(p) fitted per seed (mean ± sample sd over the seeds),
     the number of seeds and γ_paper / 003's γ(p) per pressure (the mean over the seeds of each
     seed's ratio, low to high pressure)."""
     import numpy as np
@@ -89,25 +112,6 @@ def seed_numbers(record: CampaignRecord, law: str = "pipe") -> dict:
     return dict(gamma_exponent=(float(np.mean(gb)), float(np.std(gb, ddof=1))),
                 tau_exponent=(float(np.mean(tb)), float(np.std(tb, ddof=1))),
                 seeds=str(len(fits)), gamma_paper_ratio=[float(v) for v in ratio])
-
-
-def parse_seeds(text: str) -> dict:
-    """The five-seed campaign of docs/campaign.md ("4. Packing realisations", issue 15): the
-    exponents of γ(p) and τ(p) (mean ± sd over seeds) and γ_paper / 003's γ(p) per pressure."""
-    out = {}
-    m = re.search(r"exponent b of γ = a p\^b \+ c is ([\d.]+) ± ([\d.]+) "
-                  r"over\s+the (\w+) seeds", text)
-    if m:
-        out["gamma_exponent"] = (float(m.group(1)), float(m.group(2)))
-        out["seeds"] = m.group(3)
-    m = re.search(r"τ = a p\^b \+ c: b = ([−-][\d.]+) ± ([\d.]+)", text)
-    if m:
-        out["tau_exponent"] = (float(m.group(1).replace("−", "-")), float(m.group(2)))
-    m = re.search(r"In 003's convention, γ_paper / 003's γ\(p\) = ([\d., ]+) \(means\)", text)
-    if m:
-        out["gamma_paper_ratio"] = [float(v) for v in m.group(1).split(",")]
-    return out
-
 
 
 def judge(numbers: dict) -> Judgement:
@@ -171,9 +175,10 @@ against its own γ).
 The campaign is the first step of `make validate` (`tdem campaign runs/campaign_7500.toml`,
 resumable; YADE ~3 min (2026-12-01; 6.3 min with the generator before 2026-11), thermal ~3 min)."""
     ratio = pipe["ratio_to_paper"]
-    seeds_path = SEEDS_FRESH if SEEDS_FRESH.exists() and not ctx.quick else DOC
+    seeds_path = SEEDS_FRESH if SEEDS_FRESH.exists() and not ctx.quick else SEEDS_COMMITTED
     seeds = (seed_numbers(record_from_json(CampaignRecord, SEEDS_FRESH))
-             if seeds_path == SEEDS_FRESH else parse_seeds(DOC.read_text()))
+             if seeds_path == SEEDS_FRESH else
+             record_from_json(SeedExponents, SEEDS_COMMITTED).numbers())
     if "gamma_exponent" in seeds and "tau_exponent" in seeds:
         (gb, gs), (tb, ts) = seeds["gamma_exponent"], seeds["tau_exponent"]
         pr = seeds.get("gamma_paper_ratio", [])

@@ -25,7 +25,6 @@ writes DIR/NAME.json (errors, C_t, timings, steady profile) and DIR/NAME_profile
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import time
 from pathlib import Path
@@ -34,7 +33,7 @@ import numpy as np
 
 from thermal_kernel.atomic import open_atomic, savefig_atomic, write_text_atomic
 
-from .framework import (IMG, ROOT, CaseInfo, CaseResult, Context, optional_packing,
+from .framework import (ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today, write_csv)
 from .framework import Judgement, fit_order, scene_toml
 
@@ -182,42 +181,6 @@ def _row(key: str, summary: dict, profile: list) -> dict:
                 measured=today(), how=HOW)
 
 
-def _legacy_rows() -> list[dict]:
-    """The rows measured before the framework: the CSVs beside the figures (committed) and the
-    steady-profile table of docs/validation.md (validation/case4_steady_profile.py, 20 bins)."""
-    path = IMG / "validation_case4_convergence.csv"
-    if not path.exists():
-        return []
-    steady = {"ds_10000_s1": (-0.34, "±0.1", 0.33, None),
-              "tiled_10000_s1": (0.95, "+0.1 … −0.3", -0.78, -1.17),
-              "tiled_1e5": (0.29, "+0.05", -0.14, None), "tiled_1e6": (0.16, "−0.01", -0.20, None)}
-    rows = []
-    with open(path) as f:
-        for r in csv.DictReader(f):
-            label, family = SPEC.get(r["name"], (r["name"], r["family"]))
-            row = dict(name=r["name"], label=label, family=family,
-                       n_particles=int(r["n_particles"]), ct_held=float(r["ct_held"]),
-                       ct_domain=float(r["ct_domain"]),
-                       max_err_over_T_celsius=float(r["max_err_over_T_celsius"]),
-                       max_err_over_dT=float(r["max_err_over_dT"]), steps=int(r["steps"]),
-                       run_seconds=float(r["run_seconds"]), measured=r.get("measured") or
-                       "2026-12-01", how="validation/case4_slab.py before tdem validate")
-            if r["name"] in steady:
-                c, mid, h, inner = steady[r["name"]]
-                row["steady_legacy"] = dict(cold=c, mid=mid, hot=h, hot_inner=inner)
-            rows.append(row)
-    prof = IMG / "validation_case4_profiles.csv"
-    for row in rows:
-        if row["name"] == "tiled_1e5" and prof.exists():
-            with open(prof) as f:
-                row["profile"] = [[float(v) for v in r.values()] for r in csv.DictReader(f)]
-    for row in rows:         # x-axis held-plane distances of case 6's CSV (the same packings)
-        held = {"tiled_1e5": 0.0910216, "tiled_1e6": 0.1974642}.get(row["name"])
-        if held:
-            row["length_held_m"] = held
-    return rows
-
-
 def _figures(ctx: Context, rows: list[dict]) -> dict:
     import matplotlib
     matplotlib.use("Agg")
@@ -321,7 +284,7 @@ def run(ctx: Context) -> CaseResult:
                           f"of T in °C, {100 * row['max_err_over_dT']:.2f} % of ΔT",
                           wall_time=f"{row['run_seconds']:.1f} s", verdict="quick instance",
                           section_md="", numbers=dict(rows=[row]))
-    previous = {r["name"]: r for r in (previous_numbers(4).get("rows") or _legacy_rows())}
+    previous = {r["name"]: r for r in previous_numbers(4).get("rows", [])}
     rows = []
     for key, _label, _family, name, default in INSTANCES:
         path = DENSE_400 if name is None else optional_packing(name, default)

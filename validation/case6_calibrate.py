@@ -22,17 +22,15 @@ measured when already built here.
 """
 from __future__ import annotations
 
-import csv
 import dataclasses
 import json
 import time
-from collections import defaultdict
 
 import numpy as np
 
 from thermal_kernel.atomic import savefig_atomic, write_text_atomic
 
-from .framework import (IMG, OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
+from .framework import (OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
                         optional_packing, previous_numbers, register_packing,
                         today, write_csv)
 
@@ -107,7 +105,6 @@ LABEL = {k: lab for k, lab, *_ in INSTANCES}
 CSV_FIELDS = ["name", "n_particles", "shape", "seed", "variant", "axis", "ct_domain", "ct_held",
               "length_domain_m", "length_held_m", "gap", "z_all", "z_bulk", "solid_fraction",
               "seconds", "measured"]
-LEGACY = "validation/case6_calibrate.py before tdem validate (packings of bench/out/packings)"
 BULK_MARGIN = 2.0          # mean diameters (runs/dense_box.toml's [neighbours])
 
 
@@ -194,30 +191,6 @@ def _upgrade(row: dict) -> dict:
                                     bulk_margin="3 mean radii")}
     row.setdefault("seed", 0)
     return row
-
-
-def _legacy_rows() -> list[dict]:
-    """The rows measured before the framework, from the CSV beside the figure (committed)."""
-    path = IMG / "validation_case6_ct.csv"
-    if not path.exists():
-        return []
-    by = defaultdict(list)
-    with open(path) as f:
-        for r in csv.DictReader(f):
-            if r.get("variant", "dump") == "dump":
-                by[r["name"]].append(r)
-    rows = []
-    for name, rs in by.items():
-        r0 = rs[0]
-        rows.append(_upgrade(dict(
-            name=name, label=LABEL.get(name, name), n_particles=int(r0["n_particles"]),
-            shape=r0["shape"], z_all=float(r0["z_all"]), z_bulk=float(r0["z_bulk"]),
-            solid_fraction=float(r0["solid_fraction"]), seconds=float(r0["seconds"]),
-            measured=r0.get("measured") or "2026-12-01", how=LEGACY,
-            axes={r["axis"]: dict(ct_domain=float(r["ct_domain"]), ct_held=float(r["ct_held"]),
-                                  length_domain_m=float(r["length_domain_m"]),
-                                  length_held_m=float(r["length_held_m"])) for r in rs})))
-    return rows
 
 
 def _mean(row, what, variant="z75"):
@@ -376,8 +349,7 @@ def run(ctx: Context) -> CaseResult:
                           f"{_mean(row, 'ct_domain', 'dump'):.4f} (every dumped pair)",
                           wall_time=f"{row['variants']['z75']['seconds']:.1f} s",
                           verdict="quick instance", section_md="", numbers=dict(rows=[row]))
-    previous = {r["name"]: _upgrade(r)
-                for r in (previous_numbers(6).get("rows") or _legacy_rows())}
+    previous = {r["name"]: _upgrade(r) for r in previous_numbers(6).get("rows", [])}
     rows = []
     for key, _label, name, default, seed, variants in INSTANCES:
         if seed == 1 and not default and not name.startswith("box_1e4_c10k"):
