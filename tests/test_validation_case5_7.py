@@ -154,3 +154,28 @@ def test_case7_quick_halo_cov_within_its_documented_bounds():
     for r in rec["rows"] + rec["rows_own"]:
         if r["ratio"] >= 4:
             assert 0.95 < r["mean_x"] < 1.15
+
+
+def test_case5_quotes_case7_from_its_record(monkeypatch):
+    """Issue 26: case 5's section quotes the interior's excess flux from case 7's saved record
+    (mean q_x / (Q/A) - 1 at Halo ratio 4, common radius), says nothing when case 7 has no
+    record, and computes the paper's centre temperature and its own radius gap."""
+    from validation import case5_sphere, case7_halo, framework
+
+    def rows(mean_x):
+        return [dict(ratio=3.0, mean_x=9.0), dict(ratio=4.0, mean_x=mean_x)]
+    seven = {"result": {"numbers": {"records": [
+        dict(n_particles=100_031, rows=rows(1.031)), dict(n_particles=499_972, rows=rows(1.017))]}}}
+    assert case7_halo.interior_excess(seven["result"]["numbers"]) == pytest.approx(
+        {100_031: 0.031, 499_972: 0.017})
+    main = dict(r_carve_m=0.0501, r_held_m=0.0494)
+    calib = {10_000: dict(ct_bulk=1.0, ct_domain_mean=1.03, ct_held_mean=1.06),
+             1_000_000: dict(ct_bulk=1.0)}
+    monkeypatch.setattr(framework, "load_result", lambda n: seven if n == 7 else None)
+    facts = case5_sphere._cross_case_facts(main, calib)
+    assert facts["case7"] == ": the interior carries 3.1 % more than Q/A at 1e5, 1.7 % at 5e5"
+    assert facts["whole_over_bulk"] == "3–6 %"
+    assert facts["gap_mm"] == pytest.approx(0.7)
+    assert f"{facts['paper_centre_c']:.2f}" == "182.18"
+    monkeypatch.setattr(framework, "load_result", lambda n: None)
+    assert case5_sphere._cross_case_facts(main, calib)["case7"] == ""

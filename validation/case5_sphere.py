@@ -138,8 +138,7 @@ def interior_ct(box_path, ct_arb=0.806):
     half in each direction): lambda_inner = q_x / (dT/dx), q_x the eq. 20 flux averaged over the
     inner particles (phi sum m / (2 sum V), 002 eq. 22-23 over the region) and dT/dx the slope of
     their temperatures. No held layer and no adiabatic cut face enters, unlike the two
-    whole-cube conventions (case 7 measures the cut faces' deficit: the interior carries
-    2-5 % more than Q/A)."""
+    whole-cube conventions (case 7 measures the cut faces' deficit)."""
     import dataclasses
     from tdem_post.flux import contact_moments
     from thermal_kernel.boundaries import TemperatureBoundary
@@ -492,6 +491,29 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
     return _summary(ctx, rows, calib, speed, main, orders)
 
 
+def _cross_case_facts(main, calib) -> dict:
+    """The numbers the section quotes beside its own measures, each from where it is measured:
+    T_c of the paper's sphere at 10 s (the analytical solution), R_carve - R_h of the main ball
+    (mm; the packing's mean radius is 1 mm), how much higher the whole-cube C_t come out than
+    the bulk one (this case's calibration), and the interior's excess flux from case 7's saved
+    record (nothing when case 7 has none)."""
+    from validation import framework
+    from validation.case7_halo import interior_excess
+    whole = [c[k] / c["ct_bulk"] - 1 for c in calib.values()
+             for k in ("ct_domain_mean", "ct_held_mean") if k in c]
+    record7 = framework.load_result(7)
+    excess = interior_excess(record7["result"]["numbers"]) if record7 else {}
+    case7 = ("" if not excess else ": the interior carries " + ", ".join(
+        f"{100 * e:.1f} % more than Q/A at {n:.0e}".replace("e+0", "e") if k == 0 else
+        f"{100 * e:.1f} % at {n:.0e}".replace("e+0", "e")
+        for k, (n, e) in enumerate(sorted(excess.items()))))
+    return dict(paper_centre_c=sphere_centre_temperature(PAPER_T_END, PAPER_R, ALPHA, TS_C, T0_C),
+                gap_mm=1e3 * (main["r_carve_m"] - main["r_held_m"]),
+                whole_over_bulk=(f"{100 * min(whole):.0f}–{100 * max(whole):.0f} %" if whole
+                                 else "a few per cent"),
+                case7=case7)
+
+
 def _fmt_row(r):
     return (f"| {r['n_particles']:,} | {r['label']} | {r['ct']:.4f} | {1e3 * r['r_held_m']:.2f} / "
             f"{1e3 * r['r_carve_m']:.2f} | {r['centre_error_c']:+.3f} | "
@@ -508,6 +530,7 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
     best_cn = min(speed, key=lambda r: r["run_seconds"] if abs(r["centre_error_c"])
                   <= 1.1 * abs(main["centre_error_c"]) + 0.05 else math.inf)
     met = abs(main["centre_error_c"]) <= 1.0
+    facts = _cross_case_facts(main, calib)
     n_fmt = ", ".join(f"{r['n_particles']:,}" for r in rows if r["label"] == PRIMARY)
     table = "\n".join(_fmt_row(r) for r in rows)
     cal_rows = "\n".join(
@@ -587,7 +610,8 @@ T_c(t) = T_s + 2(T_0 − T_s) Σ (−1)ⁿ⁺¹ e^(−n²π² α t/R²)
 against an independent solve: a 1-D finite-volume discretisation of the radial heat equation,
 integrated exactly in time by eigendecomposition, agrees to 2.6e-5 / 3.5e-6 / 1.4e-6 of ΔT at
 Fo = 0.01 / 0.1 / 0.30 with 400 cells and converges at second order in the cell size
-(`tests/test_validation_case5_7.py`). At t = 10 s the paper's sphere has T_c = 182.18 °C.
+(`tests/test_validation_case5_7.py`). At t = 10 s the paper's sphere has T_c = \
+{facts['paper_centre_c']:.2f} °C.
 
 **C_t.** The paper's (0.806 at 1e5, 0.834 at 1e6: its cube calibration at the same N) and ours,
 from the cube carved from the same cell with the same N. Primary: the **bulk** C_t, the cube's
@@ -596,8 +620,8 @@ flux averaged there over the slope of the temperatures; `interior_ct`). The sphe
 adiabatic cut face and its held layer is the analytical radius R_h, so neither of the cube's
 boundary effects belongs in its C_t: the whole-cube tests (002 eq. 8–9, mean of three axes; held
 planes and domain length, docs/validation.md "The slab length") include the deficit of the
-layers along the cube's adiabatic cut faces (case 7 measures it: the interior carries 2.2 % more
-than Q/A at 1e5, 4.6 % at 1e4) and so come out 2–6 % higher; they are run beside it up to 1e5.
+layers along the cube's adiabatic cut faces (case 7 measures it{facts['case7']}) and so come
+out {facts['whole_over_bulk']} higher; they are run beside it up to 1e5.
 
 | cube N | C_t bulk (interior) | C_t (domain) | C_t (held planes) | held planes x / y / z |
 |---|---|---|---|---|
@@ -631,7 +655,8 @@ about 6 ΔR/R of the centre's excess temperature at this Fourier number.
 centre error {orders['centre_error_c']:.2f}, max error {orders['max_abs_error_c']:.2f}, RMS
 {orders['rms_error_c']:.2f}: all fall about as N^(-1/3), i.e. as the particle size over R. The
 leading error is the held layer: the ball behaves as a continuum sphere slightly larger than the
-held shell (the centre error changes sign between R_h and R_carve, ~0.6 mm = 0.6 mean radii
+held shell (the centre error changes sign between R_h and R_carve, ~{facts['gap_mm']:.1f} mm = \
+{facts['gap_mm']:.1f} mean radii
 apart), a boundary offset of a fraction of a particle whose weight falls as 1/R. The whole-cube
 C_t (held planes, domain length) add the cube's own boundary effects and converge from the
 other side.

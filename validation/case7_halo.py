@@ -241,6 +241,14 @@ def _at(rec, ratio, key="cov_abs", kind="common"):
     return float("nan")
 
 
+def interior_excess(numbers: dict, ratio: float = 4.0) -> dict[int, float]:
+    """From case 7's saved numbers: {N: mean q_x / (Q/A) - 1} at the Halo ``ratio`` (common
+    radius), how much more than the average flux the cube's interior carries (the layers along
+    its adiabatic cut faces conduct less). Other cases quote it from here, not by hand."""
+    return {int(r["n_particles"]): _at(r, ratio, "mean_x") - 1.0
+            for r in numbers.get("records", [])}
+
+
 def _report(ctx, recs) -> CaseResult:
     import matplotlib
     matplotlib.use("Agg")
