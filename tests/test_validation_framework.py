@@ -366,3 +366,37 @@ def test_no_case_reads_its_inputs_from_docs():
                     and id(node) not in inside_relative_to:
                 bad.append(f"{path.name}:{node.lineno}: a path under docs/")
     assert bad == []
+
+
+def test_one_entry_point_for_the_cases():
+    """Issue 26: what a user runs of the validation is `tdem validate N [--action NAME]`: no
+    validation module is a script of its own (no ``__main__`` block, no argparse outside the
+    framework's options of `tdem validate`)."""
+    import ast
+    from pathlib import Path
+    scripts = []
+    for path in sorted(Path(framework.__file__).parent.glob("*.py")):
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Compare) and isinstance(node.left, ast.Name) \
+                    and node.left.id == "__name__":
+                scripts.append(f"{path.name}: __main__")
+            if isinstance(node, ast.Attribute) and node.attr == "ArgumentParser" \
+                    and path.name != "run.py":
+                scripts.append(f"{path.name}: argparse")
+    assert scripts == []
+
+
+def test_case8_extends_by_the_next_block(monkeypatch):
+    """`tdem validate 8 --action extend` adds the periodic block after the largest saved one of
+    its series (harmonic up to 5^3 and cut up to 2^3 saved: 6^3 and 3^3 next)."""
+    from validation import case8_inclusion as case8
+
+    def runs(series, ms):
+        return [dict(series=series, n=10_000 * m ** 3) for m in ms]
+    saved = {"result": {"numbers": {"runs": runs("periodic_harmonic", range(1, 6))
+                                    + runs("periodic_cut", (1, 2)) + runs("faces", (7,))}}}
+    monkeypatch.setattr(framework, "load_result", lambda n: saved)
+    assert case8._next_block("harmonic") == 6
+    assert case8._next_block("cut") == 3
+    assert set(case8.ACTIONS) == {"rebuild", "paper-n", "extend", "extend-cut"}

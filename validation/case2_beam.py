@@ -566,4 +566,4 @@ average. The beam is thin ({radius_r:.1f} mean diameters across), so each bin ho
                  f"{int(np.mean(n_actual)):,}, {n_ok[max(ladder)]} of {len(seeds)} at "
                  f"{int(conv[-1, 0]):,}")
         + f"; a cold bias at the hot end (held layer); error ~ N^{order:.2f}",
-        section_md=section, numbers=numbers, command=".venv/bin/python -m validation.run 2")
+        section_md=section, numbers=numbers, command="")

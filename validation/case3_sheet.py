@@ -474,4 +474,4 @@ cell (0.5 mm).
         wall_time=f"{pack_s:.0f} s (carving; the cells are case 2's) + {thermal_s:.0f} s "
                   f"(continuum {sum(cont_s):.0f} s)",
         verdict=f"error falls as N^{order:.2f}; continuum reference converged",
-        section_md=section, numbers=numbers, command=".venv/bin/python -m validation.run 3")
+        section_md=section, numbers=numbers, command="")

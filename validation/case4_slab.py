@@ -16,22 +16,18 @@ network against the linear one (20 bins, % of dT): the calibration makes the hea
 not the profile linear; a boundary resistance of the held layers bends it.
 
 `tdem validate 4` runs it over INSTANCES (the default ones built when missing, the others when
-their packing is on the machine; the rows of the rest are carried over). One packing by hand:
-
-  .venv/bin/python -m validation.case4_slab PACKING.h5 [--bins 10] [--out DIR] [--name NAME]
-
-writes DIR/NAME.json (errors, C_t, timings, steady profile) and DIR/NAME_profiles.csv.
+their packing is on the machine; the rows of the rest are carried over); `--quick` runs
+:func:`slab_case` on the committed 400-sphere box, the function every row runs.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from pathlib import Path
 
 import numpy as np
 
-from thermal_kernel.atomic import open_atomic, savefig_atomic, write_text_atomic
+from thermal_kernel.atomic import savefig_atomic, write_text_atomic
 
 from .framework import (ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today, write_csv)
@@ -441,8 +437,8 @@ Fig. 5b: the paper does not define its relative error, and plots T in °C; 0.7 %
 ~0.2 K) and |T − T_exact| / ΔT (ΔT = 10 K, independent of the temperature scale's origin,
 {min(ratios):.1f}–{max(ratios):.1f}× stricter).
 
-One packing by hand: `.venv/bin/python -m validation.case4_slab PACKING.h5 --name NAME` (writes
-`validation/out/case4/NAME.json` and `NAME_profiles.csv`).
+One packing by hand: `slab_case(PACKING)` of `validation/case4_slab.py`, what every row runs
+(`tdem validate 4 --quick` runs it on the committed 400-sphere box).
 """ + (f"""
 ![case 4 profiles at {prof_png[1]['n_particles']:,}](img/{prof_png[0]})
 
@@ -532,34 +528,3 @@ in °C, 5 % of ΔT) and the C_t conversion; `tdem validate 4 --quick` runs the s
         wall_time=(f"551 s CPU + {head['run_seconds']:.0f} s (explicit, {head['steps']:,} steps, "
                    f"1 thread)" + (f"; 1e6: + {b6['run_seconds']:.0f} s" if b6 else "")),
         verdict=verdict, section_md=section, numbers=n)
-
-
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("packing")
-    ap.add_argument("--bins", type=int, default=10)
-    ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--out", default=str(ROOT / "validation" / "out" / "case4"))
-    ap.add_argument("--name", default=None)
-    a = ap.parse_args(argv)
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
-    name = a.name or Path(a.packing).parent.name
-    summary, rows = slab_case(a.packing, a.bins, a.threads)
-    write_text_atomic(out / f"{name}.json", json.dumps(summary, indent=1))
-    with open_atomic(out / f"{name}_profiles.csv", "w") as f:
-        f.write("fourier,time_s,x_over_L,T_dem_C,T_exact_C,error_K\n")
-        for r in rows:
-            f.write(",".join(f"{v:.10g}" for v in r) + "\n")
-    print(f"{name}: N {summary['n_particles']}, C_t {summary['ct_held_plane']:.4f} (held plane) "
-          f"/ {summary['ct_domain_length']:.4f} (domain), max |err|/T(C) "
-          f"{100 * summary['max_rel_error_celsius']:.3f} %, max |err|/dT "
-          f"{100 * summary['max_error_over_dT']:.3f} %, {summary['steps']} steps, "
-          f"{summary['run_seconds']:.1f} s; steady - linear (% of dT, cold -> hot): "
-          + " ".join(f"{v:+.3f}" for v in summary["steady_minus_linear_pct_dT"]))
-
-
-if __name__ == "__main__":
-    from thermal_kernel.threading_layer import prefer_openmp
-    prefer_openmp()             # an entry point: OpenMP first, NUMBA_THREADING_LAYER* wins
-    main()

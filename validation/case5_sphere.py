@@ -25,8 +25,7 @@ Measures at t = 10 s (paper time), over the conducting, free particles: the cent
 volume-weighted mean of T_p - T_exact(r_p) over the particles within 0.1 R_h of the centre), the
 max and RMS of |T_p - T_exact(r_p)| (the paper's Fig. 8c measure is the max), and a shell profile.
 
-  .venv/bin/python -m validation.run 5          (the framework)
-  .venv/bin/python validation/case5_sphere.py [--quick]
+  tdem validate 5 [--quick]
 """
 from __future__ import annotations
 
@@ -592,7 +591,7 @@ the **held
 shell**, R_h = mean distance of the held spheres' centres from the carving centre (the analogue
 of case 4's held planes; R_carve − R_h in the table). **Not rescaled** to
 D = 10 cm: the outputs are at the paper's Fourier numbers (Fo = α t / R² = {FO_END:.4f} at
-t = 10 s, and Fig. 7's 1 … 10 s) with our R_h. Reproduce: `.venv/bin/python -m validation.run 5`.
+t = 10 s, and Fig. 7's 1 … 10 s) with our R_h.
 
 **The analytical solution.** 002 eq. 18 is printed as T = T_0 + 2(T_0 − T_i)/(π r) Σ (−1)ⁿ/n
 sin(nπr/R) e^(−α n²π² t/R²) and eq. 19 as T_c = T_0 + 2(T_0 − T_i) Σ (−1)ⁿ e^(…), with T_0 the
@@ -704,4 +703,4 @@ other cells (seeds), not done here. {big_limit}
                  "calibration": {str(k): v for k, v in calib.items()},
                  "speed": [{k: v for k, v in r.items() if k != "shells" and not k.startswith("_")}
                            for r in speed]},
-        command=".venv/bin/python -m validation.run 5")
+        command="")

@@ -14,11 +14,11 @@ Three series, all law haddad (C_t cancels in k_eff / k_m), phases by the particl
 - periodic (cut): as above with the interface contacts' conductivity from where the sphere cuts
   the branch (tdem's variant, not the paper's).
 
-  .venv/bin/python -m validation.case8_inclusion [--quick] [--max-m 5] [--rebuild] [--extend M ...]
+`tdem validate 8` runs it; its extra steps on the saved result are `tdem validate 8 --action
+rebuild | paper-n | extend | extend-cut` (ACTIONS below).
 """
 from __future__ import annotations
 
-import argparse
 import math
 import time
 from pathlib import Path
@@ -429,7 +429,7 @@ in memory from runs/out/dense_box_1e5/cell.h5 in seconds.
         + (f"{_needed_n(runs, 'faces', 'err_maxwell'):.0e} (faces)" if _needed_n(
             runs, 'faces', 'err_maxwell') else "?"),
         section_md=section, numbers=numbers,
-        command=".venv/bin/python -m validation.case8_inclusion")
+        command="`tdem validate 8 --action paper-n`, `--action extend` add to the saved result")
 
 
 def add_paper_n() -> None:
@@ -471,30 +471,24 @@ def extend(blocks, variants) -> None:
     print(framework.save_result(CASE, result, seconds))
 
 
-def main(argv=None):
-    global MAX_M
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--max-m", type=int, default=MAX_M)
-    ap.add_argument("--rebuild", action="store_true",
-                    help="figures and section again from the saved result (no solve)")
-    ap.add_argument("--extend", type=int, nargs="*", default=None, metavar="M",
-                    help="add periodic blocks M^3 to the saved result (harmonic interface)")
-    ap.add_argument("--paper-n", action="store_true",
-                    help="add the faces series at the paper's N (box_150k), every dumped pair "
-                         "and Haddad's bulk Z 7.5, to the saved result")
-    ap.add_argument("--extend-cut", action="store_true",
-                    help="with --extend: the cut interface as well")
-    a = ap.parse_args(argv)
-    if a.rebuild:
-        return rebuild()
-    if a.paper_n:
-        return add_paper_n()
-    if a.extend:
-        return extend(a.extend, ("harmonic", "cut") if a.extend_cut else ("harmonic",))
-    MAX_M = a.max_m
-    framework.run_standalone(CASE, run, a.quick)
+def _next_block(variant: str) -> int:
+    """The next periodic block size m of a series ("harmonic" or "cut") beyond the saved ones."""
+    runs = framework.load_result(8)["result"]["numbers"]["runs"]
+    done = [round(r["n"] ** (1 / 3) / 10_000 ** (1 / 3)) for r in runs
+            if r["series"] == f"periodic_{variant}"]
+    return max(done, default=0) + 1
 
 
-if __name__ == "__main__":
-    main()
+ACTIONS = {           # tdem validate 8 --action NAME
+    "rebuild": framework.Action(lambda ctx: rebuild(),
+                                "figures and section again from the saved result (no solve)"),
+    "paper-n": framework.Action(lambda ctx: add_paper_n(),
+                                "add the faces series at the paper's N (box_150k), every dumped "
+                                "pair and Haddad's bulk Z 7.5, to the saved result"),
+    "extend": framework.Action(lambda ctx: extend([_next_block("harmonic")], ("harmonic",)),
+                               "add the next periodic block m^3 (harmonic interface) to the "
+                               "saved result"),
+    "extend-cut": framework.Action(lambda ctx: extend([_next_block("cut")], ("cut",)),
+                                   "add the next periodic block m^3 of the cut interface to the "
+                                   "saved result"),
+}

@@ -32,11 +32,10 @@ reference is the mean of the two, with half their difference as its uncertainty.
 measure is the difference to its FE values (Table 2), so the target is judged against them; the
 errors against our converged FV reference are given beside.
 
-  .venv/bin/python -m validation.case9_inclusion_points [--quick]
+`tdem validate 9` runs it (`--quick`: the committed 400-sphere box).
 """
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
@@ -403,7 +402,7 @@ def run(ctx: Context) -> CaseResult:
         + " (paper +0.4 / +2.2 / −3.8 %); T within 1 %"
         + ("" if max(main_run["err_T"]) <= 0.01 else " NOT met"),
         section_md=section, numbers=numbers,
-        command=".venv/bin/python -m validation.case9_inclusion_points",
+        command="",
         at_paper_n=at_paper, speed_vs_error=speed, target_met=met)
 
 
@@ -675,14 +674,3 @@ N = {', '.join(f"{r['n']:,}" for r in rs)}, so the halo of 11 r̄ is cut by that
 only; 002's 19.6 % is the maximum over the section's map.
 """
     return section, at_paper, speed, met
-
-
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    a = ap.parse_args(argv)
-    framework.run_standalone(CASE, run, a.quick)
-
-
-if __name__ == "__main__":
-    main()

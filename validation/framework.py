@@ -443,15 +443,3 @@ def optional_packing(name: str, default: bool) -> Path | None:
     if default or packing_built(name) or os.environ.get("TDEM_VALIDATE_ALL_PACKINGS") == "1":
         return packing(name)
     return None
-
-
-def run_standalone(info: CaseInfo, run, quick: bool) -> CaseResult:
-    """`python -m validation.caseN_...`: run one case outside `tdem validate` and save its
-    result (not for --quick); the document is assembled by `tdem validate`."""
-    ctx = Context(info.number, quick=quick)
-    t0 = time.perf_counter()
-    result = run(ctx)
-    if not quick:
-        print(save_result(info, result, time.perf_counter() - t0))
-    print(result.our_error, "|", result.verdict)
-    return result

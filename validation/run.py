@@ -435,9 +435,3 @@ def assemble(cases: dict | None = None) -> None:
             new = build(old, cases, records)
             if new != old:
                 write_text_atomic(path, new)
-
-
-if __name__ == "__main__":
-    from thermal_kernel.threading_layer import prefer_openmp
-    prefer_openmp()             # an entry point: OpenMP first, NUMBA_THREADING_LAYER* wins
-    sys.exit(main())
