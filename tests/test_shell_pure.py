@@ -132,3 +132,46 @@ def test_wall_layers_of_a_cubic_lattice():
     np.testing.assert_allclose(layers.solid_fraction[4], expected, rtol=1e-12)
     np.testing.assert_allclose(layers.z_with_gaps, [5.0, 6.0, 6.0])
     np.testing.assert_allclose(layers.wall_contacts_per_d2, 1.0)
+
+
+def test_cloud_layer_puts_the_outer_layer_back_loose_without_overlaps():
+    """shell_cloud_diameters: the spheres within layer_m of the faces leave their place and are
+    put back at random in the grown box's outer layer, at the layer's solid fraction, overlapping
+    neither each other nor the spheres that stay (up to the 1 % the obstacles are shrunk by);
+    the spheres that stay are moved by the margin only; the same seed gives the same cloud."""
+    # a dense stand-in for the carved packing: an fcc lattice of touching distance 0.03 with
+    # radii 0.9-1.0 of 0.015 (solid fraction ~0.64)
+    rng = np.random.default_rng(5)
+    box = Container("box", 0.3 ** 3, [1.0, 1.0, 1.0])
+    a = 0.03 * np.sqrt(2.0)
+    cube = np.arange(0.015, 0.3 - 0.015, a)
+    base = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]]) * a
+    grid = np.stack(np.meshgrid(cube, cube, cube, indexing="ij"), -1).reshape(-1, 3)
+    centres = (grid[:, None] + base[None]).reshape(-1, 3)
+    centres = centres[np.all(centres <= 0.3 - 0.015, axis=1)]
+    radius = 0.015 * rng.uniform(0.9, 1.0, len(centres))
+    layer_m = 0.07
+    position, moved, grown = shell.cloud_layer(box, centres, radius, layer_m, seed=11,
+                                               solid_fraction=0.25)
+    margin = (grown[0] - 0.3) / 2
+    assert margin > 0
+    np.testing.assert_allclose(grown, 0.3 + 2 * margin)
+    distance = np.min(np.concatenate([centres, 0.3 - centres], axis=1), axis=1)
+    np.testing.assert_array_equal(moved, distance < layer_m)
+    np.testing.assert_allclose(position[~moved], centres[~moved] + margin, rtol=0, atol=1e-15)
+    # the cloud is inside the grown box and in its outer layer (layer_m + margin thick)
+    cloud, r = position[moved], radius[moved]
+    assert np.all(cloud - r[:, None] >= 0) and np.all(cloud + r[:, None] <= grown)
+    depth = np.min(np.concatenate([cloud, grown - cloud], axis=1), axis=1)
+    assert np.all(depth < layer_m + margin)
+    # the layer's solid fraction is the one asked for
+    layer_volume = np.prod(grown) - (0.3 - 2 * layer_m) ** 3
+    np.testing.assert_allclose(np.sum(4 / 3 * np.pi * r ** 3) / layer_volume,
+                               0.25, rtol=1e-9)
+    # no overlap: cloud-cloud, and cloud-stay beyond the obstacles' 1 %
+    d = np.linalg.norm(cloud[:, None] - position[None], axis=2)
+    reach = r[:, None] + radius[None] * np.where(moved, 1.0, 0.99)[None]
+    d[np.arange(len(cloud)), np.flatnonzero(moved)] = np.inf       # itself
+    assert np.all(d > reach)
+    again, _, _ = shell.cloud_layer(box, centres, radius, layer_m, seed=11, solid_fraction=0.25)
+    np.testing.assert_array_equal(again, position)

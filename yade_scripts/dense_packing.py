@@ -659,11 +659,25 @@ def shell_state(p, state):
     kept = (pair,) + tuple(carved[k][rows] for k in ("branch", "overlap", "normal_force",
                                                      "contact_radius"))
     position, radius, free, band = position[whole], radius[whole], free[whole], band[whole]
-    # spheres that protrude past the surface (shell_cut_depth < 1): the walls start at their
-    # extent, so that none overlaps a wall
-    start_lo, start_hi = shell.walls_start(box, position, radius)
-    position = position - start_lo
-    box = shell.pressed_box(np.zeros(3), start_hi - start_lo)
+    if p["shell_cloud_diameters"] > 0:
+        # the outer layer put back as a loose cloud in a grown box, the walls on its faces
+        try:
+            position, clouded, grown = shell.cloud_layer(
+                box, position, radius, p["shell_cloud_diameters"] * 2.0 * float(radius.mean()),
+                p["seed"] + 7)
+        except ValueError as e:
+            fail(str(e), code=3)
+        log(f"shell: {int(clouded.sum())} spheres of the outer "
+            f"{p['shell_cloud_diameters']:g} mean diameters put back as a loose cloud (solid "
+            f"fraction {shell.CLOUD_LAYER_SOLID_FRACTION}); walls start "
+            f"{(grown[0] - box.size[0]) / 2:.4g} m outside the carved faces")
+        box = shell.pressed_box(np.zeros(3), grown)
+    else:
+        # spheres that protrude past the surface (shell_cut_depth < 1): the walls start at
+        # their extent, so that none overlaps a wall
+        start_lo, start_hi = shell.walls_start(box, position, radius)
+        position = position - start_lo
+        box = shell.pressed_box(np.zeros(3), start_hi - start_lo)
     sub = np.flatnonzero(free | band)
     log(f"shell: {int((~whole).sum())} spheres cut by the surface removed; {int(free.sum())} "
         f"free in a shell of {shell_m:.4g} m ({p['shell_diameters']:g} mean diameters), "

@@ -74,6 +74,12 @@ PARAMS = {
                             help="shell: a carved sphere is kept when its centre lies at least "
                                  "this many of its radii inside the surface (1: wholly inside; "
                                  "0: centre inside, the walls start at the kept spheres' extent)"),
+    "shell_cloud_diameters": dict(kind="float", default=0.0, minimum=0.0,
+                                  help="shell: the spheres within this many mean diameters of "
+                                       "the carved faces are put back as a loose cloud (solid "
+                                       "fraction 0.3) in a box grown to hold it, and the walls "
+                                       "pressed from there (0: the walls start on the carved "
+                                       "faces)"),
     "cell_particles": dict(kind="int", default=10000, minimum=20,
                            help="tiled, shell: spheres in the periodic cell that is copied"),
     "cell_packing": dict(kind="str", default="",
@@ -148,6 +154,10 @@ def check(p):
         raise ValueError(f"method: \"shell\" is measured for {', '.join(SHELL_SHAPES)} only "
                          f"(docs/packings.md); for a {p['shape']} use \"direct\" (walls) or "
                          "\"tiled\" (cut faces)")
+    if p["method"] == "shell" and p["shell_cloud_diameters"] > p["shell_diameters"] - 1.0:
+        raise ValueError(f"shell_cloud_diameters: expected at most shell_diameters - 1 "
+                         f"({p['shell_diameters'] - 1.0:g}: the cloud is pressed against the "
+                         f"free shell, not the frozen band), got {p['shell_cloud_diameters']:g}")
     if tiled and not p["cell_packing"] and p["n_particles"] < p["cell_particles"]:
         raise ValueError(f"cell_particles: expected at most n_particles ({p['n_particles']}) for "
                          f"method = \"{p['method']}\", got {p['cell_particles']}")
