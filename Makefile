@@ -6,8 +6,13 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 APT_PACKAGES := yade python3-h5py python3-scipy python3-venv liggghts openmpi-bin
+# The PETSc backend (issue 25, docs/scaling.md): Debian's petsc4py, mpi4py and MPI-enabled h5py,
+# built for Debian's python3 and numpy 1.24, so they run in a second venv, .venv-mpi (below).
+# Without recommends: 37 packages, ~100 MB (with them apt pulls PETSc's compilers and headers).
+MPI_APT_PACKAGES := python3-petsc4py python3-mpi4py python3-h5py-mpi
+MPI_VENV := .venv-mpi
 
-.PHONY: demo test test-fast coverage deps apt validate bench bench-packings bench-walled bench-bed bench-peers clean
+.PHONY: demo test test-fast coverage deps apt validate bench bench-packings bench-walled bench-bed bench-peers bench-scaling clean
 
 demo: deps
 	$(BIN)/tdem demo
@@ -29,7 +34,7 @@ coverage: deps
 	NUMBA_DISABLE_JIT=1 $(BIN)/python -m pytest -q -m "not yade and not liggghts" \
 	    --cov=thermal_kernel --cov-report=term $(KERNEL_TESTS)
 
-deps: apt $(VENV)/.installed
+deps: apt $(VENV)/.installed $(MPI_VENV)/.installed
 
 # Installs only when something is missing, so a second `make` costs nothing.
 apt:
@@ -40,6 +45,11 @@ apt:
 	  $(SUDO) apt-get update && \
 	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y $(APT_PACKAGES); \
 	fi
+	@if ! dpkg -s $(MPI_APT_PACKAGES) >/dev/null 2>&1; then \
+	  echo "installing Debian packages: $(MPI_APT_PACKAGES) (without recommends)"; \
+	  $(SUDO) apt-get update && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y --no-install-recommends $(MPI_APT_PACKAGES); \
+	fi
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -47,11 +57,33 @@ $(VENV)/.installed: pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@
 
+# The PETSc backend's venv: Debian's python3 with its site-packages (numpy 1.24, scipy, mpi4py,
+# h5py with MPI), petsc4py through a .pth (Debian reaches it through /usr/lib/petsc, an
+# alternative that only petsc-dev sets), numba & co. from pip held to Debian's numpy and h5py,
+# and tdem itself without its dependencies (its numpy>=2.0 is for tdem_post, which runs in .venv).
+$(MPI_VENV)/.installed: pyproject.toml
+	/usr/bin/python3 -m venv --system-site-packages $(MPI_VENV)
+	echo '*' > $(MPI_VENV)/.gitignore
+	ls -d /usr/lib/petscdir/petsc*/*-real/lib/python3/dist-packages | head -n 1 \
+	  > $$($(MPI_VENV)/bin/python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')/zz_petsc_debian.pth
+	/usr/bin/python3 -c 'import numpy, h5py; print(f"numpy=={numpy.__version__}\nh5py=={h5py.__version__}")' \
+	  > $(MPI_VENV)/constraints.txt
+	$(MPI_VENV)/bin/python -m pip install --quiet -c $(MPI_VENV)/constraints.txt \
+	  'numba>=0.58' 'threadpoolctl>=3.1' 'tqdm>=4.60' 'pyamg>=5.0'
+	$(MPI_VENV)/bin/python -m pip install --quiet --no-deps -e .
+	$(MPI_VENV)/bin/python -c 'from petsc4py import PETSc; import mpi4py, thermal_kernel.solvers.petsc_backend'
+	touch $@
+
 # Benchmarks (not tests): they measure and write bench/results/*, which docs/solvers.md quotes.
 bench: deps
 	$(BIN)/python bench/bench_explicit.py > bench/results/explicit_layout.txt
 	$(BIN)/python bench/bench_explicit.py --memory 8e6 >> bench/results/explicit_layout.txt
 	$(BIN)/python bench/bench_solvers.py
+
+# The PETSc backend side by side with the in-process solvers (issue 25): N x ranks x solver,
+# wall, memory, iterations, the cost model; writes docs/scaling.md (~10 min on 2 cores).
+bench-scaling: deps
+	$(BIN)/python bench/bench_scaling.py --write docs/scaling.md
 
 # Packing paths side by side (hours: the reference relaxes 10,000 spheres for ~1 h per seed);
 # resumable (--reuse keeps the cases already built). Writes bench/results/packings.{csv,md,png},
@@ -87,4 +119,4 @@ validate: deps
 	$(BIN)/tdem validate
 
 clean:
-	rm -rf $(VENV) runs/out .pytest_cache .coverage
+	rm -rf $(VENV) $(MPI_VENV) runs/out .pytest_cache .coverage

@@ -102,6 +102,21 @@ def _cmd_run(args):
     if args.checkpoint_every < 0:
         raise UserError(f"--checkpoint-every: expected a number of output times >= 0, got "
                         f"{args.checkpoint_every}")
+    if args.ranks is not None or scene.solver.backend == "petsc":
+        # the PETSc backend on MPI ranks (issue 25, docs/scaling.md); --ranks implies it
+        from thermal_kernel.solvers.mpi_launch import run_on_ranks
+        ranks = 1 if args.ranks is None else args.ranks
+        if ranks < 1:
+            raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
+        for flag, given in (("--checkpoint-every", args.checkpoint_every),
+                            ("--resume", args.resume), ("--threads", args.threads)):
+            if given:
+                raise UserError(f"{flag}: not with the PETSc backend (--ranks, or solver.backend"
+                                " = \"petsc\"); expected an in-process run for it")
+        run_on_ranks(Path(args.scene), ranks, packing=packing, out=args.out,
+                     quiet=args.quiet,
+                     run_args={k: v for k, v in vars(args).items() if k != "func"})
+        return
     run_scene(scene, packing, quiet=args.quiet, threads=threads,
               checkpoint_every=args.checkpoint_every, resume=args.resume,
               run_args={k: v for k, v in vars(args).items() if k != "func"})
@@ -355,6 +370,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write a checkpoint every K output times (transient runs)")
     p.add_argument("--resume", action="store_true",
                    help="continue from the checkpoint of an interrupted run (same bits)")
+    p.add_argument("--ranks", type=int, default=None, metavar="N",
+                   help="solve on N MPI ranks with PETSc (solver.backend = \"petsc\"; needs "
+                        ".venv-mpi, docs/scaling.md)")
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("calibrate", help="calibrate the haddad law's C_t on a packing by a "

@@ -1,0 +1,182 @@
+"""`tdem run SCENE --ranks N` on the ranks: the MPI program that ``mpirun`` starts (issue 25).
+
+    mpirun -n N .venv-mpi/bin/python -m thermal_kernel.mpi_run SCENE [--packing P]
+        [--out DIR] [--pc gamg|hypre] [--quiet] [--status FILE] [--run-args JSON]
+
+This is the command a user runs on a cluster (with ``--hostfile``; docs/scaling.md).
+``tdem run --ranks N`` (:mod:`.solvers.mpi_launch`) starts it from the project's venv. It lives
+beside :mod:`.run` (not in ``solvers/``, which never import the scene or the problem builder:
+``tests/test_boundaries.py``). Every rank reads
+the scene and the packing, builds the problem with the one law registry and the boundary kinds
+(:func:`~thermal_kernel.problem.build_problem`) and assembles the network; the solve is
+distributed (:mod:`.solvers.petsc_backend`); rank 0 checks the physics (the in-process
+:func:`~thermal_kernel.solvers.check_physics`) and writes the ordinary ``thermal.h5`` with the
+in-process run's attributes, plus ``backend``, ``ranks`` and ``cut_contacts``.
+
+Bad input: one line (``tdem: error: ...``) from rank 0, exit 2; with ``--status`` (the
+launcher's) rank 0 writes the line there instead and every rank exits 0 (a non-zero exit makes
+mpirun print a banner of its own): the launcher prints it and exits 2.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def _args(argv):
+    p = argparse.ArgumentParser(prog="thermal_kernel.mpi_run")
+    p.add_argument("scene")
+    p.add_argument("--packing")
+    p.add_argument("--out")
+    p.add_argument("--pc", default="gamg", choices=("gamg", "hypre"))
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--status", help="file to write the one-line error to (the launcher's)")
+    p.add_argument("--run-args", default="{}", help="the CLI's arguments (JSON), stored")
+    return p.parse_args(argv)
+
+
+def main(argv=None) -> int:
+    import petsc4py
+    petsc4py.init([sys.argv[0]])           # PETSc options come from PETSC_OPTIONS only
+    from petsc4py import PETSc
+
+    from .errors import SceneError, UserError
+    from .network import NetworkError
+    from .packing import PackingError
+    args = _args(argv)
+    rank = PETSc.COMM_WORLD.getRank()
+    try:
+        _run(args, rank)
+    except (SceneError, UserError, PackingError, NetworkError, ValueError,
+            RuntimeError) as e:
+        line = " ".join(str(e).split("\n"))
+        if rank == 0 and args.status:       # the launcher says it, once
+            Path(args.status).write_text(line + "\n", encoding="utf-8")
+        elif rank == 0:
+            print(f"tdem: error: {line}", file=sys.stderr, flush=True)
+        return 0 if args.status else 2
+    return 0
+
+
+def _run(args, rank):
+    from .checkpoint import packing_sha256
+    from .network import assemble
+    from .output import scene_text_difference, scene_to_json, write_thermal
+    from .packing import read_packing
+    from .problem import build_problem
+    from .run import _check_finite, _check_step_count, _print_summary
+    from .scene import SceneError, load_scene
+    from .solvers import UnstableTimeStepError, check_physics
+    from .solvers import petsc_backend as backend
+
+    t_start = time.perf_counter()
+    scene = load_scene(args.scene, out_dir=Path(args.out) if args.out else None)
+    packing_path = Path(args.packing) if args.packing else scene.packing
+    if packing_path is None:
+        raise SceneError(f"{scene.path}: pack: a [pack] scene needs its packing built first "
+                         "(tdem pack SCENE, or tdem run, which builds it)")
+    scene_json = scene_to_json(scene)
+    packing = read_packing(packing_path)
+    packing_hash = packing_sha256(packing) if rank == 0 else ""
+    problem, info = build_problem(scene, packing)
+    t0 = time.perf_counter()
+    net = assemble(problem)
+    dist = backend.DistributedNetwork(net, packing.position)
+    assemble_seconds = time.perf_counter() - t0
+    solver = scene.solver
+    T0 = np.full(packing.n_particles, scene.initial_temperature)
+    if solver.method == "explicit":
+        _check_step_count(scene, solver.safety * net.dt_max_s if np.isnan(solver.dt)
+                          else solver.dt, "solver.end_time" if np.isnan(solver.dt)
+                          else "solver.dt")
+    if rank == 0 and not args.quiet:
+        print(f"tdem run: {scene.path}: law {scene.law}, method {solver.method}, "
+              f"{packing.n_particles} particles, {net.n_active_contacts} conducting contacts "
+              f"({net.n_zero_contacts} with H = 0); PETSc on {dist.size} rank(s), "
+              f"{dist.cut} contacts cut by the Morton blocks", flush=True)
+        print(f"  network: {net.clusters.summary()}", flush=True)
+    progress = None
+    if solver.method == "steady":
+        result = backend.solve_steady(dist, T0, pc=args.pc)
+    elif solver.method == "explicit":
+        try:
+            result = backend.run_explicit(
+                dist, T0, solver.output_times, dt=None if np.isnan(solver.dt) else solver.dt,
+                safety=solver.safety, allow_unstable=solver.allow_unstable, progress=progress)
+        except UnstableTimeStepError as e:
+            raise SceneError(f"{scene.path}: solver.dt: {e}") from None
+    else:
+        result = backend.run_implicit(
+            dist, T0, solver.output_times, dt=solver.dt, theta=solver.theta,
+            scheme=solver.scheme, startup_steps=solver.startup_steps, pc=args.pc,
+            progress=progress)
+    if rank != 0:
+        return
+    if result.method != "steady":
+        _check_finite(scene, result)
+    check = check_physics(net, T0, result)
+    flags = tuple(result.flags) + tuple(f for f in check.flags if f not in result.flags)
+    result = dataclasses.replace(result, flags=flags)
+    run_args = json.loads(args.run_args)
+    # The in-process run's attributes (thermal_kernel/run.py, _run_scene), key for key: a test
+    # (tests/test_petsc_backend.py) fails when the two sets differ.
+    attrs = {
+        "law": scene.law, "method": result.method, "dt": float(result.dt),
+        "dt_max": float(result.dt_max), "dt_paper": float(result.dt_paper),
+        "steps": int(result.steps), "wall_seconds": float(result.wall_seconds),
+        "assemble_seconds": float(assemble_seconds),
+        "contact_updates_per_second": float(result.contact_updates_per_second),
+        "flags": ",".join(result.flags), "scene": scene.text, "scene_path": str(scene.path),
+        "packing": str(packing.path), "n_particles": packing.n_particles,
+        "n_conducting_contacts": int(net.n_active_contacts),
+        "n_floating_clusters": net.clusters.n_floating, "n_rattlers": net.clusters.n_rattlers,
+        "law_params": json.dumps(info["law_params"], sort_keys=True),
+        "neighbours": json.dumps(None if info["neighbours"] is None else
+                                 info["neighbours"].summary(), sort_keys=True, default=float),
+        "scene_json": scene_json,
+        "scene_text_agrees": int(scene_text_difference(
+            scene.text, str(scene.path), scene_json, scene.law, scene.output.parent) is None),
+        "run_args": json.dumps(dict(run_args, threads=None, checkpoint_every=0, resume=False,
+                                    packing=str(args.packing) if args.packing else None),
+                               sort_keys=True, default=str),
+        "packing_sha256": packing_hash,
+        "max_principle_checked": int(check.max_principle_checked),
+        "max_principle_bounds_k": np.array(check.bounds_k, dtype=np.float64),
+        "max_principle_excess_relative": float(check.overshoot_relative),
+        "ledger_residual_relative": float(check.ledger_relative),
+        "check_messages": "\n".join(check.messages),
+        # the backend's own (issue 25)
+        "backend": "petsc", "ranks": int(dist.size), "cut_contacts": int(dist.cut),
+        "linear_solver": str(result.info.get("linear_solver", "none")),
+        "run_seconds": float(time.perf_counter() - t_start),
+    }
+    boundary_energy, source_energy = result.boundary_energy_j, result.source_energy_j
+    if result.method == "steady":
+        attrs["energies"] = ("none: a steady solve has no time (boundary_energy and "
+                             "source_energy have no rows; boundary_heat_flow holds the balance)")
+        boundary_energy = np.zeros((0, len(result.boundary_names)))
+        source_energy = np.zeros(0)
+    out = write_thermal(scene.output, times=result.times, temperatures=result.temperature_k,
+                        boundary_heat_flow_w=result.boundary_heat_flow_w,
+                        boundary_energy_j=boundary_energy, source_energy_j=source_energy,
+                        capacity_j_k=net.capacity_j_k, initial_temperature_k=T0,
+                        boundary_names=result.boundary_names, attrs=attrs)
+    if not args.quiet:
+        its = result.info.get("cg_iterations", [])
+        if its:
+            print(f"  PETSc CG ({result.info['linear_solver']}): {len(its)} solve(s), "
+                  f"{int(np.sum(its))} iterations", flush=True)
+        _print_summary(result, out)
+    if check.messages:
+        print(f"tdem: warning: {out}: " + "; ".join(check.messages), file=sys.stderr,
+              flush=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,99 @@
+"""Starting the PETSc backend from the project's venv: ``tdem run SCENE --ranks N`` (issue 25).
+
+The ranks run :mod:`thermal_kernel.mpi_run` under ``mpirun`` with the PETSc venv's
+Python (``.venv-mpi``, made by ``make``; Debian's petsc4py needs Debian's numpy 1.24, the
+project's ``.venv`` has numpy 2). ``TDEM_MPI_PYTHON`` names another interpreter. Each rank runs one
+thread (``OMP_NUM_THREADS=1``, ``NUMBA_NUM_THREADS=1``): the ranks are the parallelism, and a
+second thread per rank on a 2-core machine only competes with the other rank.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from ..errors import UserError
+
+ROOT = Path(__file__).resolve().parents[2]
+MPI_VENV_PYTHON = ROOT / ".venv-mpi" / "bin" / "python"
+
+
+def mpi_python() -> Path:
+    """The interpreter the ranks run: $TDEM_MPI_PYTHON, else the checkout's .venv-mpi."""
+    given = os.environ.get("TDEM_MPI_PYTHON")
+    path = Path(given) if given else MPI_VENV_PYTHON
+    if not path.exists():
+        raise UserError(f"--ranks: {path}: no such interpreter; expected the PETSc venv "
+                        "(`make .venv-mpi/.installed`, or `make test`, builds it; "
+                        "TDEM_MPI_PYTHON names another)")
+    return path
+
+
+def missing() -> str | None:
+    """Why the backend cannot run here (None when it can): tests skip with this reason."""
+    if shutil.which("mpirun") is None:
+        return "mpirun not installed (Debian: apt-get install openmpi-bin; `make test` does)"
+    try:
+        python = mpi_python()
+    except UserError as e:
+        return str(e)
+    done = subprocess.run([str(python), "-c", "import petsc4py, mpi4py, thermal_kernel"],
+                          capture_output=True, text=True)
+    if done.returncode:
+        last = (done.stderr.strip().splitlines() or ["?"])[-1]
+        return f"{python} cannot import petsc4py / mpi4py / thermal_kernel: {last}"
+    return None
+
+
+def mpi_env() -> dict:
+    env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1")
+    env.pop("VIRTUAL_ENV", None)        # the ranks' venv is their interpreter's own
+    env.pop("PYTHONHOME", None)
+    if hasattr(os, "geteuid") and os.geteuid() == 0:    # Open MPI refuses root unless told
+        env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    return env
+
+
+def command(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg",
+            run_args=None, status=None) -> list[str]:
+    cmd = ["mpirun", "-n", str(int(ranks)), "--oversubscribe", "-x", "OMP_NUM_THREADS",
+           "-x", "NUMBA_NUM_THREADS", str(mpi_python()), "-m", "thermal_kernel.mpi_run",
+           str(scene)]
+    if packing:
+        cmd += ["--packing", str(packing)]
+    if out:
+        cmd += ["--out", str(out)]
+    if quiet:
+        cmd.append("--quiet")
+    if pc != "gamg":
+        cmd += ["--pc", pc]
+    if run_args:
+        cmd += ["--run-args", json.dumps(run_args, sort_keys=True, default=str)]
+    if status:
+        cmd += ["--status", str(status)]
+    return cmd
+
+
+def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg",
+                 run_args=None) -> None:
+    """Run the scene on ``ranks`` MPI ranks (output: the scene's thermal.h5, as in-process).
+    A bad input is one line (UserError); so is mpirun failing."""
+    if int(ranks) < 1:
+        raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
+    if shutil.which("mpirun") is None:
+        raise UserError("--ranks: mpirun not found (Debian: apt-get install openmpi-bin)")
+    with tempfile.TemporaryDirectory(prefix="tdem-mpi-") as tmp:
+        status = Path(tmp) / "status"
+        cmd = command(scene, ranks, packing=packing, out=out, quiet=quiet, pc=pc,
+                      run_args=run_args, status=status)
+        sys.stdout.flush()
+        done = subprocess.run(cmd, env=mpi_env(), cwd=os.getcwd())
+        if status.exists():     # rank 0's one line (a bad scene, packing or solve)
+            raise UserError(status.read_text(encoding="utf-8").strip())
+        if done.returncode:
+            raise UserError(f"--ranks {ranks}: mpirun exited with {done.returncode} "
+                            f"({' '.join(cmd[:3])} ... thermal_kernel.mpi_run)")

@@ -1,0 +1,600 @@
+"""The three solvers on MPI ranks through PETSc (issue 25; docs/scaling.md, docs/solvers.md).
+
+Runs under ``mpirun`` in the PETSc venv (``.venv-mpi``: Debian's petsc4py and mpi4py are built for
+Debian's numpy 1.24, the project's ``.venv`` has numpy 2), started by ``tdem run SCENE --ranks N``
+through :mod:`thermal_kernel.mpi_run`. Like the in-process solvers it sees an assembled
+:class:`~thermal_kernel.network.Network` only -- never a law or a boundary kind -- and returns the
+same :class:`~thermal_kernel.solvers.ThermalResult`, so the output file, its flags and the checks
+are the in-process ones.
+
+Distribution. The particles are ordered along a Morton curve of their centres
+(:mod:`.partition`) and cut into one contiguous block per rank. Each rank takes its own rows of
+A = L + diag(g) (L the graph Laplacian, g the exchange conductance) from the network, renumbered
+in that order, into a PETSc MPIAIJ matrix; vectors are distributed the same way. Held particles
+keep their rows in the vectors and are masked: their increment is 0.
+
+* explicit: T' = T + dt/C (b + S - A T) on free rows, one distributed mat-vec a step; dt and its
+  bound are the in-process ones (``check_dt``, the exact positivity bound of the network).
+* implicit (theta, Rannacher, TR-BDF2): M = C/h + theta A on the free rows and columns, identity
+  on the held ones (symmetric positive definite, the held columns eliminated as in-process);
+  increments solved by CG preconditioned by GAMG (default) or hypre BoomerAMG, the relative
+  residual measured unpreconditioned so ``tol`` means the true residual.
+* steady: the same CG on the tied free particles (identity elsewhere); floating clusters and
+  rattlers as in :mod:`.steady` (rank 0, from the gathered temperatures).
+
+The energy ledger: each rank sums the heat through the held particles and exchange rows it owns,
+every step (the fluxes the step used, as in-process); the sums meet at the output times only.
+Rank 0 gathers the temperatures at the output times and records them with the in-process
+:class:`~thermal_kernel.solvers.Recorder`.
+
+What is still whole on every rank (docs/scaling.md): the packing and the assembled network (read
+and built by each rank, then only its rows go to PETSc). Its memory is therefore ~the in-process
+run's per rank; the solver's own (matrix, AMG hierarchy, Krylov vectors) is divided.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+
+from . import (Recorder, SolverState, ThermalResult, check_times, instantaneous_source,
+               interval_steps, start_state)
+from .explicit import check_dt
+from .implicit import (_TRB_A1, _TRB_D, _TRB_W01, _TRB_W2, RANNACHER_STEPS, SCHEMES,
+                       scheme_name)
+from .partition import block_starts, cut_contacts, owner_of_particle, particle_order
+
+PRECONDITIONERS = ("gamg", "hypre")
+# hypre BoomerAMG's defaults (Falgout coarsening, classical interpolation) built a hierarchy that
+# made each CG iteration ~5x dearer on packing networks (probe for issue 25); these options, the
+# ones hypre recommends for 3-D problems, made it as fast as GAMG.
+HYPRE_OPTIONS = {"pc_hypre_type": "boomeramg", "pc_hypre_boomeramg_coarsen_type": "HMIS",
+                 "pc_hypre_boomeramg_interp_type": "ext+i",
+                 "pc_hypre_boomeramg_strong_threshold": "0.5",
+                 "pc_hypre_boomeramg_P_max": "4", "pc_hypre_boomeramg_agg_nl": "1"}
+
+
+def _petsc():
+    from petsc4py import PETSc      # only under the PETSc venv; imported on first use
+    return PETSc
+
+
+class DistributedNetwork:
+    """One rank's share of an assembled network: its rows of A = L + diag(g) as a PETSc MPIAIJ
+    matrix, in the Morton order, and the per-particle arrays of its rows. Collective."""
+
+    def __init__(self, net, position_m=None, order: str = "morton", comm=None):
+        PETSc = _petsc()
+        self.PETSc = PETSc
+        self.net = net
+        self.comm = comm or PETSc.COMM_WORLD
+        self.mpi = self.comm.tompi4py()
+        self.rank, self.size = self.comm.getRank(), self.comm.getSize()
+        n = net.n
+        t0 = time.perf_counter()
+        self.order = particle_order(position_m if position_m is not None and order == "morton"
+                                    else np.zeros((n, 3)), order if position_m is not None
+                                    else "index")
+        self.starts = block_starts(n, self.size)
+        rs, re = int(self.starts[self.rank]), int(self.starts[self.rank + 1])
+        self.mine = self.order[rs:re]                   # this rank's particles (packing index)
+        self.new_index = np.empty(n, dtype=np.int64)    # packing index -> position in the order
+        self.new_index[self.order] = np.arange(n, dtype=np.int64)
+        self.owner = owner_of_particle(self.order, self.starts)
+        self.n_local = re - rs
+        lap_rows = net.laplacian[self.mine].tocoo()
+        rows = np.concatenate([lap_rows.row, np.arange(self.n_local)])
+        cols = np.concatenate([self.new_index[lap_rows.col], np.arange(rs, re)])
+        vals = np.concatenate([lap_rows.data, net.exchange_g_w_k[self.mine]])
+        self.block = sp.csr_matrix((vals, (rows, cols)), shape=(self.n_local, n))
+        self.block.sum_duplicates()
+        self.block.sort_indices()
+        self.held_new = net.held[self.order]            # held flag by column (new order)
+        self.A = self._mat(self.block)
+        # this rank's rows
+        self.capacity = np.ascontiguousarray(net.capacity_j_k[self.mine])
+        self.held = np.ascontiguousarray(net.held[self.mine])
+        self.free = ~self.held
+        self.g = np.ascontiguousarray(net.exchange_g_w_k[self.mine])
+        self.b = np.ascontiguousarray(net.constant_rhs_w[self.mine])
+        # the boundary rows this rank owns (ledger partial sums)
+        local_of = np.full(n, -1, dtype=np.int64)
+        local_of[self.mine] = np.arange(self.n_local)
+        fl = local_of[net.fixed_particle]
+        keep = fl >= 0
+        self.fixed_local, self.fixed_boundary = fl[keep], net.fixed_boundary[keep]
+        el = local_of[net.exchange_particle]
+        keep = el >= 0
+        self.ex_local = el[keep]
+        self.ex_g = net.exchange_row_g_w_k[keep]
+        self.ex_t = net.exchange_row_temperature_k[keep]
+        self.ex_b = net.exchange_boundary[keep]
+        self.ex_held_b = net.held_boundary[net.exchange_particle[keep]]
+        self.nb = net.problem.n_boundaries
+        self.x = self.A.createVecRight()
+        self.y = self.A.createVecLeft()
+        self.setup_seconds = time.perf_counter() - t0
+        self.cut = cut_contacts(net.problem.pair, net.problem.conductance_w_k, self.owner)
+
+    # ------------------------------------------------------------------ building blocks
+    def _mat(self, block: sp.csr_matrix):
+        PETSc = self.PETSc
+        n = self.net.n
+        m = PETSc.Mat().createAIJ(
+            size=((self.n_local, n), (self.n_local, n)), comm=self.comm,
+            csr=(block.indptr.astype(PETSc.IntType), block.indices.astype(PETSc.IntType),
+                 block.data))
+        m.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+        m.setOption(PETSc.Mat.Option.SPD, True)
+        m.assemble()
+        return m
+
+    def masked_matrix(self, diag_free: np.ndarray, scale: float, unknown: np.ndarray):
+        """PETSc matrix diag(diag_free) + scale A on the rows and columns of ``unknown`` (local
+        rows; the columns' flag ``self.unknown_new`` set by :meth:`set_unknowns`), identity on
+        the others: SPD, the other columns eliminated."""
+        blk = self.block.tocoo()
+        keep = unknown[blk.row] & self._unknown_col[blk.col]
+        rs = int(self.starts[self.rank])
+        rows = np.concatenate([blk.row[keep], np.arange(self.n_local)])
+        cols = np.concatenate([blk.col[keep], np.arange(rs, rs + self.n_local)])
+        vals = np.concatenate([scale * blk.data[keep], np.where(unknown, diag_free, 1.0)])
+        m = sp.csr_matrix((vals, (rows, cols)), shape=(self.n_local, self.net.n))
+        m.sum_duplicates()
+        m.sort_indices()
+        return self._mat(m)
+
+    def set_unknowns(self, unknown_all_packing_order: np.ndarray):
+        self._unknown_col = np.asarray(unknown_all_packing_order, dtype=bool)[self.order]
+
+    def matvec(self, t_local: np.ndarray) -> np.ndarray:
+        """(A T) on this rank's rows, T given on them (the neighbours' values come over MPI)."""
+        self.x.getArray()[:] = t_local
+        self.A.mult(self.x, self.y)
+        return self.y.getArray().copy()
+
+    def partial_flows(self, t_local, at_local) -> np.ndarray:
+        """(B,) this rank's part of the heat entering through each boundary (held rows and
+        exchange rows it owns; without the constant power and the source, which rank 0 adds):
+        the terms of Network.boundary_heat_flow."""
+        out = np.zeros(self.nb)
+        if self.fixed_local.size:
+            fl = self.fixed_local
+            lt = at_local[fl] - self.g[fl] * t_local[fl]          # (L T)_p = (A T)_p - g_p T_p
+            out += np.bincount(self.fixed_boundary, weights=lt, minlength=self.nb)
+        if self.ex_local.size:
+            q = self.ex_g * (self.ex_t - t_local[self.ex_local])
+            out += np.bincount(self.ex_b, weights=q, minlength=self.nb)
+            on_held = self.ex_held_b >= 0
+            if on_held.any():
+                out -= np.bincount(self.ex_held_b[on_held], weights=q[on_held],
+                                   minlength=self.nb)
+        return out
+
+    def total(self, partial: np.ndarray) -> np.ndarray:
+        return self.mpi.allreduce(partial)
+
+    def gather(self, t_local: np.ndarray):
+        """The whole (N,) array in the packing's order on rank 0 (None elsewhere)."""
+        counts = np.diff(self.starts)
+        if self.rank == 0:
+            buf = np.empty(self.net.n)
+            self.mpi.Gatherv(np.ascontiguousarray(t_local), (buf, counts), root=0)
+            out = np.empty(self.net.n)
+            out[self.order] = buf
+            return out
+        self.mpi.Gatherv(np.ascontiguousarray(t_local), None, root=0)
+        return None
+
+    def ksp(self, matrix, tol: float, pc: str, maxiter: int = 5000):
+        PETSc = self.PETSc
+        if pc not in PRECONDITIONERS:
+            raise ValueError(f"preconditioner = {pc!r}: use one of {', '.join(PRECONDITIONERS)}")
+        ksp = PETSc.KSP().create(self.comm)
+        ksp.setOperators(matrix)
+        ksp.setType("cg")
+        ksp.getPC().setType(pc)
+        if pc == "hypre":
+            opts = PETSc.Options()
+            for key, value in HYPRE_OPTIONS.items():
+                if not opts.hasName(key):           # PETSC_OPTIONS of the user win
+                    opts.setValue(key, value)
+        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+        ksp.setTolerances(rtol=tol, atol=0.0, max_it=maxiter)
+        ksp.setFromOptions()                        # PETSC_OPTIONS="-pc_type ..." etc.
+        ksp.setUp()
+        return ksp
+
+    def solve(self, ksp, rhs_local: np.ndarray, iterations: list) -> np.ndarray:
+        b = ksp.getOperators()[0].createVecLeft()
+        b.getArray()[:] = rhs_local
+        x = b.duplicate()
+        x.set(0.0)
+        if self.mpi.allreduce(float(np.dot(rhs_local, rhs_local))) == 0.0:
+            iterations.append(0)
+            return np.zeros_like(rhs_local)
+        ksp.solve(b, x)
+        iterations.append(int(ksp.getIterationNumber()))
+        if ksp.getConvergedReason() < 0:
+            raise RuntimeError(f"PETSc CG ({ksp.getPC().getType()}) did not converge: reason "
+                               f"{ksp.getConvergedReason()} after {ksp.getIterationNumber()} "
+                               f"iterations (tolerance {ksp.getTolerances()[0]:g})")
+        return x.getArray().copy()
+
+    def info(self) -> dict:
+        return dict(backend="petsc", ranks=self.size, order="morton",
+                    cut_contacts=int(self.cut), partition_seconds=self.setup_seconds)
+
+
+def _source_local(dist, prob, t0, t1):
+    if prob.source is None:
+        return None, None
+    sw = np.asarray(prob.source(t0, t1), dtype=np.float64)
+    return sw, sw[dist.mine]
+
+
+def _source_ledger(dist, prob, energy, sw, h):
+    """The source's heat in the ledger (rank 0 only, the whole source array): under its
+    column, less what lands on held particles (as the in-process solvers)."""
+    if sw is None or dist.rank != 0:
+        return
+    if prob.source_boundary >= 0:
+        energy[prob.source_boundary] += h * float(sw.sum())
+    if dist.net.fixed_particle.size:
+        energy -= h * np.bincount(dist.net.fixed_boundary, weights=sw[dist.net.fixed_particle],
+                                  minlength=energy.size)
+
+
+def _record(dist, rec, k, t_local, energy_partial, src_energy, prob, tk):
+    energy = dist.total(energy_partial)
+    T = dist.gather(t_local)
+    if dist.rank == 0:
+        rec.record(k, T, energy, src_energy, instantaneous_source(prob, tk))
+
+
+# ----------------------------------------------------------------------------- explicit
+def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, safety=0.9,
+                 allow_unstable=False, progress=None) -> ThermalResult | None:
+    """Forward Euler on the ranks; the in-process :func:`~.explicit.run_explicit`'s arguments
+    and result (on rank 0; None on the others). Collective."""
+    net = dist.net
+    prob = net.problem
+    T, t, step0, energy0, src_energy, ref, state_dt = start_state(net, T0, t_start, "explicit")
+    times = check_times(times, t)
+    if dt is None:
+        dt = state_dt if state_dt is not None else safety * net.dt_max_s
+        if not (0 < safety <= 1 or (safety > 1 and allow_unstable)):
+            raise ValueError(f"safety = {safety}: must be in (0, 1] (above 1 only with "
+                             "allow_unstable)")
+    dt = float(dt)
+    flags = list(net.flags) + list(check_dt(net, dt, allow_unstable))
+    const_b = np.asarray(net.constant_boundary_flow_w, dtype=np.float64)
+    # the held-jump energy of start_state and the constant power are counted once, on rank 0
+    energy = energy0.copy() if dist.rank == 0 else np.zeros_like(energy0)
+    rec = Recorder(net, times, ref) if dist.rank == 0 else None
+    plan, t_prev = [], t
+    for tk in times:
+        plan.append(interval_steps(t_prev, float(tk), dt))
+        t_prev = float(tk)
+    n_total = sum(n for n, _ in plan)
+    tl = np.ascontiguousarray(T[dist.mine])
+    inv_c_free = np.where(dist.free, 1.0 / dist.capacity, 0.0)   # held rows: no change
+    step_seconds, done = 0.0, 0
+    dist.comm.barrier()
+    wall0 = time.perf_counter()
+    t_prev = t
+    for k, (tk, (n, h)) in enumerate(zip(times, plan)):
+        tk = float(tk)
+        w = h * inv_c_free
+        c0 = time.perf_counter()
+        for s in range(n):
+            t0 = t_prev + s * h
+            t1 = tk if s == n - 1 else t_prev + (s + 1) * h
+            sw, sw_local = _source_local(dist, prob, t0, t1)
+            if sw is not None:
+                src_energy += h * float(sw.sum())
+                _source_ledger(dist, prob, energy, sw, h)
+            at = dist.matvec(tl)
+            energy += h * dist.partial_flows(tl, at)
+            if dist.rank == 0:
+                energy += h * const_b
+            rhs = dist.b - at if sw_local is None else dist.b + sw_local - at
+            tl += w * rhs
+            done += 1
+            if progress is not None and dist.rank == 0 and (done % 1000 == 0 or s == n - 1):
+                progress(done, n_total, t1)
+        step_seconds += time.perf_counter() - c0
+        t_prev = tk
+        _record(dist, rec, k, tl, energy, src_energy, prob, tk)
+    wall = time.perf_counter() - wall0
+    finite = dist.mpi.allreduce(bool(np.all(np.isfinite(tl))), op=_land())
+    energy_total = dist.total(energy)
+    T_end = dist.gather(tl)
+    if dist.rank != 0:
+        return None
+    if not finite:
+        flags.append("non_finite")
+    state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=step0 + done,
+                        boundary_energy_j=energy_total, source_energy_j=src_energy,
+                        reference_temperature_k=ref, dt_s=dt, method="explicit")
+    cups = net.n_active_contacts * done / step_seconds if step_seconds > 0 else float("nan")
+    return ThermalResult(
+        method="explicit", times=times, temperature_k=rec.T, boundary_heat_flow_w=rec.flow,
+        boundary_energy_j=rec.energy, source_energy_j=rec.source, stored_energy_j=rec.stored,
+        boundary_names=prob.boundary_names, source_boundary=prob.source_boundary, dt=dt,
+        dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=done, wall_seconds=wall,
+        contact_updates_per_second=cups, flags=tuple(flags),
+        info=dict(step_seconds=step_seconds, clusters=net.clusters.summary(),
+                  steps_per_interval=[n for n, _ in plan], dt_per_interval=[h for _, h in plan],
+                  dt_max_particle=net.dt_max_particle, **dist.info()),
+        state=state)
+
+
+def _land():
+    from mpi4py import MPI
+    return MPI.LAND
+
+
+# ----------------------------------------------------------------------------- implicit
+def run_implicit(dist: DistributedNetwork, T0, times, *, dt, theta=1.0, scheme="theta",
+                 startup_steps=None, t_start=None, tol=1e-12, pc="gamg",
+                 progress=None) -> ThermalResult | None:
+    """theta / Rannacher / TR-BDF2 on the ranks: the in-process
+    :func:`~.implicit.run_implicit`'s schemes, start-up and ledger, each increment solved by
+    PETSc's CG + ``pc`` to the relative residual ``tol``. Result on rank 0 (None elsewhere)."""
+    if scheme not in SCHEMES:
+        raise ValueError(f"scheme = {scheme!r}: use one of {', '.join(SCHEMES)}")
+    if scheme == "theta" and not 0.0 <= theta <= 1.0:
+        raise ValueError(f"theta = {theta}: must be in [0, 1]")
+    if scheme != "theta":
+        theta = 0.5
+    if startup_steps is None:
+        startup_steps = RANNACHER_STEPS if scheme == "rannacher" else 0
+    startup_steps = int(startup_steps) if scheme != "theta" else 0
+    net = dist.net
+    prob = net.problem
+    T, t, step0, energy0, src_energy, ref, _ = start_state(net, T0, t_start, "implicit")
+    times = check_times(times, t)
+    dt = float(dt)
+    if not dt > 0:
+        raise ValueError(f"dt = {dt}: the time step must be > 0")
+    flags = list(net.flags)
+    const_b = np.asarray(net.constant_boundary_flow_w, dtype=np.float64)
+    energy = energy0.copy() if dist.rank == 0 else np.zeros_like(energy0)
+    dist.set_unknowns(~net.held)
+    c0 = time.perf_counter()
+    cache: dict = {}
+    iterations: list = []
+    factor_seconds = 0.0
+    free, cap = dist.free, dist.capacity
+
+    def solver_for(h, th):
+        nonlocal factor_seconds
+        for (h0, th0), s in cache.items():
+            if th0 == th and abs(h - h0) <= 1e-9 * h0:
+                return h0, s
+        f0 = time.perf_counter()
+        s = dist.ksp(dist.masked_matrix(cap / h, th, free), tol, pc)
+        factor_seconds += time.perf_counter() - f0
+        cache[(h, th)] = s
+        return h, s
+
+    def rhs_at(tl, sw_local):
+        """F(T) = b + S - A T on the free rows, 0 on the held ones (as -K T_f - L_fd T_d + b_f
+        + S_f in-process: A T on a free row is K_ff T_f + L_fd T_d)."""
+        r = dist.b - dist.matvec(tl)
+        if sw_local is not None:
+            r = r + sw_local
+        return np.where(free, r, 0.0)
+
+    def flows(tl):
+        return dist.partial_flows(tl, dist.matvec(tl)) + (const_b if dist.rank == 0 else 0.0)
+
+    rec = Recorder(net, times, ref) if dist.rank == 0 else None
+    plan, t_prev = [], t
+    for tk in times:
+        plan.append(interval_steps(t_prev, float(tk), dt))
+        t_prev = float(tk)
+    n_total = sum(n for n, _ in plan)
+    setup_seconds = time.perf_counter() - c0
+    tl = np.ascontiguousarray(T[dist.mine])
+    done, step_seconds = 0, 0.0
+    dist.comm.barrier()
+    wall0 = time.perf_counter()
+    t_prev = t
+    for k, (tk, (n, h)) in enumerate(zip(times, plan)):
+        tk = float(tk)
+        if n:
+            if scheme == "tr-bdf2":
+                d, solver = solver_for(_TRB_D * h, 1.0)
+                h = d / _TRB_D
+            else:
+                h, solver = solver_for(h, theta)
+        for s in range(n):
+            t0 = t_prev + s * h
+            t1 = tk if s == n - 1 else t_prev + (s + 1) * h
+            s0 = time.perf_counter()
+            sw, sw_local = _source_local(dist, prob, t0, t1)
+            if sw is not None:
+                src_energy += h * float(sw.sum())
+            if step0 + done < startup_steps:
+                hh, half = solver_for(0.5 * h, 1.0)
+                for _ in range(2):
+                    tl = tl + dist.solve(half, rhs_at(tl, sw_local), iterations)
+                    energy += hh * flows(tl)
+                    _source_ledger(dist, prob, energy, sw, hh)
+            elif scheme == "tr-bdf2":
+                d = _TRB_D * h
+                tn = tl.copy()
+                inc1 = dist.solve(solver, 2.0 * rhs_at(tn, sw_local), iterations)
+                tg = tn + inc1
+                inc2 = dist.solve(solver, rhs_at(tg, sw_local) + np.where(
+                    free, (_TRB_A1 / d) * (cap * inc1), 0.0), iterations)
+                t_theta = np.where(free, _TRB_W01 * (tn + tg) + _TRB_W2 * (tg + inc2), tl)
+                energy += h * flows(t_theta)
+                _source_ledger(dist, prob, energy, sw, h)
+                tl = tg + inc2
+            else:
+                inc = dist.solve(solver, rhs_at(tl, sw_local), iterations)
+                energy += h * flows(tl + theta * inc)
+                _source_ledger(dist, prob, energy, sw, h)
+                tl = tl + inc
+            step_seconds += time.perf_counter() - s0
+            done += 1
+            if progress is not None and dist.rank == 0:
+                progress(done, n_total, t1)
+        t_prev = tk
+        _record(dist, rec, k, tl, energy, src_energy, prob, tk)
+    wall = time.perf_counter() - wall0
+    finite = dist.mpi.allreduce(bool(np.all(np.isfinite(tl))), op=_land())
+    energy_total = dist.total(energy)
+    T_end = dist.gather(tl)
+    if dist.rank != 0:
+        return None
+    if not finite:
+        flags.append("non_finite")
+    state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=step0 + done,
+                        boundary_energy_j=energy_total, source_energy_j=src_energy,
+                        reference_temperature_k=ref, dt_s=dt, method="implicit")
+    return ThermalResult(
+        method=scheme_name(scheme, theta), times=times, temperature_k=rec.T,
+        boundary_heat_flow_w=rec.flow, boundary_energy_j=rec.energy,
+        source_energy_j=rec.source, stored_energy_j=rec.stored,
+        boundary_names=prob.boundary_names, source_boundary=prob.source_boundary, dt=dt,
+        dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=done,
+        wall_seconds=wall + setup_seconds,
+        contact_updates_per_second=(net.n_active_contacts * done / step_seconds
+                                    if step_seconds > 0 else float("nan")),
+        flags=tuple(flags),
+        info=dict(theta=theta, scheme=scheme, startup_steps=startup_steps,
+                  linear_solver=f"petsc-cg-{pc}", factorisations=len(cache),
+                  factor_seconds=factor_seconds, setup_seconds=setup_seconds,
+                  step_seconds=step_seconds, tol=tol, cg_iterations=iterations,
+                  steps_per_interval=[n for n, _ in plan], clusters=net.clusters.summary(),
+                  **dist.info()),
+        state=state)
+
+
+# ----------------------------------------------------------------------------- steady
+def solve_steady(dist: DistributedNetwork, T0=None, *, tol=1e-12, pc="gamg",
+                 source_interval=None, maxiter=5000) -> ThermalResult | None:
+    """The in-process :func:`~.steady.solve_steady` on the ranks: (L + G) T = b for the free
+    particles of tied clusters by CG + ``pc`` (relative residual ``tol``), the deviation from
+    T_ref solved for as in-process; floating clusters and rattlers on rank 0 as in-process.
+    Result on rank 0 (None elsewhere). Collective."""
+    net = dist.net
+    prob = net.problem
+    n = net.n
+    flags = list(net.flags)
+    dist.comm.barrier()
+    wall0 = time.perf_counter()
+    held_t = net.held_temperature_k
+    prescribed = np.concatenate([held_t[net.fixed_particle],
+                                 net.exchange_row_temperature_k[net.exchange_row_g_w_k > 0]])
+    t_ref = float(prescribed.mean()) if prescribed.size else 0.0
+    if T0 is not None:
+        T0 = np.array(T0, dtype=np.float64)
+        if T0.ndim == 0:
+            T0 = np.full(n, float(T0))
+        if T0.shape != (n,) or not np.all(np.isfinite(T0)):
+            raise ValueError(f"T0: expected ({n},) finite temperatures, got shape {T0.shape}")
+    b = net.constant_rhs_w.copy()
+    sw = None
+    if prob.source is not None:
+        if source_interval is None:
+            flags.append("source_ignored")
+        else:
+            sw = np.asarray(prob.source(*source_interval), dtype=np.float64)
+            b += sw
+    in_untied = ~net.clusters.tied_particle
+    unknown = ~net.held & ~in_untied                    # packing order
+    dist.set_unknowns(unknown)
+    u_local = unknown[dist.mine]
+    t_d = np.where(dist.held, held_t[dist.mine] - t_ref, 0.0)
+    # rhs_u = b_u - (L t_d)_u - T_ref g_u; on a free row (A t_d) = (L t_d) (t_d = 0 there)
+    rhs = np.where(u_local, b[dist.mine] - dist.matvec(t_d) - t_ref * dist.g, 0.0)
+    iterations: list = []
+    n_unknowns = int(np.count_nonzero(unknown))
+    if n_unknowns:
+        ksp = dist.ksp(dist.masked_matrix(np.zeros(dist.n_local), 1.0, u_local), tol, pc,
+                       maxiter)
+        x = dist.solve(ksp, rhs, iterations)
+    else:
+        x = np.zeros(dist.n_local)
+    x_all = dist.gather(np.where(u_local, x, 0.0))
+    if dist.rank != 0:
+        return None
+    T = np.where(net.held, held_t, 0.0)
+    T[unknown] = t_ref + x_all[unknown]
+    no_steady = _untied(net, T, T0, b, t_ref, flags)
+    wall = time.perf_counter() - wall0
+    flow = net.boundary_heat_flow(T, sw)
+    total_in = float(flow.sum()) + (float(sw.sum()) if sw is not None and
+                                    prob.source_boundary < 0 else 0.0)
+    scale = float(np.abs(flow).sum()) or 1.0
+    nb = prob.n_boundaries
+    return ThermalResult(
+        method="steady", times=np.array([np.inf]), temperature_k=T[None, :],
+        boundary_heat_flow_w=flow[None, :], boundary_energy_j=np.full((1, nb), np.nan),
+        source_energy_j=np.full(1, np.nan),
+        stored_energy_j=np.array([np.dot(net.capacity_j_k, T - T0) if T0 is not None
+                                  else np.nan]),
+        boundary_names=prob.boundary_names, source_boundary=prob.source_boundary,
+        dt=np.inf, dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=0, wall_seconds=wall,
+        contact_updates_per_second=float("nan"), flags=tuple(flags),
+        info=dict(linear_solver=f"petsc-cg-{pc}", tol=tol, unknowns=n_unknowns, t_ref=t_ref,
+                  cg_iterations=iterations, heat_balance_w=total_in,
+                  heat_balance_relative=total_in / scale,
+                  floating_clusters=net.clusters.n_floating,
+                  floating_sizes=net.clusters.floating_sizes.tolist(),
+                  rattlers=net.clusters.n_rattlers, no_steady_state=no_steady,
+                  clusters=net.clusters.summary(), **dist.info()),
+        state=None)
+
+
+def _untied(net, T, T0, b, t_ref, flags) -> list:
+    """Floating clusters and rattlers, as :mod:`.steady` does them (its rule, restated here
+    because the in-process function builds and solves the whole tied system first): each
+    keeps the capacity-weighted mean of T0 (T_ref without T0, flagged), plus the zero-net part
+    of a power injected into it; a net power is flagged (no steady state)."""
+    from scipy.sparse.linalg import spsolve
+    n = net.n
+    label = net.clusters.label
+    in_untied = ~net.clusters.tied_particle
+    no_steady = []
+    if not np.any(in_untied):
+        return no_steady
+    if T0 is None:
+        flags.append("floating_without_T0")
+        base = np.full(n, t_ref)
+    else:
+        base = T0
+    c = net.capacity_j_k
+    sel = np.flatnonzero(in_untied)
+    lab = label[sel]
+    csum = np.bincount(lab, weights=c[sel], minlength=net.clusters.n_components)
+    ctsum = np.bincount(lab, weights=c[sel] * base[sel], minlength=net.clusters.n_components)
+    T[sel] = ctsum[lab] / csum[lab]
+    lap = net.laplacian
+    for comp in np.unique(lab[b[sel] != 0]):
+        members = sel[lab == comp]
+        members = members[~net.held[members]]
+        net_power = float(b[members].sum())
+        if abs(net_power) > 1e-9 * float(np.abs(b[members]).sum()):
+            no_steady.append((int(comp), net_power))
+            continue
+        if members.size < 2:
+            continue
+        sub = lap[members][:, members].tocsr()
+        x = np.zeros(members.size)
+        x[1:] = spsolve(sub[1:, 1:].tocsc(), b[members][1:])
+        x -= np.dot(c[members], x) / c[members].sum()
+        T[members] += x
+    if no_steady:
+        flags.append("no_steady_state_in_floating_cluster")
+    return no_steady
+
+
+__all__ = ["DistributedNetwork", "run_explicit", "run_implicit", "solve_steady",
+           "PRECONDITIONERS", "HYPRE_OPTIONS"]
