@@ -248,6 +248,7 @@ def _cmd_etc(args):
 
 def _cmd_info(args):
     from thermal_kernel.packing import format_statistics, packing_statistics, read_packing
+    from thermal_kernel.packing_stats import describe_recheck, recheck
     packing = read_packing(args.packing)
     print(f"{args.packing}: format {packing.attrs['format']} v{packing.attrs['format_version']},"
           f" generator {packing.attrs['generator']}, seed {packing.attrs['seed']}")
@@ -255,6 +256,9 @@ def _cmd_info(args):
     if packing.wall_name:
         print("  walls                " + ", ".join(
             f"{n} ({k})" for n, k in zip(packing.wall_name, packing.wall_kind)))
+    again = recheck(packing)        # the importers' own statistics, from the file's arrays
+    if again is not None:
+        print(f"  re-derived           {describe_recheck(again)}")
     _print_provenance(packing.attrs)
 
 

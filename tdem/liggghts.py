@@ -169,7 +169,7 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
                     law="hertz"):
     """Read the dumps, build the packing, write it (validated) to ``out``; return (packing,
     stats line items)."""
-    from thermal_kernel import contact_check
+    from thermal_kernel import contact_check, packing_stats
     from thermal_kernel.atomic import write_bytes_atomic
     from thermal_kernel.packing import (OVERLAP_RTOL, Packing, PackingError, packing_image,
                                         read_packing_image)
@@ -413,54 +413,24 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
         inferred.append("wall contacts: from the positions (r - distance > 0), forces Hertz "
                         "4/3 E* sqrt(r) delta^1.5 at --young/--poisson (no walls dump)")
 
-    # --- domain, phi, Z, pressure ---------------------------------------------------------------
-    lo = (position - radius[:, None]).min(axis=0)
-    hi = (position + radius[:, None]).max(axis=0)
-    free = []
-    for ax in range(3):
-        if periodic[ax]:
-            lo[ax], hi[ax] = lo_box[ax], hi_box[ax]
-            continue
-        for k, (_name, axis, side, _) in enumerate(wall_spec):
-            if axis == ax:
-                if side == "min":
-                    lo[ax] = wall_point[k][ax]
-                else:
-                    hi[ax] = wall_point[k][ax]
-        sides = {s for (_, axis, s, _) in wall_spec if axis == ax}
-        if sides != {"min", "max"}:
-            free.append("xyz"[ax] + ("" if not sides else f" ({'max' if 'min' in sides else 'min'}"
-                                                          " side)"))
+    # --- domain, phi, Z, pressure, force law (thermal_kernel/packing_stats.py) -----------------
+    planes = [(name, axis, side, wall_point[k][axis])
+              for k, (name, axis, side, _) in enumerate(wall_spec)]
+    lo, hi, free = packing_stats.domain_box(position, radius, planes, periodic, lo_box, hi_box)
     if free:
-        inferred.append("domain: " + ", ".join(free) + " from the spheres' bounding box (no "
-                        "wall there)")
-    volume = float(np.prod(hi - lo))
-    v_solid = float(np.sum(4 / 3 * np.pi * radius ** 3))
-    if len(w_part):
-        h = np.clip(w_over, 0, None)
-        v_solid -= float(np.sum(np.pi * h ** 2 * (3 * radius[w_part] - h) / 3))
-    solid_fraction = v_solid / volume
+        inferred.append(free)
+    solid_fraction = packing_stats.solid_fraction(radius, lo, hi, radius[w_part], w_over)
     mean_z = 2.0 * len(i) / n
     if pressure is None:
-        per = {}
-        for k, (name, axis, _, _) in enumerate(wall_spec):
-            per[name] = float(w_force[w_wall == k].sum()) / float(np.prod(np.delete(hi - lo,
-                                                                                      axis)))
-        if "plate" in per:
-            pressure = per["plate"]
-            inferred.append("pressure_pa: the plate's normal force over the domain's face area")
-        elif per:
-            pressure = float(np.mean(list(per.values())))
-            inferred.append(f"pressure_pa: mean over {len(per)} walls of their normal force "
-                            "over the domain's face area")
-        else:
-            pressure = math.nan
-            inferred.append("pressure_pa: NaN (no wall, no --pressure-pa)")
+        pressure, how = packing_stats.wall_pressure(
+            [(name, axis) for name, axis, _, _ in wall_spec], w_wall, w_force, lo, hi)
+        inferred.append(f"pressure_pa: {how}" if how else
+                        "pressure_pa: NaN (no wall, no --pressure-pa)")
 
     r_star = radius[i] * radius[j] / (radius[i] + radius[j])
     if law == "hertz":
-        check = contact_check.check(force, contact_check.hertz_force(
-            r_star, delta, contact_check.effective_modulus(young, poisson)),
+        check = packing_stats.hertz_check(
+            force, radius[i], radius[j], delta, young, poisson,
             "hertz (E* from --young, --poisson; particle-particle contacts)")
     else:
         check = {"force_law": "none given (--law none): not checked", "force_law_contacts": 0}

@@ -1,7 +1,8 @@
 """Does a packing's normal force follow its stated contact law? (numpy only)
 
-Used by the YADE-side dump (``yade_scripts/tdem_yade.py``, which loads this file by path on
-Debian's Python, like ``packing_h5.py``) and by ``tdem import liggghts``. The result is written
+Used through ``thermal_kernel/packing_stats.py`` by the YADE-side dump
+(``yade_scripts/tdem_yade.py``, which imports both as the package on Debian's Python) and by
+``tdem import liggghts``. The result is written
 into the packing's root attributes (``force_law*``) and printed by ``tdem info``.
 
 Hertz (elastic part; YADE's ``Law2_ScGeom_MindlinPhys_Mindlin`` and LIGGGHTS' ``model hertz``

@@ -76,8 +76,13 @@ def _load(name, path):
 
 _writer = _load("tdem_packing_h5", os.path.join(_HERE, os.pardir, "thermal_kernel",
                                                 "packing_h5.py"))
-_check = _load("tdem_contact_check", os.path.join(_HERE, os.pardir, "thermal_kernel",
-                                                  "contact_check.py"))
+# the kernel's numpy-only modules import as the package they are (tests/test_layers.py YADE_SAFE):
+# the repository's root goes on the path, after the user's own entries
+_ROOT = os.path.dirname(_HERE)
+if _ROOT not in sys.path:
+    sys.path.append(_ROOT)
+from thermal_kernel import contact_check as _check  # noqa: E402
+from thermal_kernel import packing_stats as _stats  # noqa: E402
 
 WALL_SHAPES = ("Wall", "Facet", "Box")
 HERTZ_PHYS = ("MindlinPhys",)
@@ -539,40 +544,16 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
         taken.add(name)
         w["name"] = name
 
-    # --- domain, solid fraction -------------------------------------------------------------
-    lo = (position - radius[:, None]).min(axis=0)
-    hi = (position + radius[:, None]).max(axis=0)
-    bounded = [None, None, None]
-    if periodic:
-        lo, hi = np.zeros(3), np.diag(hsize).copy()
-        bounded = ["periodic"] * 3
-    else:
-        for axis in range(3):
-            mins = [w["point"][axis] for w in walls if _axis_of(w["normal"]) == axis
-                    and w["normal"][axis] > 0]
-            maxs = [w["point"][axis] for w in walls if _axis_of(w["normal"]) == axis
-                    and w["normal"][axis] < 0]
-            if mins and maxs:
-                lo[axis], hi[axis] = max(mins), min(maxs)
-                bounded[axis] = "walls"
-            elif mins or maxs:
-                if mins:
-                    lo[axis] = max(mins)
-                else:
-                    hi[axis] = min(maxs)
-                bounded[axis] = "one wall"
-        free = [("xyz"[a] if bounded[a] is None else "xyz"[a] + " (one side)")
-                for a in range(3) if bounded[a] != "walls"]
-        if free:
-            inferred.append("domain: " + ", ".join(free) + " from the spheres' bounding box "
-                            "(no wall on that side)")
-    volume_cells = float(np.prod(hi - lo))
-    v_solid = float(np.sum(4.0 / 3.0 * np.pi * radius ** 3))
-    if not periodic and w_part.size:                   # caps beyond the axis-normal walls
-        bounding = np.array([_axis_of(walls[w]["normal"]) is not None for w in w_wall], bool)
-        h = np.clip(w_over, 0.0, None)[bounding]
-        v_solid -= float(np.sum(np.pi * h ** 2 * (3 * radius[w_part][bounding] - h) / 3.0))
-    solid_fraction = v_solid / volume_cells
+    # --- domain, solid fraction (thermal_kernel/packing_stats.py) ---------------------------
+    planes = [(w["name"], axis, "min" if w["normal"][axis] > 0 else "max", w["point"][axis])
+              for w in walls for axis in (_axis_of(w["normal"]),) if axis is not None]
+    lo, hi, free = _stats.domain_box(position, radius, planes, (periodic,) * 3, np.zeros(3),
+                                     np.diag(hsize) if periodic else None)
+    if free:
+        inferred.append(free)
+    bounding = np.array([_axis_of(walls[w]["normal"]) is not None for w in w_wall], bool)
+    solid_fraction = _stats.solid_fraction(radius, lo, hi, radius[w_part][bounding],
+                                           w_over[bounding])
     _unlisted_overlaps(path, position, radius, yade_id, pair, hsize if periodic else None)
     if solid_fraction > 1.0:
         _fail(path, f"the spheres' volume is {solid_fraction:.4g} times the domain's: a solid "
@@ -639,31 +620,15 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
                                 "confining pressure)")
                 pressure_pa = math.nan
         else:
-            per_wall = {}
-            for k, w in enumerate(walls):
-                axis = _axis_of(w["normal"])
-                if axis is None or bounded[axis] is None:
-                    continue
-                area = float(np.prod(np.delete(hi - lo, axis)))
-                per_wall[w["name"]] = float(w_force[w_wall == k].sum()) / area
-            if "plate" in per_wall:
-                pressure_pa = per_wall["plate"]
-                inferred.append("pressure_pa: the plate's normal force over the domain's face "
-                                "area")
-            elif per_wall:
-                pressure_pa = float(np.mean(list(per_wall.values())))
-                inferred.append(f"pressure_pa: mean over {len(per_wall)} axis-normal walls of "
-                                "their normal force over the domain's face area")
-            else:
-                pressure_pa = math.nan
-                inferred.append("pressure_pa: NaN (no periodic cell, no axis-normal wall)")
+            pressure_pa, how = _stats.wall_pressure(
+                [(w["name"], _axis_of(w["normal"])) for w in walls], w_wall, w_force, lo, hi)
+            inferred.append(f"pressure_pa: {how}" if how else
+                            "pressure_pa: NaN (no periodic cell, no axis-normal wall)")
 
     if hertz >= linear and hertz:
-        r_i, r_j = radius[pair[:, 0]], radius[pair[:, 1]]
-        e_star = _check.effective_modulus(young_pa, poisson)
-        law = _check.check(p_force[touching], _check.hertz_force(
-            (r_i * r_j / (r_i + r_j))[touching], p_over[touching], e_star),
-            "hertz (E* from young_pa, poisson; particle-particle contacts)")
+        law = _stats.hertz_check(p_force[touching], radius[pair[touching, 0]],
+                                 radius[pair[touching, 1]], p_over[touching], young_pa, poisson,
+                                 "hertz (E* from young_pa, poisson; particle-particle contacts)")
     elif linear:
         kn = np.zeros(len(p_over))
         for c, value in linear_kn:
@@ -766,8 +731,4 @@ def _unlisted_overlaps(path, position, radius, yade_id, pair, hsize):
 
 
 def _axis_of(normal):
-    normal = np.asarray(normal, float)
-    for axis in range(3):
-        if abs(normal[axis]) > 1.0 - AXIS_TOL:
-            return axis
-    return None
+    return _stats.axis_of(normal, AXIS_TOL)
