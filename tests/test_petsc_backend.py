@@ -1,0 +1,187 @@
+"""The PETSc backend (issue 25): `tdem run SCENE --ranks N` gives the in-process answer.
+
+Each case runs a scene in-process (tdem's numba / scipy solvers) and on MPI ranks through PETSc
+(`thermal_kernel/solvers/petsc_backend.py`, under mpirun in .venv-mpi) and compares the two
+thermal.h5 files: explicit within 1e-12 of the temperature change (the same updates summed in
+another order), implicit and steady within 1e-10 (CG to a relative residual of 1e-12), the
+boundary heat flows and ledger energies alike, and the flags identical; 1, 2 and 3 ranks agree.
+The scenes: the 300-sphere YADE bed between two held walls (with rattlers), and the 400-sphere
+dense box with every row kind the solvers see -- held particles, exchange rows (a wall
+temperature), constant power (a flux) and a moving source switched on and off mid-run.
+
+What could fail: a row of the matrix given to the wrong rank or renumbered wrongly (every
+temperature off), a held particle not eliminated (the implicit matrix not SPD, or held
+temperatures drifting), the ledger's partial sums counted twice or missed on a rank, the source
+added on one rank only, a flag lost in the output.
+"""
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from bed_scene import BED_THERMAL
+from tdem.cli import main
+from thermal_kernel.solvers.mpi_launch import missing
+
+DATA = Path(__file__).resolve().parent / "data"
+BED = DATA / "bed_small_4.05e+07Pa.h5"
+DENSE = DATA / "dense_box.h5"
+WHY = missing()
+
+pytestmark = [pytest.mark.petsc,
+              pytest.mark.skipif(WHY is not None, reason=f"PETSc backend unavailable: {WHY} "
+                                 "(Debian: apt-get install python3-petsc4py python3-mpi4py "
+                                 "openmpi-bin; `make test` installs them and builds .venv-mpi)")]
+
+TIMES = "end_time = 2.0\noutput_times = [0.5, 1.0, 2.0]\n"
+SOLVERS = {
+    "steady": 'method = "steady"\n',
+    "explicit": 'method = "explicit"\n' + TIMES,
+    "backward_euler": 'method = "implicit"\n' + TIMES + "dt = 0.02\n",
+    "rannacher": 'method = "implicit"\n' + TIMES + "dt = 0.1\ntheta = 0.5\n",
+    "tr_bdf2": 'method = "implicit"\n' + TIMES + 'dt = 0.1\ntheta = 0.5\nscheme = "tr-bdf2"\n',
+}
+# relative to the largest temperature change (explicit: the same sums in another order;
+# implicit, steady: CG to 1e-12 relative residual against a direct solve in-process)
+RTOL = {"steady": 1e-10, "explicit": 1e-12, "backward_euler": 1e-10, "rannacher": 1e-10,
+        "tr_bdf2": 1e-10}
+
+DENSE_ROWS = f'''packing = "{DENSE}"
+law = "haddad"
+[material]
+conductivity = 33.0
+density = 7800.0
+heat_capacity = 460.0
+[material.1]
+conductivity = 165.0
+[initial]
+temperature = 298.15
+[[boundary]]
+kind = "temperature"
+on = "xmin"
+value = 308.15
+[[boundary]]
+kind = "wall_temperature"
+on = "xmax"
+value = 290.0
+wall_conductivity = 20.0
+[[boundary]]
+kind = "flux"
+on = "ymin"
+value = 2000.0
+[[boundary]]
+kind = "source"
+shape = "sphere"
+value = 1e7
+radius_m = 0.003
+centre_m = [0.004, 0.0075, 0.0075]
+velocity_m_s = [0.002, 0, 0]
+start_time = 0.2
+stop_time = 1.4
+'''
+DENSE_TIMES = "end_time = 2.0\noutput_times = [0.5, 1.0, 2.0]\n"
+
+
+def _scene(tmp_path, name, text):
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+def _run(scene, out, ranks=None):
+    args = ["run", str(scene), "--out", str(out), "--quiet"]
+    if ranks is not None:
+        args += ["--ranks", str(ranks)]
+    assert main(args) == 0
+    return _read(out / "thermal.h5")
+
+
+def _read(path):
+    with h5py.File(path, "r") as f:
+        return {"T": f["temperature"][:], "T0": f["initial_temperature"][:],
+                "flow": f["boundary_heat_flow"][:], "energy": f["boundary_energy"][:],
+                "source": f["source_energy"][:], "attrs": dict(f.attrs)}
+
+
+def _assert_same(a, b, rtol):
+    change = max(float(np.abs(a["T"] - a["T0"][None, :]).max()), 1e-300)
+    assert np.abs(a["T"] - b["T"]).max() <= rtol * change
+    scale = max(float(np.abs(a["flow"]).max()), 1e-300)
+    assert np.abs(a["flow"] - b["flow"]).max() <= max(rtol, 1e-9) * scale
+    if a["energy"].size:
+        scale = max(float(np.abs(a["energy"]).max()), 1e-300)
+        assert np.abs(a["energy"] - b["energy"]).max() <= max(rtol, 1e-9) * scale
+        np.testing.assert_allclose(a["source"], b["source"], rtol=1e-12, atol=0)
+    for key in ("flags", "max_principle_checked", "method", "steps", "n_conducting_contacts",
+                "n_floating_clusters", "n_rattlers", "packing_sha256", "scene", "law_params"):
+        assert a["attrs"][key] == b["attrs"][key], key
+    assert b["attrs"]["backend"] == "petsc"
+
+
+@pytest.fixture(scope="module")
+def bed_runs(tmp_path_factory):
+    """Each solver on the bed, in-process and on 2 ranks."""
+    tmp = tmp_path_factory.mktemp("petsc_bed")
+    runs = {}
+    for name, solver in SOLVERS.items():
+        scene = _scene(tmp, name, f'packing = "{BED}"\nlaw = "pipe"\n{BED_THERMAL}'
+                                  f"[solver]\n{solver}")
+        runs[name] = (scene, _run(scene, tmp / f"{name}_in"),
+                      _run(scene, tmp / f"{name}_r2", ranks=2))
+    return tmp, runs
+
+
+@pytest.mark.parametrize("name", list(SOLVERS))
+def test_two_ranks_give_the_in_process_answer(bed_runs, name):
+    _, runs = bed_runs
+    _, inproc, petsc = runs[name]
+    _assert_same(inproc, petsc, RTOL[name])
+    assert petsc["attrs"]["ranks"] == 2
+    # the physics checks of the output, as in-process: the run conserves energy and keeps to
+    # the maximum principle (the bed has no source or power: the plain principle is checked)
+    assert petsc["attrs"]["ledger_residual_relative"] <= 1e-9
+    assert petsc["attrs"]["max_principle_checked"] == 1
+    assert "max_principle" not in petsc["attrs"]["flags"]
+
+
+def test_the_output_has_every_attribute_of_an_in_process_run(bed_runs):
+    _, runs = bed_runs
+    for _, inproc, petsc in runs.values():
+        assert set(inproc["attrs"]) <= set(petsc["attrs"])
+        assert set(petsc["attrs"]) - set(inproc["attrs"]) == {
+            "backend", "ranks", "cut_contacts", "linear_solver", "run_seconds"}
+
+
+@pytest.mark.parametrize("name", ["steady", "explicit"])
+def test_one_two_and_three_ranks_agree(bed_runs, name):
+    tmp, runs = bed_runs
+    scene, inproc, two = runs[name]
+    for ranks in (1, 3):
+        other = _run(scene, tmp / f"{name}_r{ranks}", ranks=ranks)
+        _assert_same(inproc, other, RTOL[name])
+        _assert_same(two, other, RTOL[name])
+
+
+@pytest.mark.parametrize("name,solver,rtol", [
+    ("explicit", 'method = "explicit"\n' + DENSE_TIMES, 1e-12),
+    ("tr_bdf2", 'method = "implicit"\n' + DENSE_TIMES + 'dt = 0.05\nscheme = "tr-bdf2"\n'
+     'theta = 0.5\n', 1e-10),
+])
+def test_exchange_power_and_a_moving_source_on_two_ranks(tmp_path, name, solver, rtol):
+    scene = _scene(tmp_path, name, DENSE_ROWS + f"[solver]\n{solver}")
+    inproc = _run(scene, tmp_path / "in")
+    petsc = _run(scene, tmp_path / "r2", ranks=2)
+    _assert_same(inproc, petsc, rtol)
+    assert inproc["source"][-1] > 0          # the source did heat the box
+    assert petsc["attrs"]["ledger_residual_relative"] <= 1e-9
+
+
+def test_a_bad_scene_on_the_ranks_is_one_line_and_exit_2(tmp_path, capsys):
+    scene = _scene(tmp_path, "bad", f'packing = "{BED}"\nlaw = "pipe"\nlaw_params = {{ct = 1}}\n'
+                                    f'{BED_THERMAL}[solver]\nmethod = "steady"\n')
+    assert main(["run", str(scene), "--out", str(tmp_path / "o"), "--ranks", "2"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"tdem: error: {scene}: law_params.ct: unknown parameter of law 'pipe' "
+                   "(known: none)"]
+    assert not (tmp_path / "o" / "thermal.h5").exists()
