@@ -250,10 +250,98 @@ def _rot(ori, v):
 
 def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa, seed, gaps,
           extra, quiet):
+    """What dump() does, phase by phase (each refuses in one line, DumpError): the call's
+    target, the bodies, the periodic cell, the wall planes, the contacts, the walls' names, the
+    domain and solid fraction, the material, the pressure, the force-law check; then the file."""
     import yade
     from yade.wrapper import Omega
     O = Omega()
     t0 = time.time()
+    _check_target(path, O, walls_mode, wall_names)
+    spheres, wall_bodies, index, raw, radius, yade_id, phase = _bodies(path, O)
+    n = len(spheres)
+    inferred = []
+    periodic, hsize, position = _periodic_cell(path, O, raw, walls_mode, wall_bodies)
+    walls, body_wall, box_faces = _wall_planes(path, position, radius, walls_mode, periodic,
+                                               wall_bodies, inferred)
+    (pair, p_over, p_force, p_branch, p_yade, w_part, w_wall, w_over, w_force, w_yade,
+     phys_kinds, linear_kn, clipped, merged) = _contacts(
+        path, O, index, raw, radius, position, periodic, hsize, walls_mode, gaps, walls,
+        body_wall, box_faces)
+    walls, w_wall = _name_walls(path, walls, w_wall, wall_names)
+    lo, hi, solid_fraction, touching, mean_z = _domain(
+        path, position, radius, periodic, hsize, walls, w_part, w_wall, w_over, pair, p_over,
+        yade_id, inferred)
+    young_pa, poisson, density, laws, hertz, linear = _material(
+        path, O, spheres[0].material, phys_kinds, young_pa, poisson, density, inferred)
+    if pressure_pa is None:
+        pressure_pa = _pressure(periodic, walls, w_wall, w_force, lo, hi, inferred)
+    law = _law_check(hertz, linear, phys_kinds, linear_kn, pair, radius, p_force, p_over,
+                     touching, young_pa, poisson)
+
+    over_diff = np.abs(np.concatenate([p_over - np.array(p_yade, float),
+                                       w_over - np.array(w_yade, float)]))
+    script = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "?"
+    out_attrs = dict(
+        generator=GENERATOR, seed=int(seed), solid_fraction=solid_fraction,
+        mean_coordination=mean_z, pressure_pa=float(pressure_pa), young_pa=float(young_pa),
+        poisson=float(poisson), density=float(density),
+        source=f"YADE script {script}", yade_version=str(yade.config.version),
+        yade_iteration=int(O.iter), yade_time_s=float(O.time), yade_dt_s=float(O.dt),
+        contact_law=", ".join(laws) or "none", contact_phys=", ".join(
+            f"{k} ({v})" for k, v in sorted(phys_kinds.items())) or "none",
+        overlap_source="positions (r_i + r_j - |branch|; walls: r - distance to the plane)",
+        overlap_vs_yade_max_m=float(over_diff.max()) if over_diff.size else 0.0,
+        tensile_contacts_clipped=int(clipped),
+        # YADE interactions of one sphere with several facets of one plane, merged (force summed)
+        wall_interactions_merged=int(merged),
+        inferred="; ".join(inferred) if inferred else "none",
+        wall_seconds=time.time() - t0,
+    )
+    out_attrs.update(law)
+    out_attrs.update(extra)
+    wall_rows = [dict(name=w["name"], kind=w["kind"], point=w["point"], normal=w["normal"],
+                      radius=w["radius"]) for w in walls]
+    r_star = np.zeros(len(p_over))
+    if len(p_over):
+        r_i, r_j = radius[pair[:, 0]], radius[pair[:, 1]]
+        r_star = r_i * r_j / (r_i + r_j)
+    # built in memory, then written at once under <path>.tmp and renamed: a full or read-only
+    # disk is one OSError (one line here), and no file is left
+    try:
+        image = _writer.packing_image(
+            position, radius, phase, pair, p_over, p_force, p_branch, wall_rows, w_part,
+            w_wall, w_over, w_force, lo, hi, (periodic,) * 3, out_attrs,
+            contact_radius=np.sqrt(r_star * np.clip(p_over, 0, None)),
+            wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)),
+            yade_id=yade_id)
+        _writer.write_bytes_atomic(path, image)
+    except OSError as e:
+        _fail(path, f"cannot write the file: {e.strerror or e}")
+    summary = dict(n_particles=n, n_contacts=int(touching.sum()), n_wall_contacts=len(w_part),
+                   walls=[w["name"] for w in walls], solid_fraction=solid_fraction,
+                   mean_coordination=mean_z, pressure_pa=float(pressure_pa),
+                   inferred=inferred, **law)
+    if not quiet:
+        line = _check.describe(out_attrs)
+        print(f"tdem_yade: wrote {path}: N {n}, contacts {summary['n_contacts']}, wall contacts "
+              f"{len(w_part)} ({', '.join(summary['walls']) or 'no walls'}), phi "
+              f"{solid_fraction:.4f}, Z {mean_z:.3f}, p {pressure_pa:.4g} Pa; force law {line}",
+              flush=True)
+    return summary
+
+
+
+
+def _add_wall(walls, point, normal, body_id):
+    """A plane wall appended to ``walls`` (its name given later); its index."""
+    walls.append(dict(name=None, kind="plane", point=np.asarray(point, float),
+                      normal=np.asarray(normal, float), radius=math.nan, body=body_id))
+    return len(walls) - 1
+
+
+def _check_target(path, O, walls_mode, wall_names):
+    """The file name, its folder, walls= and the bodies wall_names= names."""
     if walls_mode not in ("auto", "none"):
         _fail(path, f"walls: expected 'auto' or 'none', got {walls_mode!r}")
     if os.path.isdir(path):
@@ -276,7 +364,10 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
                         f"({', '.join(WALL_SHAPES)}); expected the id of a wall, e.g. "
                         "{lid.id: 'plate'}")
 
-    # --- bodies: spheres, wall bodies, refusals ------------------------------------------
+
+def _bodies(path, O):
+    """The spheres (refusing clumps and other shapes), the wall bodies, and the spheres'
+    positions, radii, YADE ids and phases (their materials in id order)."""
     spheres, wall_bodies = [], []
     for b in O.bodies:
         if b is not None and b.isClump:
@@ -302,7 +393,6 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
                         "geometry, for which the format has no field")
     if not spheres:
         _fail(path, "the scene has no spheres (utils.sphere bodies) to dump")
-    n = len(spheres)
     index = {b.id: k for k, b in enumerate(spheres)}
     raw = np.array([_vec(b.state.pos) for b in spheres])
     radius = np.array([float(b.shape.radius) for b in spheres])
@@ -320,9 +410,11 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
     mat_ids = [b.material.id if b.material is not None else -1 for b in spheres]
     phase_of = {m: k for k, m in enumerate(sorted(set(mat_ids)))}
     phase = np.array([phase_of[m] for m in mat_ids], dtype=np.int32)
-    inferred = []
+    return spheres, wall_bodies, index, raw, radius, yade_id, phase
 
-    # --- periodic cell ---------------------------------------------------------------------
+
+def _periodic_cell(path, O, raw, walls_mode, wall_bodies):
+    """(periodic, hSize, positions wrapped into the cell)."""
     periodic = bool(O.periodic)
     hsize = None
     if periodic:
@@ -341,8 +433,13 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
                         "walls='none'")
     else:
         position = raw.copy()
+    return periodic, hsize, position
 
-    # --- walls -----------------------------------------------------------------------------
+
+def _wall_planes(path, position, radius, walls_mode, periodic, wall_bodies, inferred):
+    """The planes of the wall bodies (Wall; coplanar Facets as one plane; the faces of a Box
+    the spheres face): the wall list, body id -> wall, Box body -> its faces."""
+    n = len(radius)
     walls = []              # dicts: name, kind, point, normal, radius
     body_wall = {}          # body id -> wall index (Wall, Facet)
     box_faces = {}          # body id -> list of (wall index or None, point, outward normal)
@@ -362,9 +459,7 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
                     "the format's plane wall bounds the domain on one side")
 
     def add_wall(point, normal, body_id):
-        walls.append(dict(name=None, kind="plane", point=np.asarray(point, float),
-                          normal=np.asarray(normal, float), radius=math.nan, body=body_id))
-        return len(walls) - 1
+        return _add_wall(walls, point, normal, body_id)
 
     if walls_mode == "auto" and not periodic:
         facets = []
@@ -415,8 +510,13 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
     elif walls_mode == "none" and wall_bodies:
         inferred.append(f"walls: none: {len(wall_bodies)} wall bodies and their contacts left "
                         "out")
+    return walls, body_wall, box_faces
 
-    # --- contacts ---------------------------------------------------------------------------
+
+def _contacts(path, O, index, raw, radius, position, periodic, hsize, walls_mode, gaps, walls,
+              body_wall, box_faces):
+    """The sphere-sphere and sphere-wall rows of YADE's real interactions (overlaps from the
+    positions, YADE's normal forces; a sphere on two facets of one plane: one row)."""
     pair, p_over, p_force, p_branch, p_yade = [], [], [], [], []
     w_part, w_wall, w_over, w_force, w_yade = [], [], [], [], []
     phys_kinds = {}
@@ -473,7 +573,8 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
                 s = [float((position[k] - f[1]) @ f[2]) for f in faces]
                 best = int(np.argmax(s))
                 if faces[best][0] is None:
-                    faces[best][0] = add_wall(faces[best][1], faces[best][2], other)
+                    faces[best][0] = _add_wall(walls, faces[best][1], faces[best][2],
+                                               other)
                 w = faces[best][0]
             else:
                 w = body_wall[other]
@@ -504,8 +605,12 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
     w_part = np.array(w_part, dtype=np.int64)
     w_over = np.array(w_over, float)
     w_force = np.array(w_force, float)
+    return (pair, p_over, p_force, p_branch, p_yade, w_part, w_wall, w_over, w_force, w_yade,
+            phys_kinds, linear_kn, clipped, merged)
 
-    # --- wall names, renumbered (walls without a role dropped only if unnamed and unused) ---
+
+def _name_walls(path, walls, w_wall, wall_names):
+    """The walls kept (used, named or axis-normal), renumbered and named."""
     used = set(w_wall)
     keep = [k for k, w in enumerate(walls)
             if k in used or w["body"] in wall_names or _axis_of(w["normal"]) is not None
@@ -543,8 +648,14 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
             name, j = f"{base}_{j}", j + 1
         taken.add(name)
         w["name"] = name
+    return walls, w_wall
 
-    # --- domain, solid fraction (thermal_kernel/packing_stats.py) ---------------------------
+
+def _domain(path, position, radius, periodic, hsize, walls, w_part, w_wall, w_over, pair,
+            p_over, yade_id, inferred):
+    """(lo, hi, solid fraction, touching, mean Z): thermal_kernel/packing_stats.py; refuses
+    unlisted overlaps and a solid fraction above 1."""
+    n = len(radius)
     planes = [(w["name"], axis, "min" if w["normal"][axis] > 0 else "max", w["point"][axis])
               for w in walls for axis in (_axis_of(w["normal"]),) if axis is not None]
     lo, hi, free = _stats.domain_box(position, radius, planes, (periodic,) * 3, np.zeros(3),
@@ -560,9 +671,12 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
                     "fraction above 1 (overlapping spheres, or a scene that never ran?)")
     touching = p_over > 0
     mean_z = 2.0 * int(touching.sum()) / n
+    return lo, hi, solid_fraction, touching, mean_z
 
-    # --- material, law, pressure ------------------------------------------------------------
-    mat = spheres[0].material
+
+def _material(path, O, mat, phys_kinds, young_pa, poisson, density, inferred):
+    """young_pa, poisson and density (given, else the spheres' material, recorded as inferred),
+    the engines' contact laws and the counts of Hertz and linear interactions."""
     hertz = sum(v for k, v in phys_kinds.items() if k in HERTZ_PHYS)
     linear = sum(v for k, v in phys_kinds.items() if k in LINEAR_PHYS)
     if young_pa is None:
@@ -605,26 +719,35 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
         _fail(path, f"poisson: expected Poisson's ratio in (-1, 0.5), got {poisson!r}"
                     + (" (the spheres' material)" if any(x.startswith("poisson:")
                                                         for x in inferred) else ""))
+    return young_pa, poisson, density, laws, hertz, linear
 
-    if pressure_pa is None:
-        if periodic:
-            from yade import utils
-            s = utils.getStress()
-            pressure_pa = -float(s[0, 0] + s[1, 1] + s[2, 2]) / 3.0
-            if pressure_pa >= 0:
-                inferred.append("pressure_pa: -trace/3 of utils.getStress() (the cell's mean "
-                                "stress)")
-            else:
-                inferred.append(f"pressure_pa: NaN (the cell's mean stress is tensile: "
-                                f"-trace/3 of utils.getStress() = {pressure_pa:.6g} Pa; no "
-                                "confining pressure)")
-                pressure_pa = math.nan
+
+def _pressure(periodic, walls, w_wall, w_force, lo, hi, inferred):
+    """The confining pressure when not given: the cell's mean stress, else the walls'."""
+    if periodic:
+        from yade import utils
+        s = utils.getStress()
+        pressure_pa = -float(s[0, 0] + s[1, 1] + s[2, 2]) / 3.0
+        if pressure_pa >= 0:
+            inferred.append("pressure_pa: -trace/3 of utils.getStress() (the cell's mean "
+                            "stress)")
         else:
-            pressure_pa, how = _stats.wall_pressure(
-                [(w["name"], _axis_of(w["normal"])) for w in walls], w_wall, w_force, lo, hi)
-            inferred.append(f"pressure_pa: {how}" if how else
-                            "pressure_pa: NaN (no periodic cell, no axis-normal wall)")
+            inferred.append(f"pressure_pa: NaN (the cell's mean stress is tensile: "
+                            f"-trace/3 of utils.getStress() = {pressure_pa:.6g} Pa; no "
+                            "confining pressure)")
+            pressure_pa = math.nan
+    else:
+        pressure_pa, how = _stats.wall_pressure(
+            [(w["name"], _axis_of(w["normal"])) for w in walls], w_wall, w_force, lo, hi)
+        inferred.append(f"pressure_pa: {how}" if how else
+                        "pressure_pa: NaN (no periodic cell, no axis-normal wall)")
+    return pressure_pa
 
+
+def _law_check(hertz, linear, phys_kinds, linear_kn, pair, radius, p_force, p_over, touching,
+               young_pa, poisson):
+    """The force-law attributes: Hertz (thermal_kernel/packing_stats.py), linear k_n delta with
+    YADE's k_n, or not checked."""
     if hertz >= linear and hertz:
         law = _stats.hertz_check(p_force[touching], radius[pair[touching, 0]],
                                  radius[pair[touching, 1]], p_over[touching], young_pa, poisson,
@@ -638,57 +761,7 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
     else:
         law = {"force_law": "unknown (" + ", ".join(sorted(phys_kinds)) + "): not checked"
                if phys_kinds else "none (no contacts)", "force_law_contacts": 0}
-
-    over_diff = np.abs(np.concatenate([p_over - np.array(p_yade, float),
-                                       w_over - np.array(w_yade, float)]))
-    script = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "?"
-    out_attrs = dict(
-        generator=GENERATOR, seed=int(seed), solid_fraction=solid_fraction,
-        mean_coordination=mean_z, pressure_pa=float(pressure_pa), young_pa=float(young_pa),
-        poisson=float(poisson), density=float(density),
-        source=f"YADE script {script}", yade_version=str(yade.config.version),
-        yade_iteration=int(O.iter), yade_time_s=float(O.time), yade_dt_s=float(O.dt),
-        contact_law=", ".join(laws) or "none", contact_phys=", ".join(
-            f"{k} ({v})" for k, v in sorted(phys_kinds.items())) or "none",
-        overlap_source="positions (r_i + r_j - |branch|; walls: r - distance to the plane)",
-        overlap_vs_yade_max_m=float(over_diff.max()) if over_diff.size else 0.0,
-        tensile_contacts_clipped=int(clipped),
-        # YADE interactions of one sphere with several facets of one plane, merged (force summed)
-        wall_interactions_merged=int(merged),
-        inferred="; ".join(inferred) if inferred else "none",
-        wall_seconds=time.time() - t0,
-    )
-    out_attrs.update(law)
-    out_attrs.update(extra)
-    wall_rows = [dict(name=w["name"], kind=w["kind"], point=w["point"], normal=w["normal"],
-                      radius=w["radius"]) for w in walls]
-    r_star = np.zeros(len(p_over))
-    if len(p_over):
-        r_i, r_j = radius[pair[:, 0]], radius[pair[:, 1]]
-        r_star = r_i * r_j / (r_i + r_j)
-    # built in memory, then written at once under <path>.tmp and renamed: a full or read-only
-    # disk is one OSError (one line here), and no file is left
-    try:
-        image = _writer.packing_image(
-            position, radius, phase, pair, p_over, p_force, p_branch, wall_rows, w_part,
-            w_wall, w_over, w_force, lo, hi, (periodic,) * 3, out_attrs,
-            contact_radius=np.sqrt(r_star * np.clip(p_over, 0, None)),
-            wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)),
-            yade_id=yade_id)
-        _writer.write_bytes_atomic(path, image)
-    except OSError as e:
-        _fail(path, f"cannot write the file: {e.strerror or e}")
-    summary = dict(n_particles=n, n_contacts=int(touching.sum()), n_wall_contacts=len(w_part),
-                   walls=[w["name"] for w in walls], solid_fraction=solid_fraction,
-                   mean_coordination=mean_z, pressure_pa=float(pressure_pa),
-                   inferred=inferred, **law)
-    if not quiet:
-        line = _check.describe(out_attrs)
-        print(f"tdem_yade: wrote {path}: N {n}, contacts {summary['n_contacts']}, wall contacts "
-              f"{len(w_part)} ({', '.join(summary['walls']) or 'no walls'}), phi "
-              f"{solid_fraction:.4f}, Z {mean_z:.3f}, p {pressure_pa:.4g} Pa; force law {line}",
-              flush=True)
-    return summary
+    return law
 
 
 def _unlisted_overlaps(path, position, radius, yade_id, pair, hsize):
