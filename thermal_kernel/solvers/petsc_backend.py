@@ -187,6 +187,11 @@ class DistributedNetwork:
         self.mpi.Gatherv(np.ascontiguousarray(t_local), None, root=0)
         return None
 
+    def preconditioner(self, pc: str) -> str:
+        """``pc``, or the user's ``-pc_type`` of PETSC_OPTIONS (which then gets the hypre
+        options below too, and names the run's linear solver)."""
+        return self.PETSc.Options().getString("pc_type", pc)
+
     def ksp(self, matrix, tol: float, pc: str, maxiter: int = 5000):
         PETSc = self.PETSc
         if pc not in PRECONDITIONERS:
@@ -352,6 +357,7 @@ def run_implicit(dist: DistributedNetwork, T0, times, *, dt, theta=1.0, scheme="
     if startup_steps is None:
         startup_steps = RANNACHER_STEPS if scheme == "rannacher" else 0
     startup_steps = int(startup_steps) if scheme != "theta" else 0
+    pc = dist.preconditioner(pc)
     net = dist.net
     prob = net.problem
     T, t, step0, energy0, src_energy, ref, _ = start_state(net, T0, t_start, "implicit")
@@ -483,6 +489,7 @@ def solve_steady(dist: DistributedNetwork, T0=None, *, tol=1e-12, pc="gamg",
     particles of tied clusters by CG + ``pc`` (relative residual ``tol``), the deviation from
     T_ref solved for as in-process; floating clusters and rattlers on rank 0 as in-process.
     Result on rank 0 (None elsewhere). Collective."""
+    pc = dist.preconditioner(pc)
     net = dist.net
     prob = net.problem
     n = net.n
