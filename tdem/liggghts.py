@@ -167,251 +167,30 @@ def _columns(snap, path, wanted, hint):
 def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=None,
                     poisson=None, density=None, pressure=None, seed=0, timestep=None,
                     law="hertz"):
-    """Read the dumps, build the packing, write it (validated) to ``out``; return (packing,
-    stats line items)."""
-    from thermal_kernel import contact_check, packing_stats
+    """Read the dumps, build the packing, write it (validated) to ``out``; return the packing.
+    Phase by phase, each refusing in one line (UserError): the options, the three snapshots,
+    the atoms, the pairs, the walls' rows and positions, then the statistics
+    (thermal_kernel/packing_stats.py) and the file."""
+    from thermal_kernel import packing_stats
     from thermal_kernel.atomic import write_bytes_atomic
-    from thermal_kernel.packing import (OVERLAP_RTOL, Packing, PackingError, packing_image,
-                                        read_packing_image)
+    from thermal_kernel.packing import Packing, PackingError, packing_image, read_packing_image
 
-    for key, value, low, high in (("--young", young, 0, math.inf),
-                                  ("--poisson", poisson, -1, 0.5)):
-        if value is None:
-            raise UserError(f"{key}: required (LIGGGHTS dumps carry no material; give the "
-                            "values of your input's fix property/global)")
-        if not (math.isfinite(value) and low < value < high):
-            raise UserError(f"{key}: expected a number in ({low}, {high}), got {value!r}")
-    if density is not None and not (math.isfinite(density) and density > 0):
-        raise UserError(f"--density: expected a density > 0 in kg/m^3, got {density!r}")
-    if pressure is not None and not (math.isfinite(pressure) and pressure >= 0):
-        raise UserError(f"--pressure-pa: expected a pressure >= 0 in Pa, got {pressure!r} (leave "
-                        "it out to measure it from the walls' forces)")
-    out = Path(out)
-    for what, given in (("atoms", atoms_path), ("pairs", pairs_path), ("walls", walls_path)):
-        if given is not None and out.exists() and Path(given).exists() \
-                and out.resolve() == Path(given).resolve():
-            raise UserError(f"{out}: -o: is the {what} dump given as input; expected a new "
-                            "file name for the packing (the dump would be overwritten)")
-    if out.suffix.lower() != ".h5":
-        raise UserError(f"{out}: -o: expected a file name ending in .h5")
-    if out.is_dir() or not out.parent.is_dir():
-        raise UserError(f"{out}: -o: " + ("is a folder; expected a .h5 file name" if out.is_dir()
-                                          else f"the folder {out.parent} does not exist"))
-    wall_spec = parse_walls(walls)
-    if law not in ("hertz", "none"):
-        raise UserError(f"--law: expected hertz or none, got {law!r}")
-
-    a = read_dump(atoms_path, "ATOMS", timestep)
-    p = read_dump(pairs_path, "ENTRIES", a.timestep if timestep is None else timestep)
-    w = read_dump(walls_path, "ENTRIES", a.timestep) if walls_path else None
-    for snap, path in ((p, pairs_path), (w, walls_path)):
-        if snap is not None and snap.timestep != a.timestep:
-            raise UserError(f"{path}: ITEM: TIMESTEP: {snap.timestep}, but the atoms dump is at "
-                            f"{a.timestep}; expected the three dumps of one timestep")
-    if w is not None and not wall_spec:
-        raise UserError(f"{walls_path}: --walls: a walls dump needs the walls named in mesh "
-                        "order (e.g. --walls zmin,plate:zmax)")
-
-    col = {c: k for k, c in enumerate(a.columns)}
-    for c in ("xs", "xu", "xsu"):
-        if c in col and "x" not in col:
-            raise UserError(f"{atoms_path}: ITEM: ATOMS: column {c}: expected unscaled, wrapped "
-                            "x y z (dump custom ... id type x y z radius)")
-    for c in ("id", "x", "y", "z", "radius"):
-        if c not in col:
-            raise UserError(f"{atoms_path}: ITEM: ATOMS: missing column {c!r} (expected `dump "
-                            f"custom ... id type x y z radius`; got {' '.join(a.columns)})")
-    d = a.data
-    n = d.shape[0]
-    if n == 0:
-        raise UserError(f"{atoms_path}: ITEM: ATOMS: no atoms at timestep {a.timestep}")
-    _integers(atoms_path, "id", d[:, col["id"]], "atom id")
-    if "type" in col:
-        _integers(atoms_path, "type", d[:, col["type"]], "atom type")
-    order = np.argsort(d[:, col["id"]], kind="stable")
-    d = d[order]
-    ids = d[:, col["id"]].astype(np.int64)
-    if np.any(np.diff(ids) == 0):
-        dup = int(ids[np.flatnonzero(np.diff(ids) == 0)[0]])
-        raise UserError(f"{atoms_path}: ITEM: ATOMS: atom id {dup} appears twice")
-    index = {int(i): k for k, i in enumerate(ids)}
-    position = d[:, [col["x"], col["y"], col["z"]]].copy()
-    radius = d[:, col["radius"]].copy()
-    if np.any(radius <= 0):
-        raise UserError(f"{atoms_path}: radius: atom {int(ids[np.argmin(radius)])} has radius "
-                        f"{float(radius.min())!r} m; expected > 0")
-    box_size = float(np.max(a.bounds[:, 1] - a.bounds[:, 0]))
-    if np.any(radius > box_size):
-        k = int(np.argmax(radius))
-        raise UserError(f"{atoms_path}: radius: atom {int(ids[k])} has radius {radius[k]:.6g} m, "
-                        f"larger than the dump's box (BOX BOUNDS, largest extent {box_size:.6g} "
-                        "m); expected spheres that fit in the simulation box")
-    types = d[:, col["type"]].astype(np.int64) if "type" in col else np.ones(n, np.int64)
-    phase = np.searchsorted(np.unique(types), types).astype(np.int32)
-    inferred = []
-    if density is None:
-        if "mass" not in col:
-            raise UserError("--density: required (or dump the atoms' mass column, from which "
-                            "it is computed)")
-        rho = d[:, col["mass"]] / (4 / 3 * np.pi * radius ** 3)
-        density = float(np.median(rho))
-        inferred.append(f"density: median mass / sphere volume of the atoms ({density:.6g} "
-                        "kg/m^3)")
-    periodic = np.array([b.startswith("p") for b in a.boundary])
-    lo_box, hi_box = a.bounds[:, 0], a.bounds[:, 1]
+    out, wall_spec = _options(atoms_path, pairs_path, walls_path, out, walls, young, poisson,
+                              density, pressure, law)
+    a, p, w = _snapshots(atoms_path, pairs_path, walls_path, timestep, wall_spec)
+    (ids, index, position, radius, types, phase, density, periodic, lo_box, hi_box,
+     inferred) = _atoms(atoms_path, a, density)
+    n = len(radius)
     period = hi_box - lo_box
-    if periodic.any():                   # wrap (dump custom x y z is wrapped; be sure)
-        for ax in np.flatnonzero(periodic):
-            position[:, ax] = lo_box[ax] + np.mod(position[:, ax] - lo_box[ax], period[ax])
-
-    # --- pairs ----------------------------------------------------------------------------
-    cols = _columns(p, pairs_path, PAIR_COLUMNS, PAIR_HINT)
-    _integers(pairs_path, "id1/id2 (columns 1-2)", np.concatenate([cols["id1"], cols["id2"]]),
-              "atom id")
-    i_id, j_id = cols["id1"].astype(np.int64), cols["id2"].astype(np.int64)
-    unknown = [x for x in np.concatenate([i_id, j_id]) if int(x) not in index]
-    if unknown:
-        raise UserError(f"{pairs_path}: id1/id2 (columns 1-2): atom id {int(unknown[0])} is not "
-                        f"in {atoms_path}; expected the pairs of the same timestep")
-    i = np.array([index[int(x)] for x in i_id], np.int64)
-    j = np.array([index[int(x)] for x in j_id], np.int64)
-    swap = i > j
-    i, j = np.where(swap, j, i), np.where(swap, i, j)
-    delta = cols["delta"]
-    force = np.linalg.norm(np.column_stack([cols["fx"], cols["fy"], cols["fz"]]), axis=1)
-    if np.any(i == j):
-        raise UserError(f"{pairs_path}: id1/id2: row {int(np.flatnonzero(i == j)[0])} is a self "
-                        "contact")
-    key = i * n + j
-    uniq, first, counts = np.unique(key, return_index=True, return_counts=True)
-    duplicates = int((counts - 1).sum())
-    if duplicates:                      # (not seen with LIGGGHTS 3.8.0 on 2 ranks; kept safe)
-        for k in np.flatnonzero(counts > 1):
-            rows = np.flatnonzero(key == uniq[k])
-            if np.ptp(delta[rows]) > 1e-9 * max(abs(delta[rows]).max(), 1e-300):
-                raise UserError(f"{pairs_path}: pair ({int(ids[i[rows[0]]])}, "
-                                f"{int(ids[j[rows[0]]])}) appears {len(rows)} times with "
-                                "different overlaps; expected one row per contact")
-    keep = np.sort(first)
-    i, j, delta, force = i[keep], j[keep], delta[keep], force[keep]
-    touching = delta > 0
-    gaps = int((~touching).sum())
-    i, j, delta, force = i[touching], j[touching], delta[touching], force[touching]
-    branch = position[j] - position[i]
-    for ax in np.flatnonzero(periodic):
-        branch[:, ax] -= period[ax] * np.round(branch[:, ax] / period[ax])
-    geo = radius[i] + radius[j] - np.linalg.norm(branch, axis=1)
-    diff = float(np.abs(geo - delta).max()) if len(delta) else 0.0
-    # the overlap LIGGGHTS states must be the one of the dumped spheres (the default 6-digit
-    # dump format costs ~1e-5 of a radius; the reader's tolerance is OVERLAP_RTOL of it)
-    r_min = np.minimum(radius[i], radius[j])
-    tol = OVERLAP_RTOL * r_min + 1e-12 * (np.abs(position).max() + r_min)
-    off = np.abs(geo - delta) > tol
-    if off.any():
-        c = int(np.flatnonzero(off)[0])
-        raise UserError(f"{pairs_path}: delta (column 7): pair ({int(ids[i[c]])}, "
-                        f"{int(ids[j[c]])}) has delta {delta[c]:.6g} m, but the atoms' centres "
-                        f"are {np.linalg.norm(branch[c]):.6g} m apart (r_i + r_j - distance = "
-                        f"{geo[c]:.6g} m); expected the overlap of the two atoms of "
-                        f"{Path(atoms_path).name} (within {OVERLAP_RTOL:g} of the smaller radius)")
-    _unlisted_overlaps(atoms_path, pairs_path, position, radius, ids, i, j, periodic, lo_box,
-                       period)
-
-    # --- walls ------------------------------------------------------------------------------
-    wall_names = [s[0] for s in wall_spec]
-    wall_point, wall_normal = [], []
-    w_part = np.zeros(0, np.int64)
-    w_wall = np.zeros(0, np.int32)
-    w_over = np.zeros(0)
-    w_force = np.zeros(0)
-    merged = 0
-    if w is not None:
-        wc = _columns(w, walls_path, WALL_COLUMNS, WALL_HINT)
-        _integers(walls_path, "mesh (column 1)", wc["mesh"], "mesh id")
-        _integers(walls_path, "atom (column 3)", wc["atom"], "atom id")
-        mesh = wc["mesh"].astype(np.int64)
-        if mesh.size and (mesh.min() < 0 or mesh.max() >= len(wall_spec)):
-            bad = int(mesh[(mesh < 0) | (mesh >= len(wall_spec))][0])
-            raise UserError(f"{walls_path}: mesh (column 1): mesh id {bad}, but --walls names "
-                            f"{len(wall_spec)} mesh(es) ({', '.join(wall_names)}); expected one "
-                            "name per mesh of fix wall/gran, in its order")
-        atom = wc["atom"].astype(np.int64)
-        missing = [x for x in atom if int(x) not in index]
-        if missing:
-            raise UserError(f"{walls_path}: atom (column 3): atom id {int(missing[0])} is not in "
-                            f"{atoms_path}")
-        part = np.array([index[int(x)] for x in atom], np.int64)
-        fw = np.linalg.norm(np.column_stack([wc["fx"], wc["fy"], wc["fz"]]), axis=1)
-        dw = wc["delta"]
-        ok = dw > 0
-        part, mesh, fw, dw = part[ok], mesh[ok], fw[ok], dw[ok]
-        # one row per (atom, mesh): an atom on the edge of two triangles of one mesh
-        wkey = part * len(wall_spec) + mesh
-        uk, inv = np.unique(wkey, return_inverse=True)
-        merged = int(len(wkey) - len(uk))
-        w_part = (uk // len(wall_spec)).astype(np.int64)
-        w_wall = (uk % len(wall_spec)).astype(np.int32)
-        w_force = np.bincount(inv, weights=fw, minlength=len(uk))
-        w_over = np.zeros(len(uk))
-        np.maximum.at(w_over, inv, dw)
-    for k, (name, axis, side, coord) in enumerate(wall_spec):
-        sign = 1.0 if side == "min" else -1.0       # the normal points into the domain
-        normal = np.zeros(3)
-        normal[axis] = sign
-        if periodic[axis]:
-            raise UserError(f"--walls: {name}: a wall normal to {'xyz'[axis]}, a periodic axis "
-                            f"of the dump (BOX BOUNDS {a.boundary[axis]})")
-        rows = np.flatnonzero(w_wall == k) if w is not None else np.zeros(0, np.int64)
-        if rows.size:        # where each contact of the walls dump puts the wall
-            q = w_part[rows]
-            implied = position[q, axis] - sign * (radius[q] - w_over[rows])
-            median = float(np.median(implied))
-            tol = OVERLAP_RTOL * radius[q] + 1e-12 * (np.abs(position).max() + radius[q])
-            if coord is not None and abs(median - coord) > float(np.median(tol)):
-                raise UserError(
-                    f"--walls: {name}={coord:g} contradicts {walls_path}: its "
-                    f"{rows.size} contacts with mesh {k} put the wall at {'xyz'[axis]} = "
-                    f"{median:.9g} m (x -+ (r - delta), median); expected the wall where the "
-                    f"dump's contacts are (leave '={coord:g}' out to take it from them)")
-            if coord is None:
-                coord = median
-                inferred.append(f"wall {name}: {'xyz'[axis]} = {coord:.9g} m from its "
-                                f"{int(rows.size)} contacts (x -+ (r - delta))")
-            off = np.abs(implied - coord) > tol
-            if off.any():
-                c = int(np.flatnonzero(off)[0])
-                dist = sign * (position[q[c], axis] - coord)
-                raise UserError(
-                    f"{walls_path}: atom (column 3): atom {int(ids[q[c]])} touches {name} "
-                    f"(mesh {k}, delta {w_over[rows[c]]:.6g} m), but its centre is "
-                    f"{dist:.6g} m from the wall at {'xyz'[axis]} = {coord:.9g} m (radius "
-                    f"{radius[q[c]]:.6g} m); expected contacts on atoms at the wall (r - "
-                    f"distance = delta, within {OVERLAP_RTOL:g} of the radius)")
-        if coord is None:
-            ext = position[:, axis] - sign * radius
-            coord = float(ext.min() if sign > 0 else ext.max())
-            inferred.append(f"wall {name}: {'xyz'[axis]} = {coord:.9g} m from the spheres' "
-                            "extreme (no contact)")
-        point = np.zeros(3)
-        point[axis] = coord
-        wall_point.append(point)
-        wall_normal.append(normal)
-    if w is None and wall_spec:              # contacts from the geometry, forces from Hertz
-        e_star = contact_check.effective_modulus(young, poisson)
-        rows_p, rows_w, rows_d = [], [], []
-        for k, (_name, axis, _side, _) in enumerate(wall_spec):
-            dist = (position[:, axis] - wall_point[k][axis]) * wall_normal[k][axis]
-            over = radius - dist
-            hit = np.flatnonzero(over > 0)
-            rows_p.append(hit)
-            rows_w.append(np.full(len(hit), k, np.int32))
-            rows_d.append(over[hit])
-        w_part = np.concatenate(rows_p).astype(np.int64)
-        w_wall = np.concatenate(rows_w).astype(np.int32)
-        w_over = np.concatenate(rows_d)
-        w_force = contact_check.hertz_force(radius[w_part], w_over, e_star)
-        inferred.append("wall contacts: from the positions (r - distance > 0), forces Hertz "
-                        "4/3 E* sqrt(r) delta^1.5 at --young/--poisson (no walls dump)")
+    i, j, delta, force, branch, diff, duplicates, gaps = _pairs(
+        atoms_path, pairs_path, p, ids, index, position, radius, periodic, lo_box, period)
+    wall_names, w_part, w_wall, w_over, w_force, merged = _wall_rows(
+        atoms_path, walls_path, w, wall_spec, index)
+    wall_point, wall_normal = _wall_positions(walls_path, a, w, wall_spec, ids, position, radius,
+                                              periodic, w_part, w_wall, w_over, inferred)
+    if w is None and wall_spec:
+        w_part, w_wall, w_over, w_force = _geometric_wall_contacts(
+            wall_spec, wall_point, wall_normal, position, radius, young, poisson, inferred)
 
     # --- domain, phi, Z, pressure, force law (thermal_kernel/packing_stats.py) -----------------
     planes = [(name, axis, side, wall_point[k][axis])
@@ -471,6 +250,286 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
                         "written)") from None
     write_bytes_atomic(out, image)
     return packing
+
+
+
+
+def _options(atoms_path, pairs_path, walls_path, out, walls, young, poisson, density, pressure,
+             law):
+    """(the output path, the parsed --walls) once every option is checked."""
+    for key, value, low, high in (("--young", young, 0, math.inf),
+                                  ("--poisson", poisson, -1, 0.5)):
+        if value is None:
+            raise UserError(f"{key}: required (LIGGGHTS dumps carry no material; give the "
+                            "values of your input's fix property/global)")
+        if not (math.isfinite(value) and low < value < high):
+            raise UserError(f"{key}: expected a number in ({low}, {high}), got {value!r}")
+    if density is not None and not (math.isfinite(density) and density > 0):
+        raise UserError(f"--density: expected a density > 0 in kg/m^3, got {density!r}")
+    if pressure is not None and not (math.isfinite(pressure) and pressure >= 0):
+        raise UserError(f"--pressure-pa: expected a pressure >= 0 in Pa, got {pressure!r} (leave "
+                        "it out to measure it from the walls' forces)")
+    out = Path(out)
+    for what, given in (("atoms", atoms_path), ("pairs", pairs_path), ("walls", walls_path)):
+        if given is not None and out.exists() and Path(given).exists() \
+                and out.resolve() == Path(given).resolve():
+            raise UserError(f"{out}: -o: is the {what} dump given as input; expected a new "
+                            "file name for the packing (the dump would be overwritten)")
+    if out.suffix.lower() != ".h5":
+        raise UserError(f"{out}: -o: expected a file name ending in .h5")
+    if out.is_dir() or not out.parent.is_dir():
+        raise UserError(f"{out}: -o: " + ("is a folder; expected a .h5 file name" if out.is_dir()
+                                          else f"the folder {out.parent} does not exist"))
+    wall_spec = parse_walls(walls)
+    if law not in ("hertz", "none"):
+        raise UserError(f"--law: expected hertz or none, got {law!r}")
+    return out, wall_spec
+
+
+def _snapshots(atoms_path, pairs_path, walls_path, timestep, wall_spec):
+    """The atoms, pairs and (optional) walls snapshots, of one timestep."""
+    a = read_dump(atoms_path, "ATOMS", timestep)
+    p = read_dump(pairs_path, "ENTRIES", a.timestep if timestep is None else timestep)
+    w = read_dump(walls_path, "ENTRIES", a.timestep) if walls_path else None
+    for snap, path in ((p, pairs_path), (w, walls_path)):
+        if snap is not None and snap.timestep != a.timestep:
+            raise UserError(f"{path}: ITEM: TIMESTEP: {snap.timestep}, but the atoms dump is at "
+                            f"{a.timestep}; expected the three dumps of one timestep")
+    if w is not None and not wall_spec:
+        raise UserError(f"{walls_path}: --walls: a walls dump needs the walls named in mesh "
+                        "order (e.g. --walls zmin,plate:zmax)")
+    return a, p, w
+
+
+def _atoms(atoms_path, a, density):
+    """The atoms sorted by id: ids, id -> row, positions (wrapped on periodic axes), radii,
+    types and phases, the density (given, else from the masses), the box."""
+    col = {c: k for k, c in enumerate(a.columns)}
+    for c in ("xs", "xu", "xsu"):
+        if c in col and "x" not in col:
+            raise UserError(f"{atoms_path}: ITEM: ATOMS: column {c}: expected unscaled, wrapped "
+                            "x y z (dump custom ... id type x y z radius)")
+    for c in ("id", "x", "y", "z", "radius"):
+        if c not in col:
+            raise UserError(f"{atoms_path}: ITEM: ATOMS: missing column {c!r} (expected `dump "
+                            f"custom ... id type x y z radius`; got {' '.join(a.columns)})")
+    d = a.data
+    n = d.shape[0]
+    if n == 0:
+        raise UserError(f"{atoms_path}: ITEM: ATOMS: no atoms at timestep {a.timestep}")
+    _integers(atoms_path, "id", d[:, col["id"]], "atom id")
+    if "type" in col:
+        _integers(atoms_path, "type", d[:, col["type"]], "atom type")
+    order = np.argsort(d[:, col["id"]], kind="stable")
+    d = d[order]
+    ids = d[:, col["id"]].astype(np.int64)
+    if np.any(np.diff(ids) == 0):
+        dup = int(ids[np.flatnonzero(np.diff(ids) == 0)[0]])
+        raise UserError(f"{atoms_path}: ITEM: ATOMS: atom id {dup} appears twice")
+    index = {int(i): k for k, i in enumerate(ids)}
+    position = d[:, [col["x"], col["y"], col["z"]]].copy()
+    radius = d[:, col["radius"]].copy()
+    if np.any(radius <= 0):
+        raise UserError(f"{atoms_path}: radius: atom {int(ids[np.argmin(radius)])} has radius "
+                        f"{float(radius.min())!r} m; expected > 0")
+    box_size = float(np.max(a.bounds[:, 1] - a.bounds[:, 0]))
+    if np.any(radius > box_size):
+        k = int(np.argmax(radius))
+        raise UserError(f"{atoms_path}: radius: atom {int(ids[k])} has radius {radius[k]:.6g} m, "
+                        f"larger than the dump's box (BOX BOUNDS, largest extent {box_size:.6g} "
+                        "m); expected spheres that fit in the simulation box")
+    types = d[:, col["type"]].astype(np.int64) if "type" in col else np.ones(n, np.int64)
+    phase = np.searchsorted(np.unique(types), types).astype(np.int32)
+    inferred = []
+    if density is None:
+        if "mass" not in col:
+            raise UserError("--density: required (or dump the atoms' mass column, from which "
+                            "it is computed)")
+        rho = d[:, col["mass"]] / (4 / 3 * np.pi * radius ** 3)
+        density = float(np.median(rho))
+        inferred.append(f"density: median mass / sphere volume of the atoms ({density:.6g} "
+                        "kg/m^3)")
+    periodic = np.array([b.startswith("p") for b in a.boundary])
+    lo_box, hi_box = a.bounds[:, 0], a.bounds[:, 1]
+    period = hi_box - lo_box
+    if periodic.any():                   # wrap (dump custom x y z is wrapped; be sure)
+        for ax in np.flatnonzero(periodic):
+            position[:, ax] = lo_box[ax] + np.mod(position[:, ax] - lo_box[ax], period[ax])
+    return (ids, index, position, radius, types, phase, density, periodic, lo_box, hi_box,
+            inferred)
+
+
+def _pairs(atoms_path, pairs_path, p, ids, index, position, radius, periodic, lo_box, period):
+    """The touching pairs (i < j, one row each; delta checked against the positions): i, j,
+    delta, |F|, branch, the largest delta - geometry difference, duplicate and gap rows."""
+    from thermal_kernel.packing import OVERLAP_RTOL
+    n = len(radius)
+    cols = _columns(p, pairs_path, PAIR_COLUMNS, PAIR_HINT)
+    _integers(pairs_path, "id1/id2 (columns 1-2)", np.concatenate([cols["id1"], cols["id2"]]),
+              "atom id")
+    i_id, j_id = cols["id1"].astype(np.int64), cols["id2"].astype(np.int64)
+    unknown = [x for x in np.concatenate([i_id, j_id]) if int(x) not in index]
+    if unknown:
+        raise UserError(f"{pairs_path}: id1/id2 (columns 1-2): atom id {int(unknown[0])} is not "
+                        f"in {atoms_path}; expected the pairs of the same timestep")
+    i = np.array([index[int(x)] for x in i_id], np.int64)
+    j = np.array([index[int(x)] for x in j_id], np.int64)
+    swap = i > j
+    i, j = np.where(swap, j, i), np.where(swap, i, j)
+    delta = cols["delta"]
+    force = np.linalg.norm(np.column_stack([cols["fx"], cols["fy"], cols["fz"]]), axis=1)
+    if np.any(i == j):
+        raise UserError(f"{pairs_path}: id1/id2: row {int(np.flatnonzero(i == j)[0])} is a self "
+                        "contact")
+    key = i * n + j
+    uniq, first, counts = np.unique(key, return_index=True, return_counts=True)
+    duplicates = int((counts - 1).sum())
+    if duplicates:                      # (not seen with LIGGGHTS 3.8.0 on 2 ranks; kept safe)
+        for k in np.flatnonzero(counts > 1):
+            rows = np.flatnonzero(key == uniq[k])
+            if np.ptp(delta[rows]) > 1e-9 * max(abs(delta[rows]).max(), 1e-300):
+                raise UserError(f"{pairs_path}: pair ({int(ids[i[rows[0]]])}, "
+                                f"{int(ids[j[rows[0]]])}) appears {len(rows)} times with "
+                                "different overlaps; expected one row per contact")
+    keep = np.sort(first)
+    i, j, delta, force = i[keep], j[keep], delta[keep], force[keep]
+    touching = delta > 0
+    gaps = int((~touching).sum())
+    i, j, delta, force = i[touching], j[touching], delta[touching], force[touching]
+    branch = position[j] - position[i]
+    for ax in np.flatnonzero(periodic):
+        branch[:, ax] -= period[ax] * np.round(branch[:, ax] / period[ax])
+    geo = radius[i] + radius[j] - np.linalg.norm(branch, axis=1)
+    diff = float(np.abs(geo - delta).max()) if len(delta) else 0.0
+    # the overlap LIGGGHTS states must be the one of the dumped spheres (the default 6-digit
+    # dump format costs ~1e-5 of a radius; the reader's tolerance is OVERLAP_RTOL of it)
+    r_min = np.minimum(radius[i], radius[j])
+    tol = OVERLAP_RTOL * r_min + 1e-12 * (np.abs(position).max() + r_min)
+    off = np.abs(geo - delta) > tol
+    if off.any():
+        c = int(np.flatnonzero(off)[0])
+        raise UserError(f"{pairs_path}: delta (column 7): pair ({int(ids[i[c]])}, "
+                        f"{int(ids[j[c]])}) has delta {delta[c]:.6g} m, but the atoms' centres "
+                        f"are {np.linalg.norm(branch[c]):.6g} m apart (r_i + r_j - distance = "
+                        f"{geo[c]:.6g} m); expected the overlap of the two atoms of "
+                        f"{Path(atoms_path).name} (within {OVERLAP_RTOL:g} of the smaller radius)")
+    _unlisted_overlaps(atoms_path, pairs_path, position, radius, ids, i, j, periodic, lo_box,
+                       period)
+    return i, j, delta, force, branch, diff, duplicates, gaps
+
+
+def _wall_rows(atoms_path, walls_path, w, wall_spec, index):
+    """The walls dump's touching rows, one per (atom, mesh) (forces summed, the largest
+    overlap): wall names, atom, wall, overlap, force, rows merged."""
+    wall_names = [s[0] for s in wall_spec]
+    w_part = np.zeros(0, np.int64)
+    w_wall = np.zeros(0, np.int32)
+    w_over = np.zeros(0)
+    w_force = np.zeros(0)
+    merged = 0
+    if w is not None:
+        wc = _columns(w, walls_path, WALL_COLUMNS, WALL_HINT)
+        _integers(walls_path, "mesh (column 1)", wc["mesh"], "mesh id")
+        _integers(walls_path, "atom (column 3)", wc["atom"], "atom id")
+        mesh = wc["mesh"].astype(np.int64)
+        if mesh.size and (mesh.min() < 0 or mesh.max() >= len(wall_spec)):
+            bad = int(mesh[(mesh < 0) | (mesh >= len(wall_spec))][0])
+            raise UserError(f"{walls_path}: mesh (column 1): mesh id {bad}, but --walls names "
+                            f"{len(wall_spec)} mesh(es) ({', '.join(wall_names)}); expected one "
+                            "name per mesh of fix wall/gran, in its order")
+        atom = wc["atom"].astype(np.int64)
+        missing = [x for x in atom if int(x) not in index]
+        if missing:
+            raise UserError(f"{walls_path}: atom (column 3): atom id {int(missing[0])} is not in "
+                            f"{atoms_path}")
+        part = np.array([index[int(x)] for x in atom], np.int64)
+        fw = np.linalg.norm(np.column_stack([wc["fx"], wc["fy"], wc["fz"]]), axis=1)
+        dw = wc["delta"]
+        ok = dw > 0
+        part, mesh, fw, dw = part[ok], mesh[ok], fw[ok], dw[ok]
+        # one row per (atom, mesh): an atom on the edge of two triangles of one mesh
+        wkey = part * len(wall_spec) + mesh
+        uk, inv = np.unique(wkey, return_inverse=True)
+        merged = int(len(wkey) - len(uk))
+        w_part = (uk // len(wall_spec)).astype(np.int64)
+        w_wall = (uk % len(wall_spec)).astype(np.int32)
+        w_force = np.bincount(inv, weights=fw, minlength=len(uk))
+        w_over = np.zeros(len(uk))
+        np.maximum.at(w_over, inv, dw)
+    return wall_names, w_part, w_wall, w_over, w_force, merged
+
+
+def _wall_positions(walls_path, a, w, wall_spec, ids, position, radius, periodic, w_part,
+                    w_wall, w_over, inferred):
+    """Each wall's point and inward normal: given, else where its contacts put it, else at the
+    spheres' extreme; contacts off their wall refused."""
+    from thermal_kernel.packing import OVERLAP_RTOL
+    wall_point, wall_normal = [], []
+    for k, (name, axis, side, coord) in enumerate(wall_spec):
+        sign = 1.0 if side == "min" else -1.0       # the normal points into the domain
+        normal = np.zeros(3)
+        normal[axis] = sign
+        if periodic[axis]:
+            raise UserError(f"--walls: {name}: a wall normal to {'xyz'[axis]}, a periodic axis "
+                            f"of the dump (BOX BOUNDS {a.boundary[axis]})")
+        rows = np.flatnonzero(w_wall == k) if w is not None else np.zeros(0, np.int64)
+        if rows.size:        # where each contact of the walls dump puts the wall
+            q = w_part[rows]
+            implied = position[q, axis] - sign * (radius[q] - w_over[rows])
+            median = float(np.median(implied))
+            tol = OVERLAP_RTOL * radius[q] + 1e-12 * (np.abs(position).max() + radius[q])
+            if coord is not None and abs(median - coord) > float(np.median(tol)):
+                raise UserError(
+                    f"--walls: {name}={coord:g} contradicts {walls_path}: its "
+                    f"{rows.size} contacts with mesh {k} put the wall at {'xyz'[axis]} = "
+                    f"{median:.9g} m (x -+ (r - delta), median); expected the wall where the "
+                    f"dump's contacts are (leave '={coord:g}' out to take it from them)")
+            if coord is None:
+                coord = median
+                inferred.append(f"wall {name}: {'xyz'[axis]} = {coord:.9g} m from its "
+                                f"{int(rows.size)} contacts (x -+ (r - delta))")
+            off = np.abs(implied - coord) > tol
+            if off.any():
+                c = int(np.flatnonzero(off)[0])
+                dist = sign * (position[q[c], axis] - coord)
+                raise UserError(
+                    f"{walls_path}: atom (column 3): atom {int(ids[q[c]])} touches {name} "
+                    f"(mesh {k}, delta {w_over[rows[c]]:.6g} m), but its centre is "
+                    f"{dist:.6g} m from the wall at {'xyz'[axis]} = {coord:.9g} m (radius "
+                    f"{radius[q[c]]:.6g} m); expected contacts on atoms at the wall (r - "
+                    f"distance = delta, within {OVERLAP_RTOL:g} of the radius)")
+        if coord is None:
+            ext = position[:, axis] - sign * radius
+            coord = float(ext.min() if sign > 0 else ext.max())
+            inferred.append(f"wall {name}: {'xyz'[axis]} = {coord:.9g} m from the spheres' "
+                            "extreme (no contact)")
+        point = np.zeros(3)
+        point[axis] = coord
+        wall_point.append(point)
+        wall_normal.append(normal)
+    return wall_point, wall_normal
+
+
+def _geometric_wall_contacts(wall_spec, wall_point, wall_normal, position, radius, young,
+                             poisson, inferred):
+    """Without a walls dump: the wall contacts from the positions, Hertz forces."""
+    from thermal_kernel import contact_check
+    e_star = contact_check.effective_modulus(young, poisson)
+    rows_p, rows_w, rows_d = [], [], []
+    for k, (_name, axis, _side, _) in enumerate(wall_spec):
+        dist = (position[:, axis] - wall_point[k][axis]) * wall_normal[k][axis]
+        over = radius - dist
+        hit = np.flatnonzero(over > 0)
+        rows_p.append(hit)
+        rows_w.append(np.full(len(hit), k, np.int32))
+        rows_d.append(over[hit])
+    w_part = np.concatenate(rows_p).astype(np.int64)
+    w_wall = np.concatenate(rows_w).astype(np.int32)
+    w_over = np.concatenate(rows_d)
+    w_force = contact_check.hertz_force(radius[w_part], w_over, e_star)
+    inferred.append("wall contacts: from the positions (r - distance > 0), forces Hertz "
+                    "4/3 E* sqrt(r) delta^1.5 at --young/--poisson (no walls dump)")
+    return w_part, w_wall, w_over, w_force
 
 
 def _integers(path, column, values, what):
