@@ -311,8 +311,10 @@ def test_the_judges_use_the_stricter_measure_at_the_papers_n():
     """Case 4 is judged on % of ΔT at 1e5 (not on % of T in °C, 3.3x laxer), case 8 on the faced
     box nearest 150,000 and on the worst contrast, case 2 on every seed."""
     from validation import case2_beam, case4_slab, case8_inclusion
-    row = dict(name="tiled_1e5", label="tiled", n_particles=100_031, max_err_over_dT=0.0058,
-               max_err_over_T_celsius=0.0017, run_seconds=31.0)
+    row = dict(name="tiled_1e5", label="tiled", family="tiled", n_particles=100_031,
+               ct_held=0.77, ct_domain=0.76, max_err_over_dT=0.0058,
+               max_err_over_T_celsius=0.0017, steps=9391, run_seconds=31.0,
+               measured="2026-12-01", how="tdem validate 4")
     j = case4_slab.judge({"rows": [row]})
     assert j.target_met is False and "0.580 % of ΔT" in j.at_paper_n
     assert case4_slab.judge({"rows": [dict(row, max_err_over_dT=0.0049)]}).target_met is True
@@ -400,3 +402,21 @@ def test_case8_extends_by_the_next_block(monkeypatch):
     assert case8._next_block("harmonic") == 6
     assert case8._next_block("cut") == 3
     assert set(case8.ACTIONS) == {"rebuild", "paper-n", "extend", "extend-cut"}
+
+
+def test_case4_rows_are_records():
+    """Case 4's saved rows read back as SlabRow records and write back to the same JSON (legacy
+    rows without the optional fields too); a row missing a field or carrying an unknown one is
+    refused in one line, not read as NaN."""
+    from tdem_post.records import RecordError, to_dict
+    from validation import case4_slab
+    numbers = framework.load_result(4)["result"]["numbers"]
+    rows = case4_slab.read_rows(numbers)
+    assert [to_dict(r) for r in rows] == numbers["rows"]
+    assert any(r.steady_legacy for r in rows) and any(r.profile for r in rows)
+    bad = dict(numbers["rows"][0])
+    del bad["max_err_over_dT"]
+    with pytest.raises(RecordError, match=r"rows\[0\]: max_err_over_dT: missing"):
+        case4_slab.read_rows({"rows": [bad]})
+    with pytest.raises(RecordError, match="max_err_over_dt: unknown field"):
+        case4_slab.read_rows({"rows": [dict(numbers["rows"][0], max_err_over_dt=0.1)]})

@@ -23,10 +23,12 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import savefig_atomic, write_text_atomic
 
 from .framework import (ROOT, CaseInfo, CaseResult, Context, optional_packing,
@@ -43,6 +45,7 @@ PAPER_L, PAPER_TIMES = 0.1, (0.05, 0.1, 0.2)
 FOURIER = tuple(ALPHA * t / PAPER_L ** 2 for t in PAPER_TIMES)
 PAPER_ERROR = 0.007                             # 002 Fig. 5b, max relative error at 1e5
 STEADY_BINS = 20
+N_BINS = 10                                     # the profile's bins (slab_case's default)
 DENSE_400 = ROOT / "tests" / "data" / "dense_box.h5"
 WALLED, TILED = "walled (YADE box)", "tiled (cut cube)"
 # key (row name), label, family (None: not in the convergence figure), packing, default
@@ -161,20 +164,57 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
 
 
 # ---------------------------------------------------------------- the case
-def _row(key: str, summary: dict, profile: list) -> dict:
+_LEGACY = column(optional=True)      # absent from the rows measured before issue 23
+
+
+@dataclass(frozen=True, kw_only=True)
+class SlabRow:
+    """One packing of the case, measured by :func:`slab_case` (or carried over from the saved
+    result): the record the figures, the section and the judge read. Errors are fractions (of
+    T in °C, of ΔT), C_t dimensionless; rows measured before issue 23 lack the optional
+    fields (their steady profile is the hand-read ``steady_legacy``)."""
+    name: str
+    label: str
+    family: str | None                  # its series in the convergence figure (None: not in it)
+    n_particles: int
+    ct_held: float                      # C_t with the held-plane length
+    ct_domain: float                    # C_t with the domain length (002 eq. 8)
+    length_held_m: float | None = field(default=None, metadata=_LEGACY)
+    max_err_over_T_celsius: float       # max |bin mean - exact| / T_exact(°C), bins x times
+    max_err_over_dT: float              # the same over ΔT
+    max_err_over_dT_per_time: tuple[float, ...] | None = field(default=None, metadata=_LEGACY)
+    steps: int                          # forward-Euler steps
+    run_seconds: float
+    steady_pct: tuple[float, ...] | None = field(default=None, metadata=_LEGACY)  # % of ΔT
+    # (Fo, t s, x/L, T_dem °C, T_exact °C, error K) per bin and time
+    profile: tuple[tuple[float, ...], ...] | None = field(default=None, metadata=_LEGACY)
+    bulk_z_with_gaps: float | None = field(default=None, metadata=_LEGACY)
+    neighbour_gap: float | None = field(default=None, metadata=_LEGACY)
+    measured: str                       # the date
+    how: str                            # what measured it
+    steady_legacy: dict | None = field(default=None, metadata=_LEGACY)
+
+
+def read_rows(numbers: dict) -> list[SlabRow]:
+    """The rows of case 4's saved numbers as records (a missing or unknown field: RecordError)."""
+    return [from_dict(SlabRow, r, f"case 4: rows[{k}]")
+            for k, r in enumerate(numbers.get("rows", []))]
+
+
+def _row(key: str, summary: dict, profile: list) -> SlabRow:
     label, family = SPEC.get(key, (key, None))
-    return dict(name=key, label=label, family=family, n_particles=summary["n_particles"],
-                ct_held=summary["ct_held_plane"], ct_domain=summary["ct_domain_length"],
-                length_held_m=summary["length_held_m"],
-                max_err_over_T_celsius=summary["max_rel_error_celsius"],
-                max_err_over_dT=summary["max_error_over_dT"],
-                max_err_over_dT_per_time=summary["max_error_over_dT_per_time"],
-                steps=summary["steps"], run_seconds=summary["run_seconds"],
-                steady_pct=summary["steady_minus_linear_pct_dT"],
-                profile=[list(r) for r in profile],
-                bulk_z_with_gaps=summary.get("bulk_z_with_gaps"),
-                neighbour_gap=summary.get("neighbour_gap"),
-                measured=today(), how=HOW)
+    return SlabRow(name=key, label=label, family=family, n_particles=summary["n_particles"],
+                   ct_held=summary["ct_held_plane"], ct_domain=summary["ct_domain_length"],
+                   length_held_m=summary["length_held_m"],
+                   max_err_over_T_celsius=summary["max_rel_error_celsius"],
+                   max_err_over_dT=summary["max_error_over_dT"],
+                   max_err_over_dT_per_time=tuple(summary["max_error_over_dT_per_time"]),
+                   steps=summary["steps"], run_seconds=summary["run_seconds"],
+                   steady_pct=tuple(summary["steady_minus_linear_pct_dT"]),
+                   profile=tuple(tuple(float(v) for v in r) for r in profile),
+                   bulk_z_with_gaps=summary.get("bulk_z_with_gaps"),
+                   neighbour_gap=summary.get("neighbour_gap"),
+                   measured=today(), how=HOW)
 
 
 def _figures(ctx: Context, rows: list[dict]) -> dict:
@@ -182,10 +222,10 @@ def _figures(ctx: Context, rows: list[dict]) -> dict:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     out = {}
-    best = next((r for r in rows if r["name"] == "tiled_1e5" and r.get("profile")),
-                next((r for r in reversed(rows) if r.get("profile")), None))
+    best = next((r for r in rows if r.name == "tiled_1e5" and r.profile),
+                next((r for r in reversed(rows) if r.profile), None))
     if best is not None:
-        prof = np.array(best["profile"])
+        prof = np.array(best.profile)
         png = ctx.figure("profiles")
         fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
         for fo in sorted(set(prof[:, 0])):
@@ -195,7 +235,7 @@ def _figures(ctx: Context, rows: list[dict]) -> dict:
             b.plot(sel[:, 2], 100 * sel[:, 5] / sel[:, 4], "o-", label=f"Fo = {fo:.4f}")
         a.set_xlabel("x / L (held planes)")
         a.set_ylabel("T (°C)")
-        a.set_title(f"cube slab, {best['n_particles']:,} spheres: DEM (dots), eq. 17 (lines)")
+        a.set_title(f"cube slab, {best.n_particles:,} spheres: DEM (dots), eq. 17 (lines)")
         a.legend()
         b.axhline(100 * PAPER_ERROR, ls="--", color="r", label="Haddad's max 0.7 %")
         b.axhline(-100 * PAPER_ERROR, ls="--", color="r")
@@ -207,19 +247,19 @@ def _figures(ctx: Context, rows: list[dict]) -> dict:
         plt.close(fig)
         write_csv(png.with_suffix(".csv"),
                   ["fourier", "time_s", "x_over_L", "T_dem_C", "T_exact_C", "error_K"],
-                  [tuple(float(v) for v in r) for r in best["profile"]])
+                  [tuple(float(v) for v in r) for r in best.profile])
         out["profiles"] = (png.name, best)
 
     png = ctx.figure("convergence")
     fig, ax = plt.subplots(figsize=(5.5, 4))
     orders = {}
     for family in (WALLED, TILED):
-        fam = sorted((r for r in rows if r["family"] == family), key=lambda r: r["n_particles"])
+        fam = sorted((r for r in rows if r.family == family), key=lambda r: r.n_particles)
         if not fam:
             continue
-        ns = [r["n_particles"] for r in fam]
-        ed = np.array([r["max_err_over_dT"] for r in fam])
-        ec = np.array([r["max_err_over_T_celsius"] for r in fam])
+        ns = [r.n_particles for r in fam]
+        ed = np.array([r.max_err_over_dT for r in fam])
+        ec = np.array([r.max_err_over_T_celsius for r in fam])
         lab = f"{family}: |err|/ΔT"
         if len(set(ns)) >= 2:
             orders[family] = fit_order(ns, ed)[0]
@@ -237,9 +277,9 @@ def _figures(ctx: Context, rows: list[dict]) -> dict:
     write_csv(png.with_suffix(".csv"),
               ["family", "name", "n_particles", "ct_held", "ct_domain", "max_err_over_T_celsius",
                "max_err_over_dT", "steps", "run_seconds", "measured"],
-              [(r["family"] or "", r["name"], r["n_particles"], r["ct_held"], r["ct_domain"],
-                r["max_err_over_T_celsius"], r["max_err_over_dT"], r["steps"], r["run_seconds"],
-                r["measured"]) for r in rows])
+              [(r.family or "", r.name, r.n_particles, r.ct_held, r.ct_domain,
+                r.max_err_over_T_celsius, r.max_err_over_dT, r.steps, r.run_seconds,
+                r.measured) for r in rows])
     out["convergence"] = png.name
     out["orders"] = orders
     return out
@@ -250,23 +290,23 @@ def judge(numbers: dict) -> Judgement:
     """Issue 23's columns: the paper's N is 1e5 and its "max relative error 0.7 %" is undefined;
     the stricter reading judges: max |bin mean - exact| / ΔT over the 10 bins and 3 times (the
     error of T in °C, origin-dependent and 3.3x laxer here, beside it)."""
-    rows = numbers.get("rows", [])
-    at_n = [r for r in rows if r.get("name") == "tiled_1e5"]
+    rows = read_rows(numbers)
+    at_n = [r for r in rows if r.name == "tiled_1e5"]
     if not at_n:
         return Judgement("not measured", "", None)
     r = at_n[0]
-    bins = r.get("n_bins", 10)
-    at = (f"N {r['n_particles']:,}: {100 * r['max_err_over_dT']:.3f} % of ΔT (max over {bins} "
-          f"bins × 3 times; {100 * r['max_err_over_T_celsius']:.2f} % of T in °C beside it)")
-    reached = sorted((x for x in rows if x["max_err_over_dT"] <= 0.007),
-                     key=lambda x: x["n_particles"])
-    speed = (f"0.7 % of ΔT first at N {reached[0]['n_particles']:,} ({reached[0]['label']}, "
-             f"{_z_cell(reached[0])}: thermal {reached[0]['run_seconds']:.1f} s + its packing)"
+    bins = N_BINS
+    at = (f"N {r.n_particles:,}: {100 * r.max_err_over_dT:.3f} % of ΔT (max over {bins} "
+          f"bins × 3 times; {100 * r.max_err_over_T_celsius:.2f} % of T in °C beside it)")
+    reached = sorted((x for x in rows if x.max_err_over_dT <= 0.007),
+                     key=lambda x: x.n_particles)
+    speed = (f"0.7 % of ΔT first at N {reached[0].n_particles:,} ({reached[0].label}, "
+             f"{_z_cell(reached[0])}: thermal {reached[0].run_seconds:.1f} s + its packing)"
              if reached
              else "0.7 % of ΔT not reached")
-    met = r["max_err_over_dT"] <= 0.005
+    met = r.max_err_over_dT <= 0.005
     verdict = ("met at 1e5 in the stricter measure" if met else
-               f"not met at 1e5: {100 * r['max_err_over_dT']:.3f} % of ΔT, in the bins at the "
+               f"not met at 1e5: {100 * r.max_err_over_dT:.3f} % of ΔT, in the bins at the "
                "cut hot face (a boundary resistance of the held layer the calibrated C_t cannot "
                "absorb); the laxer reading (of T in °C) would pass, which is why it is not used")
     return Judgement(at_paper_n=at, speed_vs_error=speed, target_met=met, verdict=verdict)
@@ -276,18 +316,18 @@ def run(ctx: Context) -> CaseResult:
     if ctx.quick:        # the committed 400-sphere walled box: no YADE
         summary, profile = slab_case(DENSE_400, threads=ctx.threads)
         row = _row("dense_box_400", summary, profile)
-        return CaseResult(our_n="400", our_error=f"{100 * row['max_err_over_T_celsius']:.2f} % "
-                          f"of T in °C, {100 * row['max_err_over_dT']:.2f} % of ΔT",
-                          wall_time=f"{row['run_seconds']:.1f} s", verdict="quick instance",
-                          section_md="", numbers=dict(rows=[row]))
-    previous = {r["name"]: r for r in previous_numbers(4).get("rows", [])}
+        return CaseResult(our_n="400", our_error=f"{100 * row.max_err_over_T_celsius:.2f} % "
+                          f"of T in °C, {100 * row.max_err_over_dT:.2f} % of ΔT",
+                          wall_time=f"{row.run_seconds:.1f} s", verdict="quick instance",
+                          section_md="", numbers=dict(rows=[to_dict(row)]))
+    previous = {r.name: r for r in read_rows(previous_numbers(4))}
     rows = []
     for key, _label, _family, name, default in INSTANCES:
         path = DENSE_400 if name is None else optional_packing(name, default)
         if path is None:
             if key in previous:
                 rows.append(previous[key])
-                ctx.progress(f"{key}: {name} not built here, row of {previous[key]['measured']} "
+                ctx.progress(f"{key}: {name} not built here, row of {previous[key].measured} "
                              "kept")
             continue
         ctx.progress(f"{key}: slab on {Path(path).relative_to(ROOT)} ...")
@@ -295,10 +335,10 @@ def run(ctx: Context) -> CaseResult:
         row = _row(key, summary, profile)
         rows.append(row)
         write_text_atomic(ctx.out / f"{key}.json", json.dumps(summary, indent=1))
-        ctx.progress(f"{key}: N {row['n_particles']}, "
-                     f"max err {100 * row['max_err_over_T_celsius']:.3f} "
-                     f"% of T(C), {100 * row['max_err_over_dT']:.3f} % of dT, {row['steps']} "
-                     f"steps, {row['run_seconds']:.1f} s")
+        ctx.progress(f"{key}: N {row.n_particles}, "
+                     f"max err {100 * row.max_err_over_T_celsius:.3f} "
+                     f"% of T(C), {100 * row.max_err_over_dT:.3f} % of dT, {row.steps} "
+                     f"steps, {row.run_seconds:.1f} s")
     figs = _figures(ctx, rows)
     return _result(rows, figs)
 
@@ -306,9 +346,9 @@ def run(ctx: Context) -> CaseResult:
 def _z_cell(r: dict) -> str:
     """The neighbour criterion a row was measured with: Haddad's bulk Z 7.5 (the gap chosen on
     the packing), or every dumped pair (rows measured before issue 23)."""
-    if r.get("bulk_z_with_gaps") is None:
+    if r.bulk_z_with_gaps is None:
         return "every dumped pair"
-    return f"{r['bulk_z_with_gaps']:.2f} ({r['neighbour_gap']:.3f})"
+    return f"{r.bulk_z_with_gaps:.2f} ({r.neighbour_gap:.3f})"
 
 
 def _p(x, digits=2):
@@ -321,37 +361,37 @@ def _sg(x, digits=2):
 
 
 def _steady_cells(r):
-    if "steady_pct" in r:
-        s = np.array(r["steady_pct"])
+    if r.steady_pct is not None:
+        s = np.array(r.steady_pct)
         mid = s[len(s) // 2 - 2: len(s) // 2 + 2]
         mid_t = (_sg(mid.mean()) if np.ptp(mid) < 0.1 else f"{_sg(mid.max())} … {_sg(mid.min())}")
         hot = _sg(s[-1]) + (f" ({_sg(s[-2])} one bin in)" if abs(s[-2]) > abs(s[-1]) + 0.1
                             else "")
         return s[0], mid_t, s[-1], hot
-    lg = r["steady_legacy"]
+    lg = r.steady_legacy
     hot = _sg(lg["hot"]) + (f" ({_sg(lg['hot_inner'])} one bin in)" if lg["hot_inner"] else "")
     return lg["cold"], lg["mid"], lg["hot"], hot
 
 
 def _result(rows: list[dict], figs: dict) -> CaseResult:
-    by = {r["name"]: r for r in rows}
-    n = dict(rows=rows, fitted_orders=figs["orders"])
-    carried = sorted({r["measured"] for r in rows if r["how"] != HOW})
+    by = {r.name: r for r in rows}
+    n = dict(rows=[to_dict(r) for r in rows], fitted_orders=figs["orders"])
+    carried = sorted({r.measured for r in rows if r.how != HOW})
     table = []
     for r in rows:
-        bold = r["name"] == "tiled_1e5"
+        bold = r.name == "tiled_1e5"
         b = "**" if bold else ""
-        t = f"{r['run_seconds']:.1f}" if r["run_seconds"] < 100 else f"{r['run_seconds']:.0f}"
-        mark = " †" if r["how"] != HOW else ""
-        table.append(f"| {b}{r['label']}{b}{mark} | {b}{r['n_particles']:,}{b} | "
-                     f"{r['ct_held']:.4f} / {r['ct_domain']:.4f} | "
-                     f"{b}{_p(r['max_err_over_T_celsius'])}{b} | "
-                     f"{b}{_p(r['max_err_over_dT'])}{b} | {_z_cell(r)} | "
-                     f"{r['steps']:,} | {t} |")
-    ratios = [r["max_err_over_dT"] / r["max_err_over_T_celsius"] for r in rows]
+        t = f"{r.run_seconds:.1f}" if r.run_seconds < 100 else f"{r.run_seconds:.0f}"
+        mark = " †" if r.how != HOW else ""
+        table.append(f"| {b}{r.label}{b}{mark} | {b}{r.n_particles:,}{b} | "
+                     f"{r.ct_held:.4f} / {r.ct_domain:.4f} | "
+                     f"{b}{_p(r.max_err_over_T_celsius)}{b} | "
+                     f"{b}{_p(r.max_err_over_dT)}{b} | {_z_cell(r)} | "
+                     f"{r.steps:,} | {t} |")
+    ratios = [r.max_err_over_dT / r.max_err_over_T_celsius for r in rows]
     steady_rows = []
     for r in rows:
-        if "steady_pct" not in r and "steady_legacy" not in r:
+        if r.steady_pct is None and r.steady_legacy is None:
             continue
         cold, mid, hot, hot_t = _steady_cells(r)
         if cold < 0 < hot:
@@ -362,13 +402,13 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
                      "held layers")
         else:
             shape = "ends of one sign"
-        steady_rows.append(f"| {r['label']}, {r['n_particles']:,} | {_sg(cold)} | {mid} | "
+        steady_rows.append(f"| {r.label}, {r.n_particles:,} | {_sg(cold)} | {mid} | "
                            f"{hot_t} | {shape} |")
     b4, b5, b6 = by.get("ds_10000_s1"), by.get("tiled_1e5"), by.get("tiled_1e6")
     tiled4 = [by[k] for k in ("tiled_10000_s1", "tiled_10000_s2", "tiled_10000_s3") if k in by]
     parts = {}
-    if b5 and b5.get("profile"):
-        p = np.array(b5["profile"])
+    if b5 and b5.profile:
+        p = np.array(b5.profile)
         first = p[p[:, 0] == p[0, 0]]
         cold = np.abs(p[p[:, 2] < 0.5, 5]).max()
         last = p[p[:, 2] == p[:, 2].max(), 5]
@@ -380,8 +420,8 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
         n["error_1e5_last_bin_k"] = [float(last.min()), float(last.max())]
     else:
         parts["where"] = "the error is largest in the bins next to the hot face"
-    if b6 and b6.get("profile"):
-        p = np.array(b6["profile"])
+    if b6 and b6.profile:
+        p = np.array(b6.profile)
         first = p[p[:, 0] == p[0, 0]]
         mid = p[np.abs(p[:, 2] - 0.5) < 0.11, 5]
         parts["1e6"] = (f"({_sg(mid.max(), 3)} to {_sg(mid.min(), 3)} K at mid-slab, "
@@ -391,7 +431,7 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
                         "time)")
     text = {}
     if b5:
-        e5c, e5d = b5["max_err_over_T_celsius"], b5["max_err_over_dT"]
+        e5c, e5d = b5.max_err_over_T_celsius, b5.max_err_over_dT
         text["paper"] = (f"**Against the paper.** 002's \"max relative error 0.7 %\" does not say "
                          "relative to what. Judged on the stricter reading, |bin mean − exact| / "
                          f"ΔT (max over the 10 bins and 3 times): **{_p(e5d)} at 1e5** — the "
@@ -401,29 +441,29 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
                          f"~10× smaller again) and is {e5d / e5c:.1f}× laxer here, so it is "
                          "shown, not judged on.")
         if b6:
-            text["paper"] += (f" At 1e6 {_p(b6['max_err_over_T_celsius'])} "
-                              f"({_p(b6['max_err_over_dT'])} of ΔT); the paper gives no 1e6 slab.")
+            text["paper"] += (f" At 1e6 {_p(b6.max_err_over_T_celsius)} "
+                              f"({_p(b6.max_err_over_dT)} of ΔT); the paper gives no 1e6 slab.")
         n.update(err_1e5_celsius=e5c, err_1e5_dT=e5d)
     seeds = ""
     if tiled4 and b4:
-        v = [r["max_err_over_dT"] for r in tiled4]
+        v = [r.max_err_over_dT for r in tiled4]
         seeds = (f" ({100 * np.mean(v):.1f} ± {100 * np.std(v, ddof=1):.1f} % against "
-                 f"{_p(b4['max_err_over_dT'])} of ΔT)")
-    falls = b5 and b6 and b6["max_err_over_dT"] < b5["max_err_over_dT"]
-    l6 = b6.get("length_held_m") if b6 else None
+                 f"{_p(b4.max_err_over_dT)} of ΔT)")
+    falls = b5 and b6 and b6.max_err_over_dT < b5.max_err_over_dT
+    l6 = b6.length_held_m if b6 else None
     orders = figs["orders"]
     order_text = ", ".join(f"{'walled' if f == WALLED else 'tiled'} {_sg(o)}"
                            for f, o in orders.items())
-    lbl = "held-plane distance, {:.1f} mm at 1e5".format(1e3 * b5["length_held_m"]) \
-        if b5 and b5.get("length_held_m") else "the held-plane distance"
+    lbl = f"held-plane distance, {1e3 * b5.length_held_m:.1f} mm at 1e5" \
+        if b5 and b5.length_held_m else "the held-plane distance"
     prof_png = figs.get("profiles")
-    at_1e6 = (f"; at 1e6 {b6['run_seconds']:.0f} s ({b6['steps']:,} steps) for "
-              f"{_p(b6['max_err_over_dT'])}" if b6 else "")
+    at_1e6 = (f"; at 1e6 {b6.run_seconds:.0f} s ({b6.steps:,} steps) for "
+              f"{_p(b6.max_err_over_dT)}" if b6 else "")
     section = f"""\
 Setup (as the paper, 002 sec. 2.2 and Tab. 1): two faces normal to x held, T = 25 °C at xmin and
 35 °C at xmax from t = 0, 25 °C initially, adiabatic sides; ρ = 7800 kg/m³, λ = 33 W/m/K,
 c = 0.9 J/kg/K (the paper's value; α = 4.70e-3 m²/s); law haddad with C_t calibrated on the same
-packing (case 6, x axis, held-plane length{f": {b5['ct_held']:.4f} at 1e5" if b5 else ""}).
+packing (case 6, x axis, held-plane length{f": {b5.ct_held:.4f} at 1e5" if b5 else ""}).
 **Not rescaled to L = 10 cm**: the solution depends on the Fourier number only, so the outputs are
 at the paper's Fo = α t / L² for L = 10 cm and t = 0.05 / 0.1 / 0.2 s, i.e.
 Fo = {FOURIER[0]:.4f} / {FOURIER[1]:.4f} / {FOURIER[2]:.4f}, with our L (the {lbl} — close to the
@@ -440,7 +480,7 @@ Fig. 5b: the paper does not define its relative error, and plots T in °C; 0.7 %
 One packing by hand: `slab_case(PACKING)` of `validation/case4_slab.py`, what every row runs
 (`tdem validate 4 --quick` runs it on the committed 400-sphere box).
 """ + (f"""
-![case 4 profiles at {prof_png[1]['n_particles']:,}](img/{prof_png[0]})
+![case 4 profiles at {prof_png[1].n_particles:,}](img/{prof_png[0]})
 
 (data: `img/{Path(prof_png[0]).with_suffix('.csv').name}`)
 """ if prof_png else "") + f"""
@@ -463,9 +503,9 @@ cancel. This is why the error falls with N from 400 to 1e5 and why the tiled 1e4
 from 2,000-sphere cells, only ~12 diameters periodic — are worse than the walled 1e4 box of the
 same N{seeds}: their held layers are sparser.
 """ + (f"""
-**From 1e5 to 1e6 the error {'falls' if falls else 'does not fall'}** ({_p(b5['max_err_over_dT'])} →
-{_p(b6['max_err_over_dT'])} of ΔT; {_p(b5['max_err_over_T_celsius'])} →
-{_p(b6['max_err_over_T_celsius'])} of T in °C). At 1e6 the deficit is no longer confined to the
+**From 1e5 to 1e6 the error {'falls' if falls else 'does not fall'}** ({_p(b5.max_err_over_dT)} →
+{_p(b6.max_err_over_dT)} of ΔT; {_p(b5.max_err_over_T_celsius)} →
+{_p(b6.max_err_over_T_celsius)} of T in °C). At 1e6 the deficit is no longer confined to the
 hot face: it spreads smoothly over the hot half {parts['1e6']}, as if the slab near the hot face
 conducted or stored heat slightly differently from the slab as a whole. A boundary resistance
 alone would make the error fall like 1/L, so something else sets a floor for these packings. Our
@@ -500,31 +540,31 @@ from the steady profile), or faces pressed by walls, are the two remedies to try
 max err / ΔT against N over each family, least squares in log-log.)
 """ + (f"""
 **Speed against error.** The thermal part is cheap next to the packing: at 1e5,
-{b5['run_seconds']:.0f} s of explicit stepping (one thread) for {_p(b5['max_err_over_dT'])} of ΔT,
+{b5.run_seconds:.0f} s of explicit stepping (one thread) for {_p(b5.max_err_over_dT)} of ΔT,
 after 551 s of YADE for the cell{at_1e6}.
 """ if b5 else "") + """
 **Test.** `tests/test_validation_small.py` runs `slab_case` on the committed 400-sphere box
 (`tests/data/dense_box.h5`) and asserts the errors measured there with a ~20 % margin (1.5 % of T
 in °C, 5 % of ΔT) and the C_t conversion; `tdem validate 4 --quick` runs the same instance."""
-    big = max(rows, key=lambda r: r["n_particles"])
+    big = max(rows, key=lambda r: r.n_particles)
     head = b5 or big
-    best = min(rows, key=lambda r: r["max_err_over_dT"])
-    our_error = (f"{_p(head['max_err_over_dT'])} of ΔT ({_p(head['max_err_over_T_celsius'])} of "
+    best = min(rows, key=lambda r: r.max_err_over_dT)
+    our_error = (f"{_p(head.max_err_over_dT)} of ΔT ({_p(head.max_err_over_T_celsius)} of "
                  "T in °C)"
-                 + (f"; at 1e6 {_p(b6['max_err_over_dT'])} / {_p(b6['max_err_over_T_celsius'])}"
+                 + (f"; at 1e6 {_p(b6.max_err_over_dT)} / {_p(b6.max_err_over_T_celsius)}"
                     if b6 else "")
-                 + f"; lowest {_p(best['max_err_over_dT'])} of ΔT ({best['label']}, "
-                   f"{best['n_particles']:,})")
-    verdict = ("goal ≤ 0.5 % " + ("met" if head["max_err_over_T_celsius"] <= 0.005 else "not met")
+                 + f"; lowest {_p(best.max_err_over_dT)} of ΔT ({best.label}, "
+                   f"{best.n_particles:,})")
+    verdict = ("goal ≤ 0.5 % " + ("met" if head.max_err_over_T_celsius <= 0.005 else "not met")
                + " in the paper's measure, "
-               + ("met" if head["max_err_over_dT"] <= 0.005 else "not quite")
+               + ("met" if head.max_err_over_dT <= 0.005 else "not quite")
                + " in the stricter one"
                + ("; does not keep falling from 1e5 to 1e6 (one periodic cell, see case 4)"
                   if b5 and b6 and not falls else ""))
     return CaseResult(
-        our_n=f"{head['n_particles']:,} (also {min(r['n_particles'] for r in rows):,} … "
-              f"{big['n_particles']:,})",
+        our_n=f"{head.n_particles:,} (also {min(r.n_particles for r in rows):,} … "
+              f"{big.n_particles:,})",
         our_error=our_error,
-        wall_time=(f"551 s CPU + {head['run_seconds']:.0f} s (explicit, {head['steps']:,} steps, "
-                   f"1 thread)" + (f"; 1e6: + {b6['run_seconds']:.0f} s" if b6 else "")),
+        wall_time=(f"551 s CPU + {head.run_seconds:.0f} s (explicit, {head.steps:,} steps, "
+                   f"1 thread)" + (f"; 1e6: + {b6.run_seconds:.0f} s" if b6 else "")),
         verdict=verdict, section_md=section, numbers=n)
