@@ -373,10 +373,8 @@ def _steady_cells(r):
     return lg["cold"], lg["mid"], lg["hot"], hot
 
 
-def _result(rows: list[dict], figs: dict) -> CaseResult:
-    by = {r.name: r for r in rows}
-    n = dict(rows=[to_dict(r) for r in rows], fitted_orders=figs["orders"])
-    carried = sorted({r.measured for r in rows if r.how != HOW})
+def _packing_table(rows: list[SlabRow]) -> list[str]:
+    """The rows of the section's table of packings (the 1e5 row bold, carried rows marked)."""
     table = []
     for r in rows:
         bold = r.name == "tiled_1e5"
@@ -388,7 +386,11 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
                      f"{b}{_p(r.max_err_over_T_celsius)}{b} | "
                      f"{b}{_p(r.max_err_over_dT)}{b} | {_z_cell(r)} | "
                      f"{r.steps:,} | {t} |")
-    ratios = [r.max_err_over_dT / r.max_err_over_T_celsius for r in rows]
+    return table
+
+
+def _steady_table(rows: list[SlabRow]) -> list[str]:
+    """The rows of the steady-profile table: its ends, mid-slab and shape per packing."""
     steady_rows = []
     for r in rows:
         if r.steady_pct is None and r.steady_legacy is None:
@@ -404,8 +406,12 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
             shape = "ends of one sign"
         steady_rows.append(f"| {r.label}, {r.n_particles:,} | {_sg(cold)} | {mid} | "
                            f"{hot_t} | {shape} |")
-    b4, b5, b6 = by.get("ds_10000_s1"), by.get("tiled_1e5"), by.get("tiled_1e6")
-    tiled4 = [by[k] for k in ("tiled_10000_s1", "tiled_10000_s2", "tiled_10000_s3") if k in by]
+    return steady_rows
+
+
+def _where(b5: SlabRow | None, b6: SlabRow | None, n: dict) -> dict:
+    """Where the error is, in words, from the 1e5 and 1e6 profiles (the 1e5 last bin's range
+    added to ``n``)."""
     parts = {}
     if b5 and b5.profile:
         p = np.array(b5.profile)
@@ -429,6 +435,22 @@ def _result(rows: list[dict], figs: dict) -> CaseResult:
     else:
         parts["1e6"] = ("(−0.005 to −0.015 K at mid-slab, −0.07 K in the last bin at the first "
                         "time)")
+    return parts
+
+
+def _result(rows: list[SlabRow], figs: dict) -> CaseResult:
+    """The case's result from its rows and figures: the section (its tables from
+    :func:`_packing_table` and :func:`_steady_table`, its words on where the error is from
+    :func:`_where`) and the summary's columns. Most of its length is the section's text."""
+    by = {r.name: r for r in rows}
+    n = dict(rows=[to_dict(r) for r in rows], fitted_orders=figs["orders"])
+    carried = sorted({r.measured for r in rows if r.how != HOW})
+    table = _packing_table(rows)
+    ratios = [r.max_err_over_dT / r.max_err_over_T_celsius for r in rows]
+    steady_rows = _steady_table(rows)
+    b4, b5, b6 = by.get("ds_10000_s1"), by.get("tiled_1e5"), by.get("tiled_1e6")
+    tiled4 = [by[k] for k in ("tiled_10000_s1", "tiled_10000_s2", "tiled_10000_s3") if k in by]
+    parts = _where(b5, b6, n)
     text = {}
     if b5:
         e5c, e5d = b5.max_err_over_T_celsius, b5.max_err_over_dT
