@@ -121,3 +121,20 @@ def test_case10_quick_realisation_and_error():
         assert rl["ref"] == pytest.approx(1.2285, rel=0.003)
         assert abs(rl["ref"] - 1.2285) <= 2 * rl["ref_unc"]
     assert n["max_error_vs_ref"] < 0.045               # measured 2.95 % (400 spheres)
+
+
+def test_case9_caches_through_the_framework(tmp_path):
+    """Case 9's cache is framework.cached (one cache for every case): the record comes back
+    without its version key, made once, and made again when its version changes."""
+    import json
+    calls = []
+
+    def make():
+        calls.append(1)
+        return {"n": 5}
+    path = tmp_path / "points.json"
+    assert case9._cached(path, make) == {"n": 5}
+    assert json.loads(path.read_text()) == {"n": 5, "version": case9.VERSION}
+    assert case9._cached(path, make) == {"n": 5} and len(calls) == 1
+    assert case9._cached(path, make, version=case9.VERSION + 1) == {"n": 5}
+    assert len(calls) == 2

@@ -300,19 +300,18 @@ FV_VERSION = 1     # of the cached FV reference
 
 
 def _cached(path, make, version=VERSION):
-    """The JSON record at ``path`` if it has this VERSION, else ``make()`` saved there (a full
-    run resumes from the packings it has done)."""
-    import json
-    from thermal_kernel.atomic import write_text_atomic
-    if path.exists():
-        rec = json.loads(path.read_text())
-        if rec.pop("version", None) == version:
-            return rec
+    """framework.cached, its version key left out of the record (the case's numbers hold the
+    runs as measured)."""
+    rec = framework.cached(path, make, version)
+    rec.pop("version", None)
+    return rec
+
+
+def _timed_reference(grids) -> dict:
+    """The FV reference at ``grids`` with the seconds it took (kept in its cache)."""
     t0 = time.perf_counter()
-    rec = make()
-    if "fv" in rec:
-        rec["fv"]["seconds"] = time.perf_counter() - t0
-    write_text_atomic(path, json.dumps(dict(rec, version=version), indent=1, default=float))
+    rec = dict(zip(("ref", "fv"), continuum_points(grids)))
+    rec["fv"]["seconds"] = time.perf_counter() - t0
     return rec
 
 
@@ -346,8 +345,7 @@ def run(ctx: Context) -> CaseResult:
         ref, fv = continuum_points(grids)
     else:
         rec = _cached(ctx.out / f"fv_{'_'.join(map(str, grids))}.json",
-                      lambda: dict(zip(("ref", "fv"), continuum_points(grids))),
-                      version=FV_VERSION)
+                      lambda: _timed_reference(grids), version=FV_VERSION)
         ref, fv = rec["ref"], rec["fv"]
     fv_s = fv.get("seconds", time.perf_counter() - t0)
     dT, q0 = I.T_HOT - I.T_COLD, 33.0 * (I.T_HOT - I.T_COLD) / PAPER_L
