@@ -420,3 +420,35 @@ def test_case4_rows_are_records():
         case4_slab.read_rows({"rows": [bad]})
     with pytest.raises(RecordError, match="max_err_over_dt: unknown field"):
         case4_slab.read_rows({"rows": [dict(numbers["rows"][0], max_err_over_dt=0.1)]})
+
+
+def test_case6_rows_are_records():
+    """Case 6's saved rows read back as CalibRow records (variants and axes as nested records)
+    and write back to the same data; a variant missing its gap is refused in one line."""
+    from tdem_post.records import RecordError, to_dict
+    from validation import case6_calibrate
+    numbers = framework.load_result(6)["result"]["numbers"]
+    rows = case6_calibrate.read_rows(numbers)
+    assert [to_dict(r) for r in rows] == numbers["rows"]
+    assert rows[0].variants["dump"].axes["x"].ct_domain > 0
+    bad = json.loads(json.dumps(numbers["rows"][0]))
+    del bad["variants"]["dump"]["gap"]
+    with pytest.raises(RecordError, match=r"rows\[0\]: variants\.dump: gap: missing"):
+        case6_calibrate.read_rows({"rows": [bad]})
+
+
+def test_case6_carries_what_this_run_did_not_measure():
+    """A re-measured row keeps the earlier run's note and, dated, the variants not measured now;
+    the variants measured now are this run's."""
+    from validation.case6_calibrate import AxisCt, CalibRow, VariantCt, _carry
+    axes = {"x": AxisCt(0.8, 0.82, 0.1, 0.098)}
+
+    def row(variants, measured, note=None):
+        return CalibRow(name="b", label="b", n_particles=10, shape="box", seed=1,
+                        variants={v: VariantCt(axes=axes, gap=g, z_bulk=7.5, z_all=7.0,
+                                               seconds=1.0) for v, g in variants.items()},
+                        solid_fraction=0.64, measured=measured, how="tdem validate 6", note=note)
+    before = row({"z75": 0.04, "dump": 0.1}, "2026-11-30", note="shared machine")
+    now = _carry(row({"z75": 0.05}, "2026-12-02"), before)
+    assert now.note == "shared machine" and now.variants["z75"].gap == 0.05
+    assert now.variants["dump"].carried == "2026-11-30" and list(now.variants) == ["z75", "dump"]

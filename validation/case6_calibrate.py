@@ -25,9 +25,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import savefig_atomic, write_text_atomic
 
 from .framework import (OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
@@ -106,6 +108,53 @@ CSV_FIELDS = ["name", "n_particles", "shape", "seed", "variant", "axis", "ct_dom
               "length_domain_m", "length_held_m", "gap", "z_all", "z_bulk", "solid_fraction",
               "seconds", "measured"]
 BULK_MARGIN = 2.0          # mean diameters (runs/dense_box.toml's [neighbours])
+_OPT = column(optional=True)
+
+
+@dataclass(frozen=True)
+class AxisCt:
+    """C_t of one axis's steady flux test, in both length conventions (dimensionless)."""
+    ct_domain: float
+    ct_held: float
+    length_domain_m: float
+    length_held_m: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class VariantCt:
+    """One variant of one packing (the neighbour criterion, R_m): C_t per axis, the gap kept
+    (fraction of the mean diameter), the coordination with gaps (bulk, all) and the seconds of
+    its steady solves; ``carried``: the date of a variant kept from an earlier run."""
+    axes: dict[str, AxisCt]
+    gap: float
+    z_bulk: float
+    z_all: float
+    seconds: float
+    bulk_margin: str | None = field(default=None, metadata=_OPT)    # rows before issue 23
+    carried: str | None = field(default=None, metadata=_OPT)
+
+
+@dataclass(frozen=True, kw_only=True)
+class CalibRow:
+    """One packing of the case, measured by :func:`measure` (or carried over): the record the
+    realisation statistics, the figure, the section and the carry-over read."""
+    name: str
+    label: str
+    n_particles: int
+    shape: str                          # box, cylinder
+    seed: int                           # of the 10,000-sphere cell (0: none)
+    variants: dict[str, VariantCt]
+    solid_fraction: float
+    measured: str                       # the date
+    how: str                            # what measured it
+    diameter_m: float | None = field(default=None, metadata=_OPT)   # a cylinder's
+    note: str | None = field(default=None, metadata=_OPT)          # a fact not measured
+
+
+def read_rows(numbers: dict) -> list[CalibRow]:
+    """Case 6's saved rows as records (a missing or unknown field: RecordError)."""
+    return [from_dict(CalibRow, _upgrade(r), f"case 6: rows[{k}]")
+            for k, r in enumerate(numbers.get("rows", []))]
 
 
 def _scene(variant: str):
@@ -150,7 +199,7 @@ def _cache_key(path, variant):
     return f"{path.relative_to(ROOT)}|{st.st_size}|{st.st_mtime_ns}|{variant}"
 
 
-def measure(key: str, path, variants=BASE, seed: int = 0) -> dict:
+def measure(key: str, path, variants=BASE, seed: int = 0) -> CalibRow:
     """One packing: C_t per axis in both conventions for each variant, coordination, seconds.
     Variants already measured on the same file (size and time) come from validation/out/case6/
     measured.json (a re-run measures only what is new)."""
@@ -167,18 +216,18 @@ def measure(key: str, path, variants=BASE, seed: int = 0) -> dict:
             cache[ck] = _measure_variant(packing, v)
             cache_path.parent.mkdir(parents=True, exist_ok=True)
             write_text_atomic(cache_path, json.dumps(cache, indent=1, default=float))
-        out[v] = cache[ck]
+        out[v] = from_dict(VariantCt, cache[ck], f"{cache_path}: {ck}")
     if packing is None:
         packing = read_packing(path)
     shape = "cylinder" if any(k == "cylinder" for k in packing.wall_kind) else "box"
-    row = dict(name=key, label=LABEL.get(key, key), n_particles=int(packing.n_particles),
-               shape=shape, seed=seed, variants=out,
-               solid_fraction=float(packing.attrs["solid_fraction"]),
-               measured=today(), how="tdem validate 6")
+    diameter = None
     if shape == "cylinder":
         k = [i for i, kind in enumerate(packing.wall_kind) if kind == "cylinder"][0]
-        row["diameter_m"] = 2 * float(packing.wall_radius[k])
-    return row
+        diameter = 2 * float(packing.wall_radius[k])
+    return CalibRow(name=key, label=LABEL.get(key, key), n_particles=int(packing.n_particles),
+                    shape=shape, seed=seed, variants=out,
+                    solid_fraction=float(packing.attrs["solid_fraction"]),
+                    measured=today(), how="tdem validate 6", diameter_m=diameter)
 
 
 def _upgrade(row: dict) -> dict:
@@ -194,8 +243,8 @@ def _upgrade(row: dict) -> dict:
 
 
 def _mean(row, what, variant="z75"):
-    v = row["variants"].get(variant)
-    return float(np.mean([a[what] for a in v["axes"].values()])) if v else float("nan")
+    v = row.variants.get(variant)
+    return float(np.mean([getattr(a, what) for a in v.axes.values()])) if v else float("nan")
 
 
 def _fmt_n(n):
@@ -209,8 +258,8 @@ def _pct(x, digits=1):
 
 def _family(rows, prefix):
     """The realisations of one size: rows tiled10k_1e4_s*, tiled_1e5_box(_s*), tiled_1e6_box."""
-    return sorted((r for r in rows if r["name"] == prefix or r["name"].startswith(prefix + "_s")),
-                  key=lambda r: r.get("seed", 0))
+    return sorted((r for r in rows if r.name == prefix or r.name.startswith(prefix + "_s")),
+                  key=lambda r: r.seed)
 
 
 FAMILIES = (("1e4", "tiled10k_1e4"), ("1e5", "tiled_1e5_box"), ("1e6", "tiled_1e6_box"))
@@ -221,25 +270,25 @@ def realisation_stats(rows) -> dict:
     the axes of each realisation), the mean C_t in held planes and the mean gap and bulk Z."""
     out = {}
     for size, prefix in FAMILIES:
-        fam = [r for r in _family(rows, prefix) if r.get("seed")]
+        fam = [r for r in _family(rows, prefix) if r.seed]
         if not fam:
             continue
         out[size] = {}
         for v in VARIANTS:
-            have = [r for r in fam if v in r["variants"]]
+            have = [r for r in fam if v in r.variants]
             if not have:
                 continue
             d = np.array([_mean(r, "ct_domain", v) for r in have])
             h = np.array([_mean(r, "ct_held", v) for r in have])
             sd = float(np.std(d, ddof=1)) if d.size > 1 else float("nan")
             out[size][v] = dict(
-                seeds=[r["seed"] for r in have], n=int(d.size),
-                n_particles=[r["n_particles"] for r in have], ct=float(d.mean()), sd=sd,
+                seeds=[r.seed for r in have], n=int(d.size),
+                n_particles=[r.n_particles for r in have], ct=float(d.mean()), sd=sd,
                 cov=sd / float(d.mean()) if d.size > 1 else float("nan"),
                 ct_held=float(h.mean()),
-                gap=float(np.mean([r["variants"][v]["gap"] for r in have])),
-                z_bulk=float(np.mean([r["variants"][v]["z_bulk"] for r in have])),
-                seconds=float(np.mean([r["variants"][v]["seconds"] for r in have])))
+                gap=float(np.mean([r.variants[v].gap for r in have])),
+                z_bulk=float(np.mean([r.variants[v].z_bulk for r in have])),
+                seconds=float(np.mean([r.variants[v].seconds for r in have])))
     return out
 
 
@@ -311,11 +360,11 @@ def _figure(ctx: Context, rows: list[dict], stats: dict) -> tuple[str, str]:
               "z75_harmonic": ("C4", "v")}
     for v, (color, marker) in styles.items():
         for fam, fill in (("walled", "none"), ("tiled", None)):
-            s = [r for r in rows if r["name"].startswith(fam) and v in r["variants"]
-                 and r["shape"] == "box"]
+            s = [r for r in rows if r.name.startswith(fam) and v in r.variants
+                 and r.shape == "box"]
             if not s:
                 continue
-            ax.semilogx([r["n_particles"] for r in s], [_mean(r, "ct_domain", v) for r in s],
+            ax.semilogx([r.n_particles for r in s], [_mean(r, "ct_domain", v) for r in s],
                         marker, color=color, mfc=fill, ms=4, alpha=0.7, ls="none",
                         label=f"{VARIANT_LABEL[v]} ({fam})")
     for size, n in (("1e4", 1e4), ("1e5", 1e5), ("1e6", 1e6)):
@@ -332,12 +381,11 @@ def _figure(ctx: Context, rows: list[dict], stats: dict) -> tuple[str, str]:
     savefig_atomic(fig, png, dpi=120)
     plt.close(fig)
     write_csv(png.with_suffix(".csv"), CSV_FIELDS,
-              [(r["name"], r["n_particles"], r["shape"], r.get("seed", 0), v, axis,
-                a["ct_domain"], a["ct_held"], a["length_domain_m"], a["length_held_m"],
-                m["gap"], m["z_all"], m["z_bulk"], r["solid_fraction"], m["seconds"],
-                r["measured"])
-               for r in rows for v, m in r["variants"].items()
-               for axis, a in sorted(m["axes"].items())])
+              [(r.name, r.n_particles, r.shape, r.seed, v, axis,
+                a.ct_domain, a.ct_held, a.length_domain_m, a.length_held_m,
+                m.gap, m.z_all, m.z_bulk, r.solid_fraction, m.seconds, r.measured)
+               for r in rows for v, m in r.variants.items()
+               for axis, a in sorted(m.axes.items())])
     return png.name, png.with_suffix(".csv").name
 
 
@@ -345,11 +393,12 @@ def run(ctx: Context) -> CaseResult:
     if ctx.quick:        # the committed 400-sphere walled box: no YADE
         row = measure("walled_400", ROOT / "tests" / "data" / "dense_box.h5", BASE)
         return CaseResult(our_n="400", our_error=f"C_t {_mean(row, 'ct_domain'):.4f} (domain, "
-                          f"bulk Z {row['variants']['z75']['z_bulk']:.2f}), "
+                          f"bulk Z {row.variants['z75'].z_bulk:.2f}), "
                           f"{_mean(row, 'ct_domain', 'dump'):.4f} (every dumped pair)",
-                          wall_time=f"{row['variants']['z75']['seconds']:.1f} s",
-                          verdict="quick instance", section_md="", numbers=dict(rows=[row]))
-    previous = {r["name"]: _upgrade(r) for r in previous_numbers(6).get("rows", [])}
+                          wall_time=f"{row.variants['z75'].seconds:.1f} s",
+                          verdict="quick instance", section_md="",
+                          numbers=dict(rows=[to_dict(row)]))
+    previous = {r.name: r for r in read_rows(previous_numbers(6))}
     rows = []
     for key, _label, name, default, seed, variants in INSTANCES:
         if seed == 1 and not default and not name.startswith("box_1e4_c10k"):
@@ -363,58 +412,63 @@ def run(ctx: Context) -> CaseResult:
         if path is None:
             if key in previous:
                 rows.append(previous[key])
-                ctx.progress(f"{key}: {name} not built here, row of {previous[key]['measured']} "
+                ctx.progress(f"{key}: {name} not built here, row of {previous[key].measured} "
                              "kept")
             continue
         ctx.progress(f"{key}: calibrating on {path.relative_to(ROOT)} ({', '.join(variants)}) "
                      "...")
-        row = measure(key, path, variants, seed)
-        for k in ("note",):                      # facts the code does not measure
-            if k in previous.get(key, {}):
-                row[k] = previous[key][k]
-        for v, m in previous.get(key, {}).get("variants", {}).items():
-            if v not in row["variants"]:         # a variant not measured now: kept, dated
-                row["variants"][v] = dict(m, carried=m.get("carried") or previous[key]["measured"])
+        row = _carry(measure(key, path, variants, seed), previous.get(key))
         rows.append(row)
-        ctx.progress(f"{key}: N {row['n_particles']}, C_t domain "
+        ctx.progress(f"{key}: N {row.n_particles}, C_t domain "
                      + ", ".join(f"{v} {_mean(row, 'ct_domain', v):.4f}" for v in variants)
-                     + f"; {sum(m['seconds'] for m in row['variants'].values()):.1f} s")
+                     + f"; {sum(m.seconds for m in row.variants.values()):.1f} s")
     stats = realisation_stats(rows)
     png, csv_name = _figure(ctx, rows, stats)
     return judged(_result(rows, stats, png, csv_name), judge(dict(realisations=stats)))
 
 
+def _carry(row: CalibRow, before: CalibRow | None) -> CalibRow:
+    """``row`` with what its earlier run had and this one did not measure: the note (a fact
+    the code does not measure) and the variants not measured now (kept, dated)."""
+    if before is None:
+        return row
+    kept = {v: dataclasses.replace(m, carried=m.carried or before.measured)
+            for v, m in before.variants.items() if v not in row.variants}
+    return dataclasses.replace(row, note=before.note if before.note is not None else row.note,
+                               variants={**row.variants, **kept})
+
+
 def _cell(r, v):
-    m = r["variants"].get(v)
+    m = r.variants.get(v)
     if not m:
         return "—"
     return f"{_mean(r, 'ct_domain', v):.4f}"
 
 
-def _result(rows: list[dict], stats: dict, png: str, csv_name: str) -> CaseResult:
-    by = {r["name"]: r for r in rows}
+def _result(rows: list[CalibRow], stats: dict, png: str, csv_name: str) -> CaseResult:
+    by = {r.name: r for r in rows}
     table = []
     for r in rows:
-        dump = r["variants"].get("dump", {})
-        z75 = r["variants"].get("z75", {})
-        shape = "box" if r["shape"] == "box" else f"{r['shape']} along z"
-        mark = " †" if r["how"] != "tdem validate 6" else ""
-        sec = sum(m["seconds"] for m in r["variants"].values())
+        dump = r.variants.get("dump")
+        z75 = r.variants.get("z75")
+        shape = "box" if r.shape == "box" else f"{r.shape} along z"
+        mark = " †" if r.how != "tdem validate 6" else ""
+        sec = sum(m.seconds for m in r.variants.values())
         t = f"{sec:.1f}" if sec < 10 else f"{sec:.0f}"
-        if r.get("note"):
-            t += f" ({r['note']})"
-        zd = f"{dump['z_bulk']:.2f}" if dump else "—"
-        zc = f"{z75['gap']:.4f} / {z75['z_bulk']:.2f}" if z75 else "—"
+        if r.note:
+            t += f" ({r.note})"
+        zd = f"{dump.z_bulk:.2f}" if dump else "—"
+        zc = f"{z75.gap:.4f} / {z75.z_bulk:.2f}" if z75 else "—"
         held = f"{_mean(r, 'ct_held', 'z75'):.4f}" if z75 else "—"
-        table.append(f"| {r['label']}{mark} | {_fmt_n(r['n_particles'])} | {shape} | {zd} | "
+        table.append(f"| {r.label}{mark} | {_fmt_n(r.n_particles)} | {shape} | {zd} | "
                      f"{_cell(r, 'dump')} | {zc} | {_cell(r, 'z75')} | {held} | "
                      f"{_cell(r, 'z75_geometric')} | {_cell(r, 'z75_harmonic')} | {t} |")
-    carried = sorted({r["measured"] for r in rows if r["how"] != "tdem validate 6"})
+    carried = sorted({r.measured for r in rows if r.how != "tdem validate 6"})
     carried_note = (f" † Measured {', '.join(carried)} and carried over (every dumped pair "
                     "only; bulk there: centres 3 mean radii from the faces): those packings are "
                     "not on this machine; `TDEM_VALIDATE_ALL_PACKINGS=1 tdem validate 6 --force` "
                     "builds and measures them again (hours of YADE)." if carried else "")
-    n = dict(rows=rows, realisations=stats)
+    n = dict(rows=[to_dict(r) for r in rows], realisations=stats)
 
     real = []
     for size in ("1e4", "1e5", "1e6"):
@@ -432,13 +486,13 @@ def _result(rows: list[dict], stats: dict, png: str, csv_name: str) -> CaseResul
     b5, b6 = by.get("tiled_1e5_box"), by.get("tiled_1e6_box")
     s5 = stats.get("1e5", {})
     s6 = stats.get("1e6", {})
-    if b6 and "dump" in b6["variants"] and "z75" in b6["variants"]:
+    if b6 and "dump" in b6.variants and "z75" in b6.variants:
         d6, c6 = _mean(b6, "ct_domain", "dump"), _mean(b6, "ct_domain", "z75")
         share = (c6 - d6) / (0.834 - d6)
         n.update(z_share_of_gap_1e6=share, ct_1e6_dump=d6, ct_1e6_z75=c6)
-        zd = b6["variants"]["dump"]["z_bulk"]
+        zd = b6.variants["dump"].z_bulk
         line = (f"*Coordination.* Cutting the dumped neighbours of the 1e6 box (seed 1) from bulk "
-                f"Z {zd:.2f} (gap 0.1) to Haddad's 7.5 (gap {b6['variants']['z75']['gap']:.4f}) "
+                f"Z {zd:.2f} (gap 0.1) to Haddad's 7.5 (gap {b6.variants['z75'].gap:.4f}) "
                 f"raises its C_t from {d6:.3f} to {c6:.3f}: **the coordination accounts for "
                 f"{100 * share:.0f} % of the distance to the paper's 0.834** (measured, not "
                 f"scaled). The estimate this section gave before the measurement, C_t × Z_bulk / "
@@ -446,7 +500,7 @@ def _result(rows: list[dict], stats: dict, png: str, csv_name: str) -> CaseResul
                 f"faster than its number of links (λ^e × {d6 / c6:.3f} for Z × "
                 f"{HADDAD_Z / zd:.3f}; an effective-medium network conducts like Z − Z_c, not "
                 f"like Z).")
-        if b5 and "dump" in b5["variants"] and "z75" in b5["variants"]:
+        if b5 and "dump" in b5.variants and "z75" in b5.variants:
             d5, c5 = _mean(b5, "ct_domain", "dump"), _mean(b5, "ct_domain", "z75")
             share5 = (c5 - d5) / (0.806 - d5)
             n.update(z_share_of_gap_1e5=share5, ct_1e5_dump=d5, ct_1e5_z75=c5)
@@ -502,7 +556,7 @@ def _result(rows: list[dict], stats: dict, png: str, csv_name: str) -> CaseResul
                     "face, ΔT read there, 002 Fig. 2) differs from our two held faces, and the "
                     "faces of our cubes are cut surfaces of a periodic packing.")
     cyl = by.get("tiled_1e5_cylinder")
-    if cyl and b5 and "z75" in cyl["variants"] and "z75" in b5["variants"]:
+    if cyl and b5 and "z75" in cyl.variants and "z75" in b5.variants:
         dc, d5 = _mean(cyl, "ct_domain", "z75"), _mean(b5, "ct_domain", "z75")
         n.update(cylinder_over_cube_z75=dc / d5 - 1)
         text.append(f"*Shape.* At 1e5 with bulk Z 7.5 the cylinder (along z) gives {dc:.4f} "
@@ -510,15 +564,15 @@ def _result(rows: list[dict], stats: dict, png: str, csv_name: str) -> CaseResul
                     "effect of the geometry\").")
     b8 = by.get("tiled_8e6_box")
     if b8:
-        m8 = b8["variants"].get("z75")
-        z8 = (f"with bulk Z 7.5 (gap {m8['gap']:.4f}) {_mean(b8, 'ct_domain', 'z75'):.4f}, "
-              f"measured {m8.get('carried') or b8['measured']} in {m8['seconds']:.0f} s "
+        m8 = b8.variants.get("z75")
+        z8 = (f"with bulk Z 7.5 (gap {m8.gap:.4f}) {_mean(b8, 'ct_domain', 'z75'):.4f}, "
+              f"measured {m8.carried or b8.measured} in {m8.seconds:.0f} s "
               "(3 steady solves, one thread, on a machine shared with four other validation "
               "runs; every pair took 362 s when measured before)" if m8
               else "not measured with bulk Z 7.5")
-        d8 = b8["variants"].get("dump")
+        d8 = b8.variants.get("dump")
         dump8 = (f"; through every dumped pair {_mean(b8, 'ct_domain', 'dump'):.4f} (measured "
-                 f"{d8.get('carried') or b8['measured']})" if d8 else "")
+                 f"{d8.carried or b8.measured})" if d8 else "")
         text.append(f"*8e6.* One realisation (seed 1's cell): {z8}{dump8}. The 8e6 box "
                     "(~7.5 GB) is built only when asked (`TDEM_VALIDATE_ALL_PACKINGS=1`) or "
                     "when already on the machine.")
@@ -565,15 +619,15 @@ Times: the steady solves of every variant, one thread, shared machine.){carried_
                            "realisations)" if s["n"] > 1 else f"{s['ct']:.3f} at {k}"
                            for k, s in (("1e5", s5z), ("1e6", s6z)) if s)
                  + " with bulk Z 7.5 (domain length)")
-    dumps = [r for r in (b5, b6) if r and "dump" in r["variants"]]
+    dumps = [r for r in (b5, b6) if r and "dump" in r.variants]
     if dumps:
         our_error += "; every dumped pair: " + ", ".join(
             f"{_mean(r, 'ct_domain', 'dump'):.3f}" for r in dumps)
     times = "; ".join(f"{k}: {s['seconds']:.0f} s" for k, s in
                       (("1e5", s5z), ("1e6", s6z)) if s)
     return CaseResult(
-        our_n=f"{_fmt_n(min(r['n_particles'] for r in rows))} … "
-              f"{_fmt_n(max(r['n_particles'] for r in rows))}",
+        our_n=f"{_fmt_n(min(r.n_particles for r in rows))} … "
+              f"{_fmt_n(max(r.n_particles for r in rows))}",
         our_error=our_error,
         wall_time=f"packing: ~9 min of YADE per 10,000-sphere cell (551 s CPU idle, "
                   f"docs/packings.md); steady solves per realisation, 3 axes: {times}",
