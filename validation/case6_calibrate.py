@@ -445,8 +445,8 @@ def _cell(r, v):
     return f"{_mean(r, 'ct_domain', v):.4f}"
 
 
-def _result(rows: list[CalibRow], stats: dict, png: str, csv_name: str) -> CaseResult:
-    by = {r.name: r for r in rows}
+def _packing_table(rows: list[CalibRow]) -> list[str]:
+    """The rows of the table of every packing (carried rows marked)."""
     table = []
     for r in rows:
         dump = r.variants.get("dump")
@@ -463,13 +463,11 @@ def _result(rows: list[CalibRow], stats: dict, png: str, csv_name: str) -> CaseR
         table.append(f"| {r.label}{mark} | {_fmt_n(r.n_particles)} | {shape} | {zd} | "
                      f"{_cell(r, 'dump')} | {zc} | {_cell(r, 'z75')} | {held} | "
                      f"{_cell(r, 'z75_geometric')} | {_cell(r, 'z75_harmonic')} | {t} |")
-    carried = sorted({r.measured for r in rows if r.how != "tdem validate 6"})
-    carried_note = (f" † Measured {', '.join(carried)} and carried over (every dumped pair "
-                    "only; bulk there: centres 3 mean radii from the faces): those packings are "
-                    "not on this machine; `TDEM_VALIDATE_ALL_PACKINGS=1 tdem validate 6 --force` "
-                    "builds and measures them again (hours of YADE)." if carried else "")
-    n = dict(rows=[to_dict(r) for r in rows], realisations=stats)
+    return table
 
+
+def _realisation_table(stats: dict) -> list[str]:
+    """The rows of the table over the realisations, per size and variant."""
     real = []
     for size in ("1e4", "1e5", "1e6"):
         for v in VARIANTS:
@@ -481,11 +479,13 @@ def _result(rows: list[CalibRow], stats: dict, png: str, csv_name: str) -> CaseR
             real.append(f"| {size} | {VARIANT_LABEL[v]} | {', '.join(map(str, s['seeds']))} | "
                         f"{s['gap']:.4f} | {s['z_bulk']:.3f} | **{s['ct']:.4f}** | {sd} | {cov} | "
                         f"{s['ct_held']:.4f} | {s['seconds']:.1f} |")
+    return real
 
+
+def _coordination(b5: CalibRow | None, b6: CalibRow | None, n: dict) -> list[str]:
+    """The words on how much of the distance to the paper the coordination accounts for (its
+    shares added to ``n``)."""
     text = []
-    b5, b6 = by.get("tiled_1e5_box"), by.get("tiled_1e6_box")
-    s5 = stats.get("1e5", {})
-    s6 = stats.get("1e6", {})
     if b6 and "dump" in b6.variants and "z75" in b6.variants:
         d6, c6 = _mean(b6, "ct_domain", "dump"), _mean(b6, "ct_domain", "z75")
         share = (c6 - d6) / (0.834 - d6)
@@ -507,6 +507,16 @@ def _result(rows: list[CalibRow], stats: dict, png: str, csv_name: str) -> CaseR
             line += (f" At 1e5: {d5:.3f} → {c5:.3f} against 0.806, {100 * share5:.0f} % of the "
                      "distance.")
         text.append(line)
+    return text
+
+
+def _findings(by: dict, stats: dict, n: dict) -> list[str]:
+    """The section's bullets: coordination, scatter between realisations, R_m, trend with N,
+    shape, 8e6 (numbers they quote added to ``n``)."""
+    b5, b6 = by.get("tiled_1e5_box"), by.get("tiled_1e6_box")
+    s5 = stats.get("1e5", {})
+    s6 = stats.get("1e6", {})
+    text = _coordination(b5, b6, n)
     sc = [(k, st["dump"], st["z75"]) for k, st in ((k, stats.get(k, {})) for k in
                                                     ("1e4", "1e5"))
           if "dump" in st and "z75" in st and st["z75"]["n"] > 1]
@@ -576,6 +586,27 @@ def _result(rows: list[CalibRow], stats: dict, png: str, csv_name: str) -> CaseR
         text.append(f"*8e6.* One realisation (seed 1's cell): {z8}{dump8}. The 8e6 box "
                     "(~7.5 GB) is built only when asked (`TDEM_VALIDATE_ALL_PACKINGS=1`) or "
                     "when already on the machine.")
+    return text
+
+
+def _result(rows: list[CalibRow], stats: dict, png: str, csv_name: str) -> CaseResult:
+    """The case's result from its rows and realisation statistics: the tables, the findings
+    (:func:`_findings`) and the section's text, and the summary's columns."""
+    by = {r.name: r for r in rows}
+    table = _packing_table(rows)
+    carried = sorted({r.measured for r in rows if r.how != "tdem validate 6"})
+    carried_note = (f" † Measured {', '.join(carried)} and carried over (every dumped pair "
+                    "only; bulk there: centres 3 mean radii from the faces): those packings are "
+                    "not on this machine; `TDEM_VALIDATE_ALL_PACKINGS=1 tdem validate 6 --force` "
+                    "builds and measures them again (hours of YADE)." if carried else "")
+    n = dict(rows=[to_dict(r) for r in rows], realisations=stats)
+
+    real = _realisation_table(stats)
+
+    b5, b6 = by.get("tiled_1e5_box"), by.get("tiled_1e6_box")
+    s5 = stats.get("1e5", {})
+    s6 = stats.get("1e6", {})
+    text = _findings(by, stats, n)
 
     section = f"""\
 Setup: `{SCENE}` (law haddad, λ = 33 W/m/K, C_t^arb = 0.806), one steady flux test per axis
