@@ -345,17 +345,24 @@ def _pack_s(name):
 
 
 def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    """The four figures (with their CSVs) and the result, from the runs' records."""
     ours = [r for r in rows if r["label"] == PRIMARY]
     by = {(r["n_nominal"], r["label"]): r for r in rows}
     main_n = 100_000 if (100_000, PRIMARY) in by else ours[-1]["n_nominal"]
     main = by[(main_n, PRIMARY)]
-    field = main.get("_field")
+    _figure_centre(ctx, rows)
+    _figure_profile(ctx, rows, main, main_n)
+    orders = _figure_convergence(ctx, rows, ours)
+    _figure_speed(ctx, ours, speed)
+    return _summary(ctx, rows, calib, speed, main, orders)
 
-    # --- figure 1: centre temperature against time (Fig. 7)
+
+def _figure_centre(ctx, rows) -> None:
+    """Figure 1: the centre temperature against time (002 Fig. 7), and its CSV."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     png = ctx.figure("centre")
     fig, ax = plt.subplots(1, 2, figsize=(10, 4))
     tt = np.linspace(0.05, PAPER_T_END, 200)
@@ -389,7 +396,14 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
     savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
 
-    # --- figure 2: the profile at t = 10 s (Fig. 8), shells of the main run
+
+def _figure_profile(ctx, rows, main, main_n) -> None:
+    """Figure 2: the profile at t = 10 s (002 Fig. 8), the shells of the main N's runs."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    field = main.get("_field")
     png = ctx.figure("profile")
     fig, ax = plt.subplots(figsize=(6, 4))
     if field is not None:
@@ -420,7 +434,13 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
     savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
 
-    # --- figure 3: convergence with N (our bulk C_t)
+
+def _figure_convergence(ctx, rows, ours) -> dict:
+    """Figure 3: the errors against N (our bulk C_t); the fitted orders (N >= 1e4)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     png = ctx.figure("convergence")
     ns = [r["n_particles"] for r in ours]
     big = [i for i, n in enumerate(ns) if n >= 10_000] or list(range(len(ns)))
@@ -457,8 +477,16 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
                         f"{r['centre_error_carve_radius_c']:.5f}", f"{r['max_abs_error_c']:.5f}",
                         f"{r['rms_error_c']:.5f}", f"{r['mean_error_c']:.5f}", r["steps"],
                         f"{r['run_seconds']:.2f}", f"{_pack_s(r['sphere']):.1f}"])
+    return orders
 
-    # --- figure 4: speed against error
+
+def _figure_speed(ctx, ours, speed) -> None:
+    """Figure 4: speed against error, forward Euler over N and Rannacher CN over steps."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ns = [r["n_particles"] for r in ours]
     png = ctx.figure("speed_error")
     fig, ax = plt.subplots(figsize=(6, 4.5))
     ax.loglog([abs(r["centre_error_c"]) for r in ours], [r["run_seconds"] for r in ours], "o-",
@@ -486,8 +514,6 @@ def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
             w.writerow([r["method"], r["n_particles"], r["steps"], f"{r['run_seconds']:.3f}",
                         f"{r['centre_error_c']:.5f}", f"{r['max_abs_error_c']:.5f}",
                         f"{r['rms_error_c']:.5f}"])
-
-    return _summary(ctx, rows, calib, speed, main, orders)
 
 
 def _cross_case_facts(main, calib) -> dict:
@@ -521,25 +547,12 @@ def _fmt_row(r):
             f"{r['run_seconds']:.1f} |")
 
 
-def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
-    by = {(r["n_nominal"], r["label"]): r for r in rows}
+def _paper_texts(by: dict, main: dict) -> dict:
+    """The section's sentences on the paper's C_t, the paper's conventions (and their numbers,
+    the summary judges them) and the 1e6 ball, from the runs' records."""
     paper_1e5 = by.get((100_000, "paper"))
     big = by.get((1_000_000, PRIMARY))
     big_paper = by.get((1_000_000, "paper"))
-    best_cn = min(speed, key=lambda r: r["run_seconds"] if abs(r["centre_error_c"])
-                  <= 1.1 * abs(main["centre_error_c"]) + 0.05 else math.inf)
-    met = abs(main["centre_error_c"]) <= 1.0
-    facts = _cross_case_facts(main, calib)
-    n_fmt = ", ".join(f"{r['n_particles']:,}" for r in rows if r["label"] == PRIMARY)
-    table = "\n".join(_fmt_row(r) for r in rows)
-    cal_rows = "\n".join(
-        f"| {c['n_particles']:,} | {c['ct_bulk']:.4f} | "
-        + (f"{c['ct_domain_mean']:.4f} | {c['ct_held_mean']:.4f} | "
-           f"{' / '.join(f'{v:.4f}' for v in c['ct_held'])} |" if "ct_held" in c
-           else "— | — | — |") for c in calib.values())
-    speed_rows = "\n".join(
-        f"| {r['steps']} | {r['run_seconds']:.2f} | {r['centre_error_c']:+.3f} | "
-        f"{r['max_abs_error_c']:.3f} |" for r in speed)
     paper_txt = (f"With the paper's C_t (0.806) on our 1e5 sphere the centre is off by "
                  f"**{paper_1e5['centre_error_c']:+.2f} °C** "
                  f"(max {paper_1e5['max_abs_error_c']:.2f} °C): C_t calibrates the packing's "
@@ -580,6 +593,34 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
                   f"`TDEM_CASE5_1E6=explicit` runs forward Euler).") if big else
                  "**The 1e6 ball was not run** (its packing or run failed; see "
                  "validation/out/case5).")
+    return dict(paper_txt=paper_txt, paper_conv=paper_conv, paper_conv_txt=paper_conv_txt,
+                big_txt=big_txt, big_limit=big_limit)
+
+
+def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
+    """The result: the section's tables and text (its sentences on the paper from
+    :func:`_paper_texts`) and the summary's columns. Most of its length is the section's
+    text."""
+    by = {(r["n_nominal"], r["label"]): r for r in rows}
+    paper_1e5 = by.get((100_000, "paper"))
+    big = by.get((1_000_000, PRIMARY))
+    best_cn = min(speed, key=lambda r: r["run_seconds"] if abs(r["centre_error_c"])
+                  <= 1.1 * abs(main["centre_error_c"]) + 0.05 else math.inf)
+    met = abs(main["centre_error_c"]) <= 1.0
+    facts = _cross_case_facts(main, calib)
+    n_fmt = ", ".join(f"{r['n_particles']:,}" for r in rows if r["label"] == PRIMARY)
+    table = "\n".join(_fmt_row(r) for r in rows)
+    cal_rows = "\n".join(
+        f"| {c['n_particles']:,} | {c['ct_bulk']:.4f} | "
+        + (f"{c['ct_domain_mean']:.4f} | {c['ct_held_mean']:.4f} | "
+           f"{' / '.join(f'{v:.4f}' for v in c['ct_held'])} |" if "ct_held" in c
+           else "— | — | — |") for c in calib.values())
+    speed_rows = "\n".join(
+        f"| {r['steps']} | {r['run_seconds']:.2f} | {r['centre_error_c']:+.3f} | "
+        f"{r['max_abs_error_c']:.3f} |" for r in speed)
+    t = _paper_texts(by, main)
+    paper_txt, paper_conv, paper_conv_txt = t["paper_txt"], t["paper_conv"], t["paper_conv_txt"]
+    big_txt, big_limit = t["big_txt"], t["big_limit"]
     section = f"""
 Setup (002 sec. 2.3): a ball of aluminium (ρ 2700 kg/m³, λ 185 W/m/K, c 900 J/kg/K) at
 T_0 = 20 °C whose surface is held at T_s = 200 °C from t = 0; law haddad; forward Euler (the
