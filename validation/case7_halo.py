@@ -250,11 +250,20 @@ def interior_excess(numbers: dict, ratio: float = 4.0) -> dict[int, float]:
 
 
 def _report(ctx, recs) -> CaseResult:
+    """The three figures (with their CSVs) and the result, from the packings' records."""
+    slopes = _figure_cov(ctx, recs)
+    main = next((r for r in recs if r["n_nominal"] == 100_000), recs[-1])
+    _figure_minmax(ctx, main)
+    _figure_speed(ctx, recs, main)
+    return _summary(recs, main, slopes, quick=ctx.quick)
+
+
+def _figure_cov(ctx, recs) -> dict:
+    """Figure 1: the CoV against the ratio (002 Fig. 10), both halo radii; the fitted slopes."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    # --- figure 1: CoV against the ratio (Fig. 10), both halo radii
     png = ctx.figure("cov")
     fig, ax = plt.subplots(figsize=(7, 4.8))
     slopes = {}
@@ -301,9 +310,15 @@ def _report(ctx, recs) -> CaseResult:
                                 f"{r['seconds']:.3f}"])
         for p in PAPER:
             w.writerow(["paper_text", "", p[0], "", "", "", p[1], "", "", "", "", "", "", ""])
+    return slopes
 
-    main = next((r for r in recs if r["n_nominal"] == 100_000), recs[-1])
-    # --- figure 2: mean / min / max (Fig. 11) at the main N, common radius
+
+def _figure_minmax(ctx, main) -> None:
+    """Figure 2: mean / min / max |q| (002 Fig. 11) at the main N, common radius."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     png = ctx.figure("minmax")
     fig, ax = plt.subplots(figsize=(6, 4))
     rr = main["rows"]
@@ -328,7 +343,13 @@ def _report(ctx, recs) -> CaseResult:
             w.writerow([main["n_particles"], "common", r["ratio"], f"{r['mean_abs']:.5f}",
                         f"{r['mean_x']:.5f}", f"{r['min_abs']:.5f}", f"{r['max_abs']:.5f}"])
 
-    # --- figure 3: speed against error: seconds per evaluated particle vs CoV
+
+def _figure_speed(ctx, recs, main) -> None:
+    """Figure 3: speed against error, seconds per evaluated particle against the CoV."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     png = ctx.figure("speed_error")
     fig, ax = plt.subplots(figsize=(6, 4.5))
     with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
@@ -356,7 +377,6 @@ def _report(ctx, recs) -> CaseResult:
     fig.tight_layout()
     savefig_atomic(fig, png, dpi=110)
     plt.close(fig)
-    return _summary(recs, main, slopes, quick=ctx.quick)
 
 
 def _ratio_for(rec, level, kind="common"):
@@ -373,7 +393,9 @@ def _pct(v, digits=2):
     return "—" if v is None or not np.isfinite(v) else f"{100 * v:.{digits}f} %"
 
 
-def _summary(recs, main, slopes, quick=False) -> CaseResult:
+def _tables(recs, slopes) -> tuple:
+    """The section's tables over the packings: the CoV by ratio, the raw flux's CoV, the two
+    neighbour criteria, the ratios reaching 5 % and 2 % (with their times)."""
     ns = [r["n_particles"] for r in recs]
     header = ("| ratio | " + " | ".join(f"{n:,}: ratio × r̄ (common) | {n:,}: ratio × R_p (own)"
                                           for n in ns) + " |")
@@ -414,15 +436,12 @@ def _summary(recs, main, slopes, quick=False) -> CaseResult:
         f"{sum(r['seconds'] for k in KINDS for r in _rows(rec, k)):.1f} | "
         f"{_pack(rec['name'])} |"
         for n, rec in zip(r5, recs))
-    n_main = main["n_particles"]
-    raw_n, raw_v = main["raw"]["cov_number"], main["raw"]["cov_volume"]
-    c4, c11 = _at(main, 4.0), _at(main, 11.0)
-    o4, o11 = _at(main, 4.0, kind="own"), _at(main, 11.0, kind="own")
-    mean_x4 = _at(main, 4.0, "mean_x")
-    us4, us11 = (1e6 * _at(main, x, "seconds_per_particle") for x in (4.0, 11.0))
-    frac11 = 100 * _at(main, 11.0, "n_inside") / n_main
-    frac11o = 100 * _at(main, 11.0, "n_inside", "own") / n_main
-    # issue 23's target, judged at each of the paper's N with the common radius
+    return table, raw_lines, z_lines, ratio_lines, (r5, r2, r5o, r2o)
+
+
+def _judged(recs, quick) -> tuple[bool | None, str, dict]:
+    """Issue 23's target at each of the paper's N (common radius): met (None when quick) and the
+    summary's column."""
     judged = {}
     for rec in recs:
         for ratio, level in TARGET.items():
@@ -435,6 +454,11 @@ def _summary(recs, main, slopes, quick=False) -> CaseResult:
         + f" (own radius: {_pct(_at(rec, 4.0, kind='own'))} / {_pct(_at(rec, 11.0, kind='own'))})"
         for rec in recs) + ("; CoV of |q| per particle, halo ratio × r̄ (r̄ the mean radius: "
                             "002's halo of a pre-defined number of DE)")
+    return met, at_paper, judged
+
+
+def _class_table(main) -> str:
+    """The scatter by class of R_p / r̄ at the main N (rms deviation, members of a halo)."""
     labels = [f"R_p/r̄ {a:g}–{b:g}" if np.isfinite(b) else f"R_p/r̄ ≥ {a:g}"
               for a, b in zip(CLASSES[:-1], CLASSES[1:])]
     class_table = "\n".join(
@@ -444,6 +468,22 @@ def _summary(recs, main, slopes, quick=False) -> CaseResult:
                                                         _at(main, ratio, 'class_members', kind)))
            + " |" for kind in KINDS for ratio in (2.0, 3.0, 4.0)
            if np.isfinite(_at(main, ratio, kind=kind))])
+    return class_table
+
+
+def _summary(recs, main, slopes, quick=False) -> CaseResult:
+    ns = [r["n_particles"] for r in recs]
+    table, raw_lines, z_lines, ratio_lines, (r5, r2, r5o, r2o) = _tables(recs, slopes)
+    n_main = main["n_particles"]
+    raw_n, raw_v = main["raw"]["cov_number"], main["raw"]["cov_volume"]
+    c4, c11 = _at(main, 4.0), _at(main, 11.0)
+    o4, o11 = _at(main, 4.0, kind="own"), _at(main, 11.0, kind="own")
+    mean_x4 = _at(main, 4.0, "mean_x")
+    us4, us11 = (1e6 * _at(main, x, "seconds_per_particle") for x in (4.0, 11.0))
+    frac11 = 100 * _at(main, 11.0, "n_inside") / n_main
+    frac11o = 100 * _at(main, 11.0, "n_inside", "own") / n_main
+    met, at_paper, judged = _judged(recs, quick)
+    class_table = _class_table(main)
     z = main["z_rows"]
     z75, zall = (z[0], z[1]) if len(z) > 1 else (None, None)
     z_text = ("" if z75 is None else
