@@ -472,6 +472,9 @@ def _class_table(main) -> str:
 
 
 def _summary(recs, main, slopes, quick=False) -> CaseResult:
+    """The result: the section (its tables from :func:`_tables` and :func:`_class_table`, the
+    target from :func:`_judged`) and the summary's columns. Most of its length is the section's
+    text."""
     ns = [r["n_particles"] for r in recs]
     table, raw_lines, z_lines, ratio_lines, (r5, r2, r5o, r2o) = _tables(recs, slopes)
     n_main = main["n_particles"]

@@ -458,8 +458,9 @@ def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
                        "q_C"), csv)
 
 
-def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, every=(), quick=False):
-    rs = sorted(runs, key=lambda r: r["n"])
+def _point_tables(rs, ref_T, ref_q, ref, dT, q0, grids) -> tuple:
+    """The section's tables at A, B, C: T, |q|, the scatter over the equivalent points, the
+    homogeneous and local errors (rows of markdown)."""
     t_rows = [f"| FV reference (h → 0), {'/'.join(map(str, grids))}³ | "
               + " | ".join(f"{t:.3f} ± {dT * u:.3f}" for t, u in zip(ref_T, ref["T_unc"]))
               + " |",
@@ -504,23 +505,11 @@ def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, every=(), quick=False
                                                  r["local_err_fv"][key],
                                                  r["local_mean_err_fv"][key],
                                                  r["local_std"][key])) + " |")
-    judged = {r["n"]: r["judged"] for r in rs}
-    main_run = _near(rs, 150_000) or rs[-1]
-    five = _near(rs, 500_000)
-    met = None if quick else judged[main_run["n"]]["met"]
-    key = _key(*MAIN)
+    return t_rows, q_rows, sc_rows, h_rows
 
-    def errs(r, k=key):
-        return " / ".join(f"{100 * v:+.1f} %" for v in r["err_q_fe"][k])
 
-    at_paper = (f"N {main_run['n']:,} (bulk Z {TARGET_Z:g}): |q| (Halo 11 × r̄, the particle "
-                f"nearest the point) vs "
-                f"002's FE {errs(main_run)} at A / B / C (paper +0.4 / +2.2 / −3.8 %), "
-                f"T max {100 * max(main_run['err_T']):.2f} %")
-    if five is not None:
-        at_paper += (f"; N {five['n']:,}: {errs(five)} (paper +0.5 / +1.0 / −4.1 %), T max "
-                     f"{100 * max(five['err_T']):.2f} %")
-    at_paper += (f"; own radius at {main_run['n']:,}: {errs(main_run, 'own_11')}")
+def _speed(rs, judged, key) -> str:
+    """The speed-against-error column: the smallest N within the paper's point errors."""
     ok_runs = [r for r in rs if judged[r["n"]]["met"]]
     if ok_runs:
         r0 = ok_runs[0]
@@ -541,16 +530,11 @@ def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, every=(), quick=False
                     "ABC", r["err_q_fe"][key], judged[r["n"]]["points"]) if not ok)
             for r in rs) + " against 002's FE (the solves: "
             + ", ".join(f"{r['n']:,} {r['solve_s']['y']:.0f} s" for r in rs) + ")")
-    timing = "; ".join(
-        f"{r['n']:,}: solves {', '.join(f'{a} {v:.1f} s' for a, v in r['solve_s'].items())}, "
-        f"Halo {r['halo_s']:.1f} s" for r in rs)
-    miss = []
-    for r in rs:
-        j = judged[r["n"]]
-        bad = [lab for lab, ok in zip("ABC", j["points"]) if not ok]
-        if bad:
-            miss.append(f"{r['n']:,}: {', '.join(bad)}")
-    sc_main = main_run["scatter"][key]
+    return speed
+
+
+def _every_md(every, key) -> str:
+    """The table through every dumped pair (tdem's network before issue 23)."""
     every_rows = "\n".join(
         f"| {r['n']:,} | " + " | ".join(
             f"{v:.0f} ({100 * e:+.1f} %; FV {100 * f:+.1f} %)"
@@ -564,6 +548,43 @@ before issue 23), Halo 11 r̄, against 002's FE (and our FV):
 |---|---|---|---|---|
 {every_rows}
 """
+    return every_md
+
+
+def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, every=(), quick=False):
+    """The section (its tables from :func:`_point_tables`, :func:`_every_md`) and the summary's
+    columns (:func:`_speed`). Most of its length is the section's text."""
+    rs = sorted(runs, key=lambda r: r["n"])
+    t_rows, q_rows, sc_rows, h_rows = _point_tables(rs, ref_T, ref_q, ref, dT, q0, grids)
+    judged = {r["n"]: r["judged"] for r in rs}
+    main_run = _near(rs, 150_000) or rs[-1]
+    five = _near(rs, 500_000)
+    met = None if quick else judged[main_run["n"]]["met"]
+    key = _key(*MAIN)
+
+    def errs(r, k=key):
+        return " / ".join(f"{100 * v:+.1f} %" for v in r["err_q_fe"][k])
+
+    at_paper = (f"N {main_run['n']:,} (bulk Z {TARGET_Z:g}): |q| (Halo 11 × r̄, the particle "
+                f"nearest the point) vs "
+                f"002's FE {errs(main_run)} at A / B / C (paper +0.4 / +2.2 / −3.8 %), "
+                f"T max {100 * max(main_run['err_T']):.2f} %")
+    if five is not None:
+        at_paper += (f"; N {five['n']:,}: {errs(five)} (paper +0.5 / +1.0 / −4.1 %), T max "
+                     f"{100 * max(five['err_T']):.2f} %")
+    at_paper += (f"; own radius at {main_run['n']:,}: {errs(main_run, 'own_11')}")
+    speed = _speed(rs, judged, key)
+    timing = "; ".join(
+        f"{r['n']:,}: solves {', '.join(f'{a} {v:.1f} s' for a, v in r['solve_s'].items())}, "
+        f"Halo {r['halo_s']:.1f} s" for r in rs)
+    miss = []
+    for r in rs:
+        j = judged[r["n"]]
+        bad = [lab for lab, ok in zip("ABC", j["points"]) if not ok]
+        if bad:
+            miss.append(f"{r['n']:,}: {', '.join(bad)}")
+    sc_main = main_run["scatter"][key]
+    every_md = _every_md(every, key)
 
     def series(field, i):
         return ", ".join(f"{100 * r[field][key][i]:+.1f} %" for r in rs)
