@@ -53,8 +53,9 @@ class SeedExponents:
     def numbers(self) -> dict:
         """The case's ``seeds`` numbers (as :func:`seed_numbers` gives them)."""
         return dict(gamma_exponent=(self.gamma_exponent_mean, self.gamma_exponent_sd),
+                    seeds=self.seeds,
                     tau_exponent=(self.tau_exponent_mean, self.tau_exponent_sd),
-                    seeds=self.seeds, gamma_paper_ratio=list(self.gamma_paper_over_paper))
+                    gamma_paper_ratio=list(self.gamma_paper_over_paper))
 
 
 def campaign_fits(record: CampaignRecord, source) -> dict:
