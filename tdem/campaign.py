@@ -640,14 +640,28 @@ def write_report(out_dir: Path, campaign_path: Path, conf: dict, cases: list, se
 
 def _write_report_md(out_dir: Path, record, table, fits) -> None:
     """report.md from the campaign's record (``table``: its rows as a DataFrame, ``fits``: its
-    fits by law, or by (law, seed))."""
+    fits by law, or by (law, seed)): the heading and table (:func:`_report_head`), the flagged
+    runs (:func:`_report_flags`), the seeds' summary, the fits per law (:func:`_law_lines`)."""
     seeded = record.seeds is not None
     seeds = list(record.seeds) if seeded else [None]
     first = table[table.seed == seeds[0]] if seeded else table
-    p_col = "pressure_target_pa" if seeded else "pressure_pa"
-    from tdem_post.fits import power_law
+    lines = _report_head(record, table, seeded, seeds) + _report_flags(table, seeded)
+    if seeded:
+        lines += _seed_summary(table, fits, seeds)
+    lines += ["", "## Fits over pressure (p in bar)" + (f", seed {seeds[0]}" if seeded else ""),
+              ""]
+    for law, g in first.groupby("law"):
+        lines += _law_lines(record, law, g, seeds[0])
+    pg, pt = record.paper_gamma, record.paper_tau_s
+    lines += ["", f"Paper (003): γ = {pg['a']} p^{pg['b']} + {pg['c']} (Fig. 7); "
+                  f"τ = {pt['a']} p^{pt['b']} {pt['c']:+} s (Fig. 10).", ""]
+    write_text_atomic(out_dir / "report.md", "\n".join(lines))
+
+
+def _report_head(record, table, seeded, seeds) -> list[str]:
+    """report.md's title, what was run, what each column means and the table of the cases."""
     from tdem_post.records import markdown_table
-    from tdem_post.campaign_record import COMPARED_MEAN_FIELDS
+    p_col = "pressure_target_pa" if seeded else "pressure_pa"
     lines = [f"# Pressure campaign: {record.campaign}", "",
              f"{table['n_particles'].iloc[0]} particles, pressures "
              f"{', '.join(f'{p / 1e5:.3g}' for p in sorted(table[p_col].unique()))} bar"
@@ -671,6 +685,12 @@ def _write_report_md(out_dir: Path, record, table, fits) -> None:
              "φ Z H̄ / (2π R̄ k_p) of each contact law on the same contacts; τ the characteristic "
              "time of the middle section (003 eq. 41) from the network, τ_slab = L² / (8 α) the "
              "slab's own with the fitted α.", "", *markdown_table(record.rows)]
+    return lines
+
+
+def _report_flags(table, seeded) -> list[str]:
+    """report.md's paragraphs on the runs flagged suspect, not measurable or flagged by post."""
+    lines = []
     suspect = [(r, [f for f in r["flags"].split(",") if f in SUSPECT_FLAGS])
                for _, r in table.iterrows()]
     suspect = [(r, f) for r, f in suspect if f]
@@ -698,61 +718,62 @@ def _write_report_md(out_dir: Path, record, table, fits) -> None:
                   + "; ".join((f"seed {r['seed']} " if seeded else "")
                               + f"{r['pressure_pa'] / 1e5:.3g} bar {r['law']}: "
                               f"{r['post_flags']}" for r in post_flagged) + "."]
-    if seeded:
-        lines += _seed_summary(table, fits, seeds)
-    lines += ["", "## Fits over pressure (p in bar)" + (f", seed {seeds[0]}" if seeded else ""),
-              ""]
-    for law, g in first.groupby("law"):
-        law_fits = record.fits_of(law, seeds[0])
-        p_bar = g["pressure_pa"].to_numpy() / 1e5
-        for what, fit in (("γ", law_fits.gamma), ("τ", law_fits.tau_s)):
-            if fit is None:
-                y = g["gamma" if what == "γ" else "tau_s"].to_numpy()
-                lines.append(f"- {law}: {what}(p) not fitted (fewer than 4 distinct "
-                             f"pressures with a measured {what}: "
-                             f"{n_distinct(_measured(p_bar, y)[0])})")
-            else:
-                lines.append(f"- {law}: {what}(p) = {fit.a:.4g} (±{fit.stderr[0]:.2g}) "
-                             f"p^{fit.b:.4g} (±{fit.stderr[1]:.2g}) "
-                             f"{'−' if fit.c < 0 else '+'} {abs(fit.c):.4g} "
-                             f"(±{fit.stderr[2]:.2g}), rms {fit.rms:.3g}")
-        paper = power_law(p_bar, **record.paper_gamma)
-        paper_tau = power_law(p_bar, **record.paper_tau_s)
-        gamma = g["gamma"].to_numpy()
+    return lines
 
-        def ratios(x):
-            return ", ".join(f"{v:.3g}" for v in x)
-        lines.append(
-            f"- {law}: γ_paper / paper's γ(p) (003 Fig. 7, same convention) = "
-            f"{ratios(law_fits.gamma_paper_over_paper)} (from low to high pressure); "
-            + "".join(f"γ_mf({mf}) / γ = "
-                      f"{ratios(g[f'gamma_mean_field_{mf}'].to_numpy() / gamma)}; "
-                      for mf in COMPARED_MEAN_FIELDS)
-            + f"γ_steady / γ = {ratios(g['gamma_steady'].to_numpy() / gamma)}; "
-            f"γ_aff / γ_steady = {ratios(g['gamma_affine'].to_numpy() / g['gamma_steady'])}; "
-            f"3 ⟨n_z²⟩ = {ratios(3 * g['fabric_nz2'].to_numpy())}; "
-            f"τ / τ_slab = {ratios(g['tau_s'].to_numpy() / g['tau_slab_s'].to_numpy())}")
-        trend = law_fits.gamma_loglog_slope
-        lines.append(f"- {law}: log-log slope of γ(p) "
-                     + (_no_slope(p_bar, gamma) if trend is None else f"{trend:.3g}")
-                     + " (the paper's curve falls, slope −0.29 at low p; contact mechanics, "
-                       "ζ ∝ F_n^(1/3) ∝ p^(1/3), predicts a rising γ)")
-        # 003 App. A: tau_mid = L^2 rho_p c_p / (8 gamma_paper kappa_p); the paper's own fits
-        # give tau gamma_paper = 0.0056-0.0067 s (docs/campaign.md)
-        lines.append(f"- {law}: τ γ_paper (s) = {ratios(g['tau_s'].to_numpy() * g['gamma_paper'])}"
-                     f"; the paper's fits give {ratios(paper_tau * paper)}")
-        # App. A's own requirement, L^2 rho_p c_p / (8 kappa_p) = tau_slab gamma_paper (the slab's
-        # mid-plane time of the fitted diffusivity), against the paper's fits; and the paper's
-        # tau(p) read through App. A as a gamma_paper (> 1 would be k_eff > k_p: impossible)
-        app_a = g["tau_slab_s"].to_numpy() * g["gamma_paper"].to_numpy()
-        lines.append(f"- {law}: App. A requires τ γ_paper = L² ρ_p c_p/(8 κ_p) = {ratios(app_a)} s "
-                     f"(L of these runs); that over the paper's fits = "
-                     f"{ratios(app_a / (paper_tau * paper))}; the paper's τ(p) through "
-                     f"App. A gives γ_paper = {ratios(app_a / paper_tau)}")
-    pg, pt = record.paper_gamma, record.paper_tau_s
-    lines += ["", f"Paper (003): γ = {pg['a']} p^{pg['b']} + {pg['c']} (Fig. 7); "
-                  f"τ = {pt['a']} p^{pt['b']} {pt['c']:+} s (Fig. 10).", ""]
-    write_text_atomic(out_dir / "report.md", "\n".join(lines))
+
+def _law_lines(record, law, g, seed) -> list[str]:
+    """report.md's lines of one law's fits over pressure and its ratios to the paper and to
+    its own estimates (``g``: the law's rows of the first seed)."""
+    from tdem_post.campaign_record import COMPARED_MEAN_FIELDS
+    from tdem_post.fits import power_law
+    lines = []
+    law_fits = record.fits_of(law, seed)
+    p_bar = g["pressure_pa"].to_numpy() / 1e5
+    for what, fit in (("γ", law_fits.gamma), ("τ", law_fits.tau_s)):
+        if fit is None:
+            y = g["gamma" if what == "γ" else "tau_s"].to_numpy()
+            lines.append(f"- {law}: {what}(p) not fitted (fewer than 4 distinct "
+                         f"pressures with a measured {what}: "
+                         f"{n_distinct(_measured(p_bar, y)[0])})")
+        else:
+            lines.append(f"- {law}: {what}(p) = {fit.a:.4g} (±{fit.stderr[0]:.2g}) "
+                         f"p^{fit.b:.4g} (±{fit.stderr[1]:.2g}) "
+                         f"{'−' if fit.c < 0 else '+'} {abs(fit.c):.4g} "
+                         f"(±{fit.stderr[2]:.2g}), rms {fit.rms:.3g}")
+    paper = power_law(p_bar, **record.paper_gamma)
+    paper_tau = power_law(p_bar, **record.paper_tau_s)
+    gamma = g["gamma"].to_numpy()
+
+    def ratios(x):
+        return ", ".join(f"{v:.3g}" for v in x)
+    lines.append(
+        f"- {law}: γ_paper / paper's γ(p) (003 Fig. 7, same convention) = "
+        f"{ratios(law_fits.gamma_paper_over_paper)} (from low to high pressure); "
+        + "".join(f"γ_mf({mf}) / γ = "
+                  f"{ratios(g[f'gamma_mean_field_{mf}'].to_numpy() / gamma)}; "
+                  for mf in COMPARED_MEAN_FIELDS)
+        + f"γ_steady / γ = {ratios(g['gamma_steady'].to_numpy() / gamma)}; "
+        f"γ_aff / γ_steady = {ratios(g['gamma_affine'].to_numpy() / g['gamma_steady'])}; "
+        f"3 ⟨n_z²⟩ = {ratios(3 * g['fabric_nz2'].to_numpy())}; "
+        f"τ / τ_slab = {ratios(g['tau_s'].to_numpy() / g['tau_slab_s'].to_numpy())}")
+    trend = law_fits.gamma_loglog_slope
+    lines.append(f"- {law}: log-log slope of γ(p) "
+                 + (_no_slope(p_bar, gamma) if trend is None else f"{trend:.3g}")
+                 + " (the paper's curve falls, slope −0.29 at low p; contact mechanics, "
+                   "ζ ∝ F_n^(1/3) ∝ p^(1/3), predicts a rising γ)")
+    # 003 App. A: tau_mid = L^2 rho_p c_p / (8 gamma_paper kappa_p); the paper's own fits
+    # give tau gamma_paper = 0.0056-0.0067 s (docs/campaign.md)
+    lines.append(f"- {law}: τ γ_paper (s) = {ratios(g['tau_s'].to_numpy() * g['gamma_paper'])}"
+                 f"; the paper's fits give {ratios(paper_tau * paper)}")
+    # App. A's own requirement, L^2 rho_p c_p / (8 kappa_p) = tau_slab gamma_paper (the slab's
+    # mid-plane time of the fitted diffusivity), against the paper's fits; and the paper's
+    # tau(p) read through App. A as a gamma_paper (> 1 would be k_eff > k_p: impossible)
+    app_a = g["tau_slab_s"].to_numpy() * g["gamma_paper"].to_numpy()
+    lines.append(f"- {law}: App. A requires τ γ_paper = L² ρ_p c_p/(8 κ_p) = {ratios(app_a)} s "
+                 f"(L of these runs); that over the paper's fits = "
+                 f"{ratios(app_a / (paper_tau * paper))}; the paper's τ(p) through "
+                 f"App. A gives γ_paper = {ratios(app_a / paper_tau)}")
+    return lines
 
 
 def seed_statistics(table):
