@@ -196,8 +196,8 @@ def test_case12_agreement_is_computed_from_the_record():
 
 def test_case12_reads_a_seeded_campaigns_record(tmp_path, monkeypatch):
     """With a five-seed campaign's record (runs/out/campaign_7500_seeds/campaign.json), case 12
-    takes the seed exponents and ratios from it, not from docs/campaign.md's prose: here a
-    record of two seeds whose pipe exponents are 0.35 and 0.37."""
+    takes the seed exponents and ratios from it, not from the committed SeedExponents record:
+    here a record of two seeds whose pipe exponents are 0.35 and 0.37."""
     data = json.loads(COMMITTED.read_text())
     data["seeds"] = [1, 2]
     data["rows"] = [dict(r, seed=s) for s in (1, 2) for r in data["rows"]]
@@ -216,7 +216,7 @@ def test_case12_reads_a_seeded_campaigns_record(tmp_path, monkeypatch):
     monkeypatch.setattr(case12_campaign, "ROOT", tmp_path)
     monkeypatch.setattr(case12_campaign, "COMMITTED", tmp_path / "one.json")
     (tmp_path / "one.json").write_text(COMMITTED.read_text())
-    monkeypatch.setattr(case12_campaign, "DOC", tmp_path / "no_campaign.md")
+    monkeypatch.setattr(case12_campaign, "SEEDS_COMMITTED", tmp_path / "no_seeds.json")
     r = case12_campaign.run(framework.Context(number=12, quick=False))
     b, sd = r.numbers["seeds"]["gamma_exponent"]
     assert b == pytest.approx(0.36, abs=1e-12) and sd == pytest.approx(0.02 / 2 ** 0.5)
