@@ -320,8 +320,9 @@ def test_the_judges_use_the_stricter_measure_at_the_papers_n():
     assert case4_slab.judge({"rows": [dict(row, max_err_over_dT=0.0049)]}).target_met is True
 
     def run8(series, n, errs):
-        return dict(series=series, n=n, a_over_r=30.0,
-                    rows=[dict(contrast=c, err_maxwell=e) for c, e in zip((0.01, 5, 100), errs)])
+        return dict(series=series, name=f"box_{n}", n=n, inclusion=n // 6, a_over_r=30.0,
+                    rows=[dict(contrast=c, k=1.0, err_maxwell=e, err_rayleigh=e)
+                          for c, e in zip((0.01, 5, 100), errs)], thermal_s=1.0, solves=4)
     runs = [run8("faces", 2000, (0.001, 0.001, 0.001)), run8("faces", 100_031, (-0.006, 0, 0.002)),
             run8("faces", 999_902, (0.001, 0, 0)), run8("periodic_harmonic", 80_000, (0, 0, 0))]
     j = case8_inclusion.judge({"runs": runs})
@@ -452,3 +453,20 @@ def test_case6_carries_what_this_run_did_not_measure():
     now = _carry(row({"z75": 0.05}, "2026-12-02"), before)
     assert now.note == "shared machine" and now.variants["z75"].gap == 0.05
     assert now.variants["dump"].carried == "2026-11-30" and list(now.variants) == ["z75", "dump"]
+
+
+def test_case8_runs_are_records():
+    """Case 8's saved runs read back as InclusionRun records (a row per contrast, the faced
+    series' extra fields optional) and write back to the same data; a contrast row without its
+    error is refused in one line."""
+    from tdem_post.records import RecordError, to_dict
+    from validation import case8_inclusion
+    numbers = framework.load_result(8)["result"]["numbers"]
+    runs = case8_inclusion.read_runs(numbers["runs"])
+    assert [to_dict(r) for r in runs] == numbers["runs"]
+    assert {r.series for r in runs} == {"faces", "faces_z75", "periodic_harmonic",
+                                        "periodic_cut"}
+    bad = json.loads(json.dumps(numbers["runs"][0]))
+    del bad["rows"][2]["err_maxwell"]
+    with pytest.raises(RecordError, match=r"runs\[0\]: rows\[2\]: err_maxwell: missing"):
+        case8_inclusion.read_runs([bad])

@@ -80,8 +80,8 @@ def test_case8_quick_within_documented_error():
         assert all(a < b for a, b in zip(ks, ks[1:]))   # k_eff grows with the contrast
         assert ks[0] < 1 < ks[-1]
     # the periodic error falls from 1^3 to 2^3 cells at the worst contrast
-    per = sorted((r for r in n["runs"] if r["series"] == "periodic_harmonic"),
-                 key=lambda r: r["n"])
+    per = sorted((r for r in case8.read_runs(n["runs"]) if r.series == "periodic_harmonic"),
+                 key=lambda r: r.n)
     assert case8.max_err(per[1], "err_rayleigh") < case8.max_err(per[0], "err_rayleigh")
 
 

@@ -21,11 +21,13 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from tdem_post.analytic import hashin_shtrikman, maxwell, rayleigh_cubic_array
+from tdem_post.records import column, from_dict, to_dict
 from validation import framework
 from validation import inclusions as I
 from validation.framework import CaseInfo, CaseResult, Context
@@ -44,6 +46,42 @@ MAX_M_CUT = 2                   # the cut variant up to 2^3 (8e4): it costs as m
 # Rayleigh's simple-cubic array (their exact reference)
 ERROR_KEY = {"faces": "err_maxwell", "faces_z75": "err_maxwell",
              "periodic_harmonic": "err_rayleigh", "periodic_cut": "err_rayleigh"}
+
+
+_OPT = column(optional=True)       # measured by the faced series only
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContrastRow:
+    """k_eff / k_m at one contrast c = λ_i / λ_m and its relative errors (dimensionless)."""
+    contrast: float
+    k: float
+    err_maxwell: float
+    err_rayleigh: float
+    balance: float | None = field(default=None, metadata=_OPT)   # the steady solve's ledger
+
+
+@dataclass(frozen=True, kw_only=True)
+class InclusionRun:
+    """One series on one packing (faces, periodic_harmonic, periodic_cut): its size, the
+    inclusion's, a row per contrast, the thermal seconds over its steady solves."""
+    series: str
+    name: str
+    n: int
+    inclusion: int                      # spheres in the inclusion
+    a_over_r: float                     # the inclusion's radius over the mean sphere radius
+    f_particles: float | None = field(default=None, metadata=_OPT)
+    f_cells: float | None = field(default=None, metadata=_OPT)
+    rows: tuple[ContrastRow, ...]
+    thermal_s: float
+    solves: int
+    pack_s: float | None = field(default=None, metadata=_OPT)
+
+
+def read_runs(runs: list) -> list[InclusionRun]:
+    """Case 8's runs (saved dicts, or records already) as records (RecordError in one line)."""
+    return [r if isinstance(r, InclusionRun) else from_dict(InclusionRun, r, f"case 8: runs[{k}]")
+            for k, r in enumerate(runs)]
 
 
 # the paper's N (002 sec. 4.1: ~150,000), tiled from the shared 10,000-sphere cell like box_1e5
@@ -106,8 +144,8 @@ def periodic_series(cell_path: Path, m: int, ctx: Context, cut_too: bool = True)
     return out
 
 
-def max_err(series, key):
-    return max(abs(r[key]) for r in series["rows"])
+def max_err(series: InclusionRun, key: str) -> float:
+    return max(abs(getattr(r, key)) for r in series.rows)
 
 
 def _plots(ctx, runs):
@@ -132,19 +170,19 @@ def _plots(ctx, runs):
             label="Rayleigh, simple-cubic array (exact)")
     csv = []
     for s in ("faces", "faces_z75", "periodic_harmonic", "periodic_cut"):
-        runs_s = [r for r in runs if r["series"] == s]
+        runs_s = [r for r in runs if r.series == s]
         if not runs_s:
             continue
-        big = max(runs_s, key=lambda r: r["n"])
+        big = max(runs_s, key=lambda r: r.n)
         mk, col, lab = styles[s]
-        cs = [r["contrast"] for r in big["rows"]]
-        ax.plot(cs, [r["k"] for r in big["rows"]], mk, color=col, mfc="none",
-                label=f"tdem {big['n']:,}: {lab.split(',')[0]}, {lab.split(', ')[1]}")
-        bx.plot(cs, [100 * r[key[s]] for r in big["rows"]], mk + "-", color=col,
-                label=f"{lab} ({big['n']:,})")
-        for r in big["rows"]:
-            csv.append((s, big["n"], r["contrast"], r["k"], float(maxwell(1, r["contrast"], F)),
-                        float(rayleigh_cubic_array(1, r["contrast"], F)), r[key[s]]))
+        cs = [r.contrast for r in big.rows]
+        ax.plot(cs, [r.k for r in big.rows], mk, color=col, mfc="none",
+                label=f"tdem {big.n:,}: {lab.split(',')[0]}, {lab.split(', ')[1]}")
+        bx.plot(cs, [100 * getattr(r, key[s]) for r in big.rows], mk + "-", color=col,
+                label=f"{lab} ({big.n:,})")
+        for r in big.rows:
+            csv.append((s, big.n, r.contrast, r.k, float(maxwell(1, r.contrast, F)),
+                        float(rayleigh_cubic_array(1, r.contrast, F)), getattr(r, key[s])))
     bx.axhspan(-0.65, 0.65, color="C1", alpha=0.15, label="002's max error (0.65 %)")
     bx.axhline(0, color="k", lw=0.6)
     ax.set_xscale("log")
@@ -168,21 +206,21 @@ def _plots(ctx, runs):
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
     csv, orders = [], {}
     for s in ("faces", "faces_z75", "periodic_harmonic", "periodic_cut"):
-        runs_s = sorted((r for r in runs if r["series"] == s), key=lambda r: r["n"])
+        runs_s = sorted((r for r in runs if r.series == s), key=lambda r: r.n)
         if not runs_s:
             continue
         mk, col, lab = styles[s]
-        n = np.array([r["n"] for r in runs_s], float)
+        n = np.array([r.n for r in runs_s], float)
         e = np.array([max_err(r, key[s]) for r in runs_s])
         fit = _fitted(runs_s)
-        p, c0 = framework.fit_order([r["n"] for r in fit], [max_err(r, key[s]) for r in fit])
+        p, c0 = framework.fit_order([r.n for r in fit], [max_err(r, key[s]) for r in fit])
         orders[s] = p
         ax.loglog(n, 100 * e, mk + "-", color=col,
                   label=f"{lab}: N^{p:.2f}" if np.isfinite(p) else lab)
-        t = np.array([r["thermal_s"] / r["solves"] for r in runs_s])
+        t = np.array([r.thermal_s / r.solves for r in runs_s])
         bx.loglog(t, 100 * e, mk + "-", color=col, label=lab)
         for r, ee, tt in zip(runs_s, e, t):
-            csv.append((s, r["n"], ee, tt, *[r2[key[s]] for r2 in r["rows"]]))
+            csv.append((s, r.n, ee, tt, *[getattr(r2, key[s]) for r2 in r.rows]))
     ax.axhline(0.5, color="C1", ls="--", lw=0.8, label="goal 0.5 %")
     ax.plot([1.5e5], [0.65], "*", color="C1", ms=12, label="002: 0.65 % at ~150,000")
     ax.set_xlabel("N (spheres)")
@@ -202,8 +240,8 @@ def _plots(ctx, runs):
 
 
 def _worst(run, k):
-    x = max(run["rows"], key=lambda x: abs(x[k]))
-    return f"{100 * x[k]:+.2f} % at c = {x['contrast']:g}"
+    x = max(run.rows, key=lambda x: abs(getattr(x, k)))
+    return f"{100 * getattr(x, k):+.2f} % at c = {x.contrast:g}"
 
 
 def _limits(runs, key):
@@ -213,11 +251,11 @@ def _limits(runs, key):
                      ("faces_z75", "Faces, Haddad's bulk Z 7.5"),
                      ("periodic_harmonic", "Periodic, harmonic interface"),
                      ("periodic_cut", "Periodic, cut interface")):
-        rs = sorted((r for r in runs if r["series"] == s), key=lambda r: r["n"])
+        rs = sorted((r for r in runs if r.series == s), key=lambda r: r.n)
         if not rs:
             continue
         need = _needed_n(runs, s, key[s])
-        out.append(f"{label}: worst {_worst(rs[-1], key[s])} at N = {rs[-1]['n']:,}"
+        out.append(f"{label}: worst {_worst(rs[-1], key[s])} at N = {rs[-1].n:,}"
                    + (f"; the fitted power law reaches 0.5 % near N ≈ {need:.1e}" if need
                       else "") + ".")
     out.append(
@@ -231,9 +269,9 @@ def _limits(runs, key):
         "series) removes the bias for c > 1 but not this one. The faces series adds the held "
         "and cut faces (the layer of spheres at a cut face has fewer contacts than the bulk, "
         "case 4), whose share falls like N^-1/3 too.")
-    small = min((r for r in runs if r["series"] == "faces"), key=lambda r: r["n"], default=None)
+    small = min((r for r in runs if r.series == "faces"), key=lambda r: r.n, default=None)
     if small is not None:
-        out.append(f"At N = {small['n']:,} ({small['name']}, a = {small['a_over_r']:.1f} mean "
+        out.append(f"At N = {small.n:,} ({small.name}, a = {small.a_over_r:.1f} mean "
                    f"radii) the network is far from the continuum: {_worst(small, key['faces'])}.")
     return " ".join(out)
 
@@ -242,11 +280,11 @@ def _table(runs, key):
     head = "| series | N | inclusion spheres | a / r̄ | " + " | ".join(
         f"c = {c:g}" for c in CONTRASTS) + " | max | s / solve |"
     lines = [head, "|" + "---|" * (len(CONTRASTS) + 6)]
-    for r in sorted(runs, key=lambda r: (r["series"], r["n"])):
-        k = key[r["series"]]
-        lines.append(f"| {r['series']} | {r['n']:,} | {r['inclusion']:,} | {r['a_over_r']:.1f} | "
-                     + " | ".join(f"{100 * x[k]:+.2f} %" for x in r["rows"])
-                     + f" | {100 * max_err(r, k):.2f} % | {r['thermal_s'] / r['solves']:.1f} |")
+    for r in sorted(runs, key=lambda r: (r.series, r.n)):
+        k = key[r.series]
+        lines.append(f"| {r.series} | {r.n:,} | {r.inclusion:,} | {r.a_over_r:.1f} | "
+                     + " | ".join(f"{100 * getattr(x, k):+.2f} %" for x in r.rows)
+                     + f" | {100 * max_err(r, k):.2f} % | {r.thermal_s / r.solves:.1f} |")
     return "\n".join(lines)
 
 
@@ -255,34 +293,34 @@ def judge(numbers: dict) -> Judgement:
     """Issue 23's columns: the paper's N is ~150,000 (0.65 %, max over contrasts 0.01–100
     against Maxwell). Judged on the max |k/k_Maxwell - 1| over the contrasts of the faced box
     nearest the paper's N (the paper's own boundaries), the periodic block nearest it beside."""
-    runs = numbers.get("runs", [])
+    runs = read_runs(numbers.get("runs", []))
     if not runs:
         return Judgement("not measured", "", None)
 
     def worst(run):
-        return max(abs(r["err_maxwell"]) for r in run["rows"])
+        return max(abs(r.err_maxwell) for r in run.rows)
 
     def nearest(series):
-        cands = [r for r in runs if r["series"] == series]
-        return min(cands, key=lambda r: abs(math.log(r["n"] / 150_000))) if cands else None
+        cands = [r for r in runs if r.series == series]
+        return min(cands, key=lambda r: abs(math.log(r.n / 150_000))) if cands else None
     faces, block = nearest("faces"), nearest("periodic_harmonic")
     faces_z = nearest("faces_z75")
     at = ""
     if faces_z:     # Haddad's packing (bulk Z 7.5) at the paper's N: the judged figure
-        at = (f"faced box, bulk Z 7.5, N {faces_z['n']:,} (a/r̄ {faces_z['a_over_r']:.1f}): max "
+        at = (f"faced box, bulk Z 7.5, N {faces_z.n:,} (a/r̄ {faces_z.a_over_r:.1f}): max "
               f"{100 * worst(faces_z):.2f} % over c 0.01–100; every dumped pair: ")
     if faces:
-        at += (("" if faces_z else "faced box, ") + f"N {faces['n']:,} (a/r̄ "
-               f"{faces['a_over_r']:.1f}): max {100 * worst(faces):.2f} % over c 0.01–100")
+        at += (("" if faces_z else "faced box, ") + f"N {faces.n:,} (a/r̄ "
+               f"{faces.a_over_r:.1f}): max {100 * worst(faces):.2f} % over c 0.01–100")
     if block:
-        at += (f"; periodic block, N {block['n']:,}: {100 * worst(block):.2f} %")
-    reached = sorted((r for r in runs if worst(r) <= 0.0065), key=lambda r: r["n"])
-    speed = (f"0.65 % first at N {reached[0]['n']:,} ({reached[0]['series']})" if reached
+        at += (f"; periodic block, N {block.n:,}: {100 * worst(block):.2f} %")
+    reached = sorted((r for r in runs if worst(r) <= 0.0065), key=lambda r: r.n)
+    speed = (f"0.65 % first at N {reached[0].n:,} ({reached[0].series})" if reached
              else "0.65 % not reached")
     # the interface error is first order in r/a: |err| x a/r over the periodic blocks
-    block_runs = [r for r in runs if r["series"] == "periodic_harmonic" and r["n"] >= 50_000]
+    block_runs = [r for r in runs if r.series == "periodic_harmonic" and r.n >= 50_000]
     if block_runs:
-        slope = [100 * worst(r) * r["a_over_r"] for r in block_runs]
+        slope = [100 * worst(r) * r.a_over_r for r in block_runs]
         speed += (f"; periodic blocks: max |err| × a/r̄ = {min(slope):.0f}–{max(slope):.0f} % "
                   f"(first order in r̄/a), so 0.5 % needs a/r̄ ≈ {max(slope) / 0.5:.0f}")
     for series in ("faces", "periodic_harmonic"):
@@ -327,17 +365,17 @@ def run(ctx: Context) -> CaseResult:
 def _fitted(runs_s):
     """The runs a power law is fitted to: for the faces series the tiled boxes only (N >= 1e4;
     the 2,000-sphere box is a walled YADE box, whose wall layers add a bias of their own)."""
-    big = [r for r in runs_s if r["n"] >= 10_000]
-    return big if runs_s and runs_s[0]["series"].startswith("faces") and len(big) >= 2 \
+    big = [r for r in runs_s if r.n >= 10_000]
+    return big if runs_s and runs_s[0].series.startswith("faces") and len(big) >= 2 \
         else runs_s
 
 
 def _needed_n(runs, series, key, goal=0.005):
     """N at which the fitted power law of the max error reaches ``goal`` (None if not falling)."""
-    rs = _fitted([r for r in runs if r["series"] == series])
+    rs = _fitted([r for r in runs if r.series == series])
     if len(rs) < 2:
         return None
-    p, c = framework.fit_order([r["n"] for r in rs], [max_err(r, key) for r in rs])
+    p, c = framework.fit_order([r.n for r in rs], [max_err(r, key) for r in rs])
     if not (np.isfinite(p) and p < 0):
         return None
     return float((goal / c) ** (1.0 / p))
@@ -346,25 +384,26 @@ def _needed_n(runs, series, key, goal=0.005):
 def finish(ctx: Context, runs: list, total: float) -> CaseResult:
     """Figures, section and summary row from the measured series (also used to rebuild them
     from a saved result: ``finish(ctx, numbers["runs"], seconds)``)."""
+    runs = read_runs(runs)
     orders = _plots(ctx, runs)
     key = ERROR_KEY
 
     def best(series):
-        rs = [r for r in runs if r["series"] == series]
-        return max(rs, key=lambda r: r["n"]) if rs else None
+        rs = [r for r in runs if r.series == series]
+        return max(rs, key=lambda r: r.n) if rs else None
 
     f_big, h_big, c_big = best("faces"), best("periodic_harmonic"), best("periodic_cut")
     numbers = dict(
         contrasts=list(CONTRASTS), fraction=F, orders=orders,
-        runs=[{k: v for k, v in r.items()} for r in runs],
+        runs=[to_dict(r) for r in runs],
         faces_max_error=max_err(f_big, "err_maxwell") if f_big else None,
         periodic_harmonic_max_error=max_err(h_big, "err_rayleigh") if h_big else None,
         periodic_cut_max_error=max_err(c_big, "err_rayleigh") if c_big else None)
     img = "img/validation_case8_"
     limits = _limits(runs, key)
-    fsec = [r for r in runs if r["series"] == "faces"]
-    fd = ", ".join(f"{r['name']} {r['f_particles']:.4f} / {r['f_cells']:.4f}" for r in fsec)
-    pack = ", ".join(f"{r['name']} {r['pack_s']:.0f} s" for r in fsec if r.get("pack_s"))
+    fsec = [r for r in runs if r.series == "faces"]
+    fd = ", ".join(f"{r.name} {r.f_particles:.4f} / {r.f_cells:.4f}" for r in fsec)
+    pack = ", ".join(f"{r.name} {r.pack_s:.0f} s" for r in fsec if r.pack_s)
     section = f"""\
 **Setup.** 002 sec. 4.1: a cube of side L with one centred sphere of radius a = L/3
 (f = 4π/81 = 15.51 %), matrix λ 33 W/m/K, inclusion c λ for c = \
@@ -409,22 +448,22 @@ in memory from runs/out/dense_box_1e5/cell.h5 in seconds.
 """
     errs = [numbers["faces_max_error"], numbers["periodic_harmonic_max_error"],
             numbers["periodic_cut_max_error"]]
-    our_err = (f"faces {100 * errs[0]:.2f} % (N {f_big['n']:,})"
-               + (f"; periodic {100 * errs[1]:.2f} % harmonic (N {h_big['n']:,}) / "
-                  f"{100 * errs[2]:.2f} % cut (N {c_big['n']:,})" if h_big and c_big else ""))
+    our_err = (f"faces {100 * errs[0]:.2f} % (N {f_big.n:,})"
+               + (f"; periodic {100 * errs[1]:.2f} % harmonic (N {h_big.n:,}) / "
+                  f"{100 * errs[2]:.2f} % cut (N {c_big.n:,})" if h_big and c_big else ""))
     met = min(e for e in errs if e is not None) <= 0.005
     return CaseResult(
-        our_n=" / ".join(f"{r['n']:,}" for r in sorted(fsec, key=lambda r: r["n"]))
-        + (f"; periodic {min(r['n'] for r in runs if r['series'] != 'faces'):,}–"
-           f"{h_big['n']:,}" if h_big else ""),
+        our_n=" / ".join(f"{r.n:,}" for r in sorted(fsec, key=lambda r: r.n))
+        + (f"; periodic {min(r.n for r in runs if r.series != 'faces'):,}–"
+           f"{h_big.n:,}" if h_big else ""),
         our_error=our_err,
         wall_time=f"packing {pack or 'shared'} + thermal {total:.0f} s",
         verdict=("goal 0.5 % met" if met else "goal 0.5 % not met")
         + (f": worst at c = {min(CONTRASTS):g}; without it the max is "
-           f"{100 * max(abs(x[key['faces']]) for x in f_big['rows'][1:]):.2f} % (faces, "
-           f"N {f_big['n']:,})"
-           + (f", {100 * max(abs(x['err_rayleigh']) for x in h_big['rows'][1:]):.2f} % "
-              f"(periodic, N {h_big['n']:,})" if h_big else "") if f_big else "")
+           f"{100 * max(abs(getattr(x, key['faces'])) for x in f_big.rows[1:]):.2f} % (faces, "
+           f"N {f_big.n:,})"
+           + (f", {100 * max(abs(x.err_rayleigh) for x in h_big.rows[1:]):.2f} % "
+              f"(periodic, N {h_big.n:,})" if h_big else "") if f_big else "")
         + "; 0.5 % is reached near N ≈ "
         + (f"{_needed_n(runs, 'faces', 'err_maxwell'):.0e} (faces)" if _needed_n(
             runs, 'faces', 'err_maxwell') else "?"),
