@@ -431,6 +431,15 @@ def _speed_vs_error(rs) -> str:
 
 
 def _plots(ctx, runs, reals):
+    """The three figures (with their CSVs); the fitted order of the max error over N."""
+    _figure_fraction(ctx, runs, reals)
+    p = _figure_convergence(ctx, runs, reals)
+    _figure_fft(ctx, reals)
+    return p
+
+
+def _figure_fraction(ctx, runs, reals) -> None:
+    """k_eff / k_m against f beside the bounds and the FFT reference, and the error."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -478,6 +487,14 @@ def _plots(ctx, runs, reals):
                        "fft_periodic", "maxwell", "bruggeman", "hs_lower", "hs_upper",
                        "rel_error_vs_fft"), csv)
 
+
+def _figure_convergence(ctx, runs, reals) -> float:
+    """The max error against N and against the time per solve; its fitted order."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from thermal_kernel.atomic import savefig_atomic
+    fs = sorted(reals)
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
     rs = sorted(runs, key=lambda r: r["n"])
     n = np.array([r["n"] for r in rs], float)
@@ -505,8 +522,16 @@ def _plots(ctx, runs, reals):
                        *[f"err_f{reals[f]['f']:.3f}" for f in fs]),
                 [(r["n"], ee, tt, *[x["err_ref"] for x in r["rows"]])
                  for r, ee, tt in zip(rs, e, t)])
+    return p
 
-    # the reference's own convergence in the voxel size
+
+def _figure_fft(ctx, reals) -> None:
+    """The FFT reference's own convergence in the voxel size."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from thermal_kernel.atomic import savefig_atomic
+    fs = sorted(reals)
     fig, ax = plt.subplots(figsize=(6.2, 4.3))
     csv = []
     for j, f in enumerate(fs):
@@ -534,7 +559,6 @@ def _plots(ctx, runs, reals):
     plt.close(fig)
     I.write_csv(path, ("f", "boundary", "n", "k_over_km", "cg_iterations", "seconds",
                        "reference", "reference_uncertainty"), csv)
-    return p
 
 
 def _section(runs, reals, grids, order):
