@@ -149,18 +149,27 @@ def max_err(series: InclusionRun, key: str) -> float:
 
 
 def _plots(ctx, runs):
+    """The two figures (with their CSVs); the fitted order of each series."""
+    _figure_contrast(ctx, runs)
+    return _figure_convergence(ctx, runs)
+
+
+# series: marker, colour, label in the figures
+STYLES = {"faces": ("o", "C3", "faces held (paper's setup), vs Maxwell"),
+          "faces_z75": ("D", "C1", "faces held, Haddad's bulk Z 7.5, vs Maxwell"),
+          "periodic_harmonic": ("s", "C0", "periodic, harmonic interface (002 eq. 24), "
+                                           "vs Rayleigh"),
+          "periodic_cut": ("^", "C2", "periodic, cut interface (tdem), vs Rayleigh")}
+
+
+def _figure_contrast(ctx, runs) -> None:
+    """k/k_m against the contrast at the largest N of each series, over Maxwell (002 Fig. 14),
+    and the error."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from thermal_kernel.atomic import savefig_atomic
-    styles = {"faces": ("o", "C3", "faces held (paper's setup), vs Maxwell"),
-              "faces_z75": ("D", "C1", "faces held, Haddad's bulk Z 7.5, vs Maxwell"),
-              "periodic_harmonic": ("s", "C0", "periodic, harmonic interface (002 eq. 24), "
-                                               "vs Rayleigh"),
-              "periodic_cut": ("^", "C2", "periodic, cut interface (tdem), vs Rayleigh")}
     key = ERROR_KEY
-
-    # 1. k/k_m against the contrast at the largest N of each series, over Maxwell (002 Fig. 14)
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
     c_line = np.logspace(-2, 2, 200)
     low, high = hashin_shtrikman(1.0, c_line, F)
@@ -174,7 +183,7 @@ def _plots(ctx, runs):
         if not runs_s:
             continue
         big = max(runs_s, key=lambda r: r.n)
-        mk, col, lab = styles[s]
+        mk, col, lab = STYLES[s]
         cs = [r.contrast for r in big.rows]
         ax.plot(cs, [r.k for r in big.rows], mk, color=col, mfc="none",
                 label=f"tdem {big.n:,}: {lab.split(',')[0]}, {lab.split(', ')[1]}")
@@ -202,14 +211,22 @@ def _plots(ctx, runs):
     I.write_csv(path, ("series", "n", "contrast", "k_over_km", "maxwell", "rayleigh",
                        "rel_error"), csv)
 
-    # 2. convergence: max |error| over the contrasts against N, log-log, fitted order
+
+def _figure_convergence(ctx, runs) -> dict:
+    """The max |error| over the contrasts against N (log-log, fitted order) and against the
+    time per solve; the fitted orders."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from thermal_kernel.atomic import savefig_atomic
+    key = ERROR_KEY
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
     csv, orders = [], {}
     for s in ("faces", "faces_z75", "periodic_harmonic", "periodic_cut"):
         runs_s = sorted((r for r in runs if r.series == s), key=lambda r: r.n)
         if not runs_s:
             continue
-        mk, col, lab = styles[s]
+        mk, col, lab = STYLES[s]
         n = np.array([r.n for r in runs_s], float)
         e = np.array([max_err(r, key[s]) for r in runs_s])
         fit = _fitted(runs_s)
@@ -383,7 +400,8 @@ def _needed_n(runs, series, key, goal=0.005):
 
 def finish(ctx: Context, runs: list, total: float) -> CaseResult:
     """Figures, section and summary row from the measured series (also used to rebuild them
-    from a saved result: ``finish(ctx, numbers["runs"], seconds)``)."""
+    from a saved result: ``finish(ctx, numbers["runs"], seconds)``). Most of its length is the
+    section's text (its table from :func:`_table`, its limits from :func:`_limits`)."""
     runs = read_runs(runs)
     orders = _plots(ctx, runs)
     key = ERROR_KEY
