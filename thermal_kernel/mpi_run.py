@@ -65,6 +65,8 @@ def main(argv=None) -> int:
 
 
 def _run(args, rank):
+    from petsc4py import PETSc
+
     from .checkpoint import packing_sha256
     from .network import assemble
     from .output import scene_text_difference, scene_to_json, write_thermal
@@ -76,28 +78,40 @@ def _run(args, rank):
     from .solvers import petsc_backend as backend
 
     t_start = time.perf_counter()
-    scene = load_scene(args.scene, out_dir=Path(args.out) if args.out else None)
-    packing_path = Path(args.packing) if args.packing else scene.packing
-    if packing_path is None:
-        raise SceneError(f"{scene.path}: pack: a [pack] scene needs its packing built first "
-                         "(tdem pack SCENE, or tdem run, which builds it)")
-    scene_json = scene_to_json(scene)
-    packing = read_packing(packing_path)
-    packing_hash = packing_sha256(packing) if rank == 0 else ""
-    problem, info = build_problem(scene, packing)
-    t0 = time.perf_counter()
-    net = assemble(problem)
-    dist = backend.DistributedNetwork(net, packing.position)
-    assemble_seconds = time.perf_counter() - t0
+    comm = PETSc.COMM_WORLD.tompi4py()
+    scene = load_scene(args.scene, out_dir=Path(args.out) if args.out else None)  # every rank
     solver = scene.solver
-    T0 = np.full(packing.n_particles, scene.initial_temperature)
-    if solver.method == "explicit":
-        _check_step_count(scene, solver.safety * net.dt_max_s if np.isnan(solver.dt)
-                          else solver.dt, "solver.end_time" if np.isnan(solver.dt)
-                          else "solver.dt")
+    built = {}
+
+    def build():
+        """Rank 0 only: the packing, the problem (laws, boundary kinds) and the network."""
+        packing_path = Path(args.packing) if args.packing else scene.packing
+        if packing_path is None:
+            raise SceneError(f"{scene.path}: pack: a [pack] scene needs its packing built "
+                             "first (tdem pack SCENE, or tdem run, which builds it)")
+        scene_json = scene_to_json(scene)
+        packing = read_packing(packing_path)
+        problem, info = build_problem(scene, packing)
+        t0 = time.perf_counter()
+        net = assemble(problem)
+        if solver.method == "explicit":
+            _check_step_count(scene, solver.safety * net.dt_max_s if np.isnan(solver.dt)
+                              else solver.dt, "solver.end_time" if np.isnan(solver.dt)
+                              else "solver.dt")
+        built.update(packing=packing, info=info, net=net, scene_json=scene_json,
+                     packing_hash=packing_sha256(packing), assemble_t0=t0,
+                     T0=np.full(packing.n_particles, scene.initial_temperature))
+        return True
+
+    backend.on_root(comm, build)
+    net = built.get("net")
+    dist = backend.DistributedNetwork(net, built["packing"].position if rank == 0 else None)
+    if rank == 0:
+        assemble_seconds = time.perf_counter() - built["assemble_t0"]
+    T0 = built.get("T0")
     if rank == 0 and not args.quiet:
         print(f"tdem run: {scene.path}: law {scene.law}, method {solver.method}, "
-              f"{packing.n_particles} particles, {net.n_active_contacts} conducting contacts "
+              f"{net.n} particles, {net.n_active_contacts} conducting contacts "
               f"({net.n_zero_contacts} with H = 0); PETSc on {dist.size} rank(s), "
               f"{dist.cut} contacts cut by the Morton blocks", flush=True)
         print(f"  network: {net.clusters.summary()}", flush=True)
@@ -118,6 +132,8 @@ def _run(args, rank):
             progress=progress)
     if rank != 0:
         return
+    packing, info, scene_json = built["packing"], built["info"], built["scene_json"]
+    packing_hash = built["packing_hash"]
     if result.method != "steady":
         _check_finite(scene, result)
     check = check_physics(net, T0, result)

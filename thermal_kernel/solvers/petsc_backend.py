@@ -7,29 +7,32 @@ through :mod:`thermal_kernel.mpi_run`. Like the in-process solvers it sees an as
 same :class:`~thermal_kernel.solvers.ThermalResult`, so the output file, its flags and the checks
 are the in-process ones.
 
-Distribution. The particles are ordered along a Morton curve of their centres
-(:mod:`.partition`) and cut into one contiguous block per rank. Each rank takes its own rows of
-A = L + diag(g) (L the graph Laplacian, g the exchange conductance) from the network, renumbered
-in that order, into a PETSc MPIAIJ matrix; vectors are distributed the same way. Held particles
-keep their rows in the vectors and are masked: their increment is 0.
+Distribution. Rank 0 holds the assembled network (the one :func:`~thermal_kernel.network
+.assemble`: clusters, the explicit bound and the flags are the in-process ones). It orders the
+particles along a Morton curve of their centres (:mod:`.partition`), cuts the order into one
+contiguous block per rank and sends each rank only its rows of A = L + diag(g) (L the graph
+Laplacian, g the exchange conductance), renumbered in that order, with the per-particle and
+boundary rows of its block: no other rank holds the whole network. Each rank puts its rows into
+a PETSc MPIAIJ matrix; vectors are distributed the same way. Held particles keep their rows in
+the vectors and are masked: their increment is 0.
 
 * explicit: T' = T + dt/C (b + S - A T) on free rows, one distributed mat-vec a step; dt and its
   bound are the in-process ones (``check_dt``, the exact positivity bound of the network).
-* implicit (theta, Rannacher, TR-BDF2): M = C/h + theta A on the free rows and columns, identity
-  on the held ones (symmetric positive definite, the held columns eliminated as in-process);
-  increments solved by CG preconditioned by GAMG (default) or hypre BoomerAMG, the relative
-  residual measured unpreconditioned so ``tol`` means the true residual.
+* implicit (theta, Rannacher, TR-BDF2): M = C/h + theta A with the held rows and columns
+  replaced by the identity (``MatZeroRowsColumns``: symmetric positive definite, the held
+  columns eliminated as in-process); increments solved by CG preconditioned by GAMG (default)
+  or hypre BoomerAMG, the residual measured unpreconditioned so ``tol`` is the true residual.
 * steady: the same CG on the tied free particles (identity elsewhere); floating clusters and
   rattlers as in :mod:`.steady` (rank 0, from the gathered temperatures).
 
 The energy ledger: each rank sums the heat through the held particles and exchange rows it owns,
 every step (the fluxes the step used, as in-process); the sums meet at the output times only.
 Rank 0 gathers the temperatures at the output times and records them with the in-process
-:class:`~thermal_kernel.solvers.Recorder`.
+:class:`~thermal_kernel.solvers.Recorder`; a source is evaluated on rank 0 (it is a function of
+the whole packing) and its powers scattered, each step.
 
-What is still whole on every rank (docs/scaling.md): the packing and the assembled network (read
-and built by each rank, then only its rows go to PETSc). Its memory is therefore ~the in-process
-run's per rank; the solver's own (matrix, AMG hierarchy, Krylov vectors) is divided.
+Still whole on rank 0 (docs/scaling.md): the packing, the problem and the assembled network, and
+the output's temperatures. The other ranks hold their rows only.
 """
 from __future__ import annotations
 
@@ -53,6 +56,7 @@ HYPRE_OPTIONS = {"pc_hypre_type": "boomeramg", "pc_hypre_boomeramg_coarsen_type"
                  "pc_hypre_boomeramg_interp_type": "ext+i",
                  "pc_hypre_boomeramg_strong_threshold": "0.5",
                  "pc_hypre_boomeramg_P_max": "4", "pc_hypre_boomeramg_agg_nl": "1"}
+_SHARE_TAG = 25
 
 
 def _petsc():
@@ -60,69 +64,107 @@ def _petsc():
     return PETSc
 
 
+def _share(net, order, new_index, lo, hi) -> dict:
+    """Rank's rows ``order[lo:hi]``: its rows of A = L + diag(g) (CSR, columns in the new order,
+    a stored diagonal on every row) and the per-particle and boundary rows it owns."""
+    n = net.n
+    mine = order[lo:hi]
+    n_local = hi - lo
+    lap_rows = net.laplacian[mine].tocoo()
+    rows = np.concatenate([lap_rows.row, np.arange(n_local)])
+    cols = np.concatenate([new_index[lap_rows.col], np.arange(lo, hi)])
+    vals = np.concatenate([lap_rows.data, net.exchange_g_w_k[mine]])
+    del lap_rows
+    block = sp.csr_matrix((vals, (rows, cols)), shape=(n_local, n))
+    del rows, cols, vals
+    block.sum_duplicates()
+    block.sort_indices()
+    local_of = np.full(n, -1, dtype=np.int64)
+    local_of[mine] = np.arange(n_local)
+    fl = local_of[net.fixed_particle]
+    fk = fl >= 0
+    el = local_of[net.exchange_particle]
+    ek = el >= 0
+    return dict(
+        lo=lo, indptr=block.indptr, indices=block.indices, data=block.data,
+        capacity=np.ascontiguousarray(net.capacity_j_k[mine]),
+        held=np.ascontiguousarray(net.held[mine]),
+        held_t=np.ascontiguousarray(net.held_temperature_k[mine]),
+        g=np.ascontiguousarray(net.exchange_g_w_k[mine]),
+        b=np.ascontiguousarray(net.constant_rhs_w[mine]),
+        tied=np.ascontiguousarray(net.clusters.tied_particle[mine]),
+        fixed_local=fl[fk], fixed_boundary=net.fixed_boundary[fk],
+        ex_local=el[ek], ex_g=net.exchange_row_g_w_k[ek],
+        ex_t=net.exchange_row_temperature_k[ek], ex_b=net.exchange_boundary[ek],
+        ex_held_b=net.held_boundary[net.exchange_particle[ek]])
+
+
 class DistributedNetwork:
     """One rank's share of an assembled network: its rows of A = L + diag(g) as a PETSc MPIAIJ
-    matrix, in the Morton order, and the per-particle arrays of its rows. Collective."""
+    matrix, in the Morton order, and the per-particle arrays of its rows. Collective: rank 0
+    passes the assembled ``net`` (and the centres, for the order), the others None."""
 
-    def __init__(self, net, position_m=None, order: str = "morton", comm=None):
+    def __init__(self, net, position_m=None, comm=None):
         PETSc = _petsc()
         self.PETSc = PETSc
-        self.net = net
         self.comm = comm or PETSc.COMM_WORLD
         self.mpi = self.comm.tompi4py()
         self.rank, self.size = self.comm.getRank(), self.comm.getSize()
-        n = net.n
+        self.net = net if self.rank == 0 else None
         t0 = time.perf_counter()
-        self.order = particle_order(position_m if position_m is not None and order == "morton"
-                                    else np.zeros((n, 3)), order if position_m is not None
-                                    else "index")
-        self.starts = block_starts(n, self.size)
-        rs, re = int(self.starts[self.rank]), int(self.starts[self.rank + 1])
-        self.mine = self.order[rs:re]                   # this rank's particles (packing index)
-        self.new_index = np.empty(n, dtype=np.int64)    # packing index -> position in the order
-        self.new_index[self.order] = np.arange(n, dtype=np.int64)
-        self.owner = owner_of_particle(self.order, self.starts)
-        self.n_local = re - rs
-        lap_rows = net.laplacian[self.mine].tocoo()
-        rows = np.concatenate([lap_rows.row, np.arange(self.n_local)])
-        cols = np.concatenate([self.new_index[lap_rows.col], np.arange(rs, re)])
-        vals = np.concatenate([lap_rows.data, net.exchange_g_w_k[self.mine]])
-        self.block = sp.csr_matrix((vals, (rows, cols)), shape=(self.n_local, n))
-        self.block.sum_duplicates()
-        self.block.sort_indices()
-        self.held_new = net.held[self.order]            # held flag by column (new order)
-        self.A = self._mat(self.block)
-        # this rank's rows
-        self.capacity = np.ascontiguousarray(net.capacity_j_k[self.mine])
-        self.held = np.ascontiguousarray(net.held[self.mine])
+        meta = None
+        if self.rank == 0:
+            n = net.n
+            self.order = particle_order(position_m, "morton") if position_m is not None \
+                else np.arange(n, dtype=np.int64)
+            starts = block_starts(n, self.size)
+            owner = owner_of_particle(self.order, starts)
+            meta = dict(n=n, starts=starts, nb=net.problem.n_boundaries,
+                        has_source=net.problem.source is not None,
+                        cut=cut_contacts(net.problem.pair, net.problem.conductance_w_k, owner),
+                        active_contacts=int(net.n_active_contacts))
+            del owner
+        meta = self.mpi.bcast(meta, root=0)
+        self.n, self.starts, self.nb = meta["n"], meta["starts"], meta["nb"]
+        self.has_source, self.cut = meta["has_source"], meta["cut"]
+        self.n_active_contacts = meta["active_contacts"]
+        if self.rank == 0:
+            new_index = np.empty(self.n, dtype=np.int64)  # packing index -> place in the order
+            new_index[self.order] = np.arange(self.n, dtype=np.int64)
+            for r in range(1, self.size):             # one share at a time: rank 0's peak is
+                share = _share(net, self.order, new_index,  # its own network + one share
+                               int(self.starts[r]), int(self.starts[r + 1]))
+                for key in sorted(share):             # one array a message (< 2 GiB each)
+                    self.mpi.send(share[key], dest=r, tag=_SHARE_TAG)
+                del share
+            own = _share(net, self.order, new_index, 0, int(self.starts[1]))
+            del new_index
+        else:
+            keys = sorted(_share_keys())
+            own = {key: self.mpi.recv(source=0, tag=_SHARE_TAG) for key in keys}
+        self.lo = int(own["lo"])
+        self.n_local = int(self.starts[self.rank + 1] - self.starts[self.rank])
+        self.block = sp.csr_matrix((own["data"], own["indices"], own["indptr"]),
+                                   shape=(self.n_local, self.n))
+        rows = np.repeat(np.arange(self.n_local), np.diff(self.block.indptr))
+        self._diag_pos = np.flatnonzero(self.block.indices == rows + self.lo)
+        del rows
+        self.capacity, self.held, self.held_t = own["capacity"], own["held"], own["held_t"]
         self.free = ~self.held
-        self.g = np.ascontiguousarray(net.exchange_g_w_k[self.mine])
-        self.b = np.ascontiguousarray(net.constant_rhs_w[self.mine])
-        # the boundary rows this rank owns (ledger partial sums)
-        local_of = np.full(n, -1, dtype=np.int64)
-        local_of[self.mine] = np.arange(self.n_local)
-        fl = local_of[net.fixed_particle]
-        keep = fl >= 0
-        self.fixed_local, self.fixed_boundary = fl[keep], net.fixed_boundary[keep]
-        el = local_of[net.exchange_particle]
-        keep = el >= 0
-        self.ex_local = el[keep]
-        self.ex_g = net.exchange_row_g_w_k[keep]
-        self.ex_t = net.exchange_row_temperature_k[keep]
-        self.ex_b = net.exchange_boundary[keep]
-        self.ex_held_b = net.held_boundary[net.exchange_particle[keep]]
-        self.nb = net.problem.n_boundaries
+        self.g, self.b, self.tied = own["g"], own["b"], own["tied"]
+        self.fixed_local, self.fixed_boundary = own["fixed_local"], own["fixed_boundary"]
+        self.ex_local, self.ex_g, self.ex_t = own["ex_local"], own["ex_g"], own["ex_t"]
+        self.ex_b, self.ex_held_b = own["ex_b"], own["ex_held_b"]
+        self.A = self._mat(self.block)
         self.x = self.A.createVecRight()
         self.y = self.A.createVecLeft()
         self.setup_seconds = time.perf_counter() - t0
-        self.cut = cut_contacts(net.problem.pair, net.problem.conductance_w_k, self.owner)
 
     # ------------------------------------------------------------------ building blocks
     def _mat(self, block: sp.csr_matrix):
         PETSc = self.PETSc
-        n = self.net.n
         m = PETSc.Mat().createAIJ(
-            size=((self.n_local, n), (self.n_local, n)), comm=self.comm,
+            size=((self.n_local, self.n), (self.n_local, self.n)), comm=self.comm,
             csr=(block.indptr.astype(PETSc.IntType), block.indices.astype(PETSc.IntType),
                  block.data))
         m.setOption(PETSc.Mat.Option.SYMMETRIC, True)
@@ -130,23 +172,17 @@ class DistributedNetwork:
         m.assemble()
         return m
 
-    def masked_matrix(self, diag_free: np.ndarray, scale: float, unknown: np.ndarray):
-        """PETSc matrix diag(diag_free) + scale A on the rows and columns of ``unknown`` (local
-        rows; the columns' flag ``self.unknown_new`` set by :meth:`set_unknowns`), identity on
-        the others: SPD, the other columns eliminated."""
-        blk = self.block.tocoo()
-        keep = unknown[blk.row] & self._unknown_col[blk.col]
-        rs = int(self.starts[self.rank])
-        rows = np.concatenate([blk.row[keep], np.arange(self.n_local)])
-        cols = np.concatenate([blk.col[keep], np.arange(rs, rs + self.n_local)])
-        vals = np.concatenate([scale * blk.data[keep], np.where(unknown, diag_free, 1.0)])
-        m = sp.csr_matrix((vals, (rows, cols)), shape=(self.n_local, self.net.n))
-        m.sum_duplicates()
-        m.sort_indices()
-        return self._mat(m)
-
-    def set_unknowns(self, unknown_all_packing_order: np.ndarray):
-        self._unknown_col = np.asarray(unknown_all_packing_order, dtype=bool)[self.order]
+    def matrix(self, diag_add: np.ndarray, scale: float, unknown: np.ndarray):
+        """diag(diag_add) + scale A with the rows and columns outside ``unknown`` (this rank's
+        rows) replaced by the identity: SPD, those columns eliminated (MatZeroRowsColumns
+        finds them on the other ranks too)."""
+        data = scale * self.block.data
+        data[self._diag_pos] += diag_add
+        m = self._mat(sp.csr_matrix((data, self.block.indices, self.block.indptr),
+                                    shape=self.block.shape))
+        m.zeroRowsColumns(np.flatnonzero(~unknown).astype(self.PETSc.IntType) + self.lo,
+                          diag=1.0)
+        return m
 
     def matvec(self, t_local: np.ndarray) -> np.ndarray:
         """(A T) on this rank's rows, T given on them (the neighbours' values come over MPI)."""
@@ -179,13 +215,26 @@ class DistributedNetwork:
         """The whole (N,) array in the packing's order on rank 0 (None elsewhere)."""
         counts = np.diff(self.starts)
         if self.rank == 0:
-            buf = np.empty(self.net.n)
-            self.mpi.Gatherv(np.ascontiguousarray(t_local), (buf, counts), root=0)
-            out = np.empty(self.net.n)
+            buf = np.empty(self.n)
+            self.mpi.Gatherv(np.ascontiguousarray(t_local, dtype=np.float64), (buf, counts),
+                             root=0)
+            out = np.empty(self.n)
             out[self.order] = buf
             return out
-        self.mpi.Gatherv(np.ascontiguousarray(t_local), None, root=0)
+        self.mpi.Gatherv(np.ascontiguousarray(t_local, dtype=np.float64), None, root=0)
         return None
+
+    def scatter(self, whole) -> np.ndarray:
+        """This rank's rows of an (N,) array given on rank 0 in the packing's order."""
+        counts = np.diff(self.starts)
+        out = np.empty(self.n_local)
+        send = (np.ascontiguousarray(np.asarray(whole, dtype=np.float64)[self.order]), counts) \
+            if self.rank == 0 else None
+        self.mpi.Scatterv(send, out, root=0)
+        return out
+
+    def on_root(self, fn):
+        return on_root(self.mpi, fn)
 
     def preconditioner(self, pc: str) -> str:
         """``pc``, or the user's ``-pc_type`` of PETSC_OPTIONS (which then gets the hypre
@@ -232,58 +281,106 @@ class DistributedNetwork:
                     cut_contacts=int(self.cut), partition_seconds=self.setup_seconds)
 
 
-def _source_local(dist, prob, t0, t1):
-    if prob.source is None:
+def on_root(mpi_comm, fn):
+    """``fn()`` on rank 0 of the mpi4py communicator, its (small) result on every rank; an
+    exception it raises is raised on every rank (so none waits for the others in a
+    collective)."""
+    value, error = None, None
+    if mpi_comm.Get_rank() == 0:
+        try:
+            value = fn()
+        except Exception as e:              # noqa: BLE001 (re-raised below, on every rank)
+            error = e
+    value, error = mpi_comm.bcast((value, error), root=0)
+    if error is not None:
+        raise error
+    return value
+
+
+def _share_keys():
+    return ("lo", "indptr", "indices", "data", "capacity", "held", "held_t", "g", "b", "tied",
+            "fixed_local", "fixed_boundary", "ex_local", "ex_g", "ex_t", "ex_b", "ex_held_b")
+
+
+def _source_step(dist, t0, t1, h, src):
+    """The source's mean power over [t0, t1]: (this rank's rows, the whole array on rank 0)
+    ((None, None) without a source). Rank 0 evaluates it (a function of the whole packing),
+    adds its heat to ``src`` (a one-element list) and scatters it."""
+    if not dist.has_source:
         return None, None
-    sw = np.asarray(prob.source(t0, t1), dtype=np.float64)
-    return sw, sw[dist.mine]
+    sw = None
+    if dist.rank == 0:
+        sw = np.asarray(dist.net.problem.source(t0, t1), dtype=np.float64)
+        src[0] += h * float(sw.sum())
+    return dist.scatter(sw), sw
 
 
-def _source_ledger(dist, prob, energy, sw, h):
-    """The source's heat in the ledger (rank 0 only, the whole source array): under its
-    column, less what lands on held particles (as the in-process solvers)."""
-    if sw is None or dist.rank != 0:
+def _source_ledger(net, energy, sw, h):
+    """The source's heat in the ledger (rank 0), as the in-process solvers put it: under its
+    column, less what lands on held particles."""
+    if sw is None:
         return
+    prob = net.problem
     if prob.source_boundary >= 0:
         energy[prob.source_boundary] += h * float(sw.sum())
-    if dist.net.fixed_particle.size:
-        energy -= h * np.bincount(dist.net.fixed_boundary, weights=sw[dist.net.fixed_particle],
+    if net.fixed_particle.size:
+        energy -= h * np.bincount(net.fixed_boundary, weights=sw[net.fixed_particle],
                                   minlength=energy.size)
 
 
-def _record(dist, rec, k, t_local, energy_partial, src_energy, prob, tk):
+def _record(dist, rec, k, t_local, energy_partial, src_energy, tk):
     energy = dist.total(energy_partial)
     T = dist.gather(t_local)
     if dist.rank == 0:
-        rec.record(k, T, energy, src_energy, instantaneous_source(prob, tk))
+        rec.record(k, T, energy, src_energy, instantaneous_source(dist.net.problem, tk))
+
+
+def _plan(times, t, dt):
+    plan, t_prev = [], t
+    for tk in times:
+        plan.append(interval_steps(t_prev, float(tk), dt))
+        t_prev = float(tk)
+    return plan
+
+
+def _land():
+    from mpi4py import MPI
+    return MPI.LAND
 
 
 # ----------------------------------------------------------------------------- explicit
 def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, safety=0.9,
                  allow_unstable=False, progress=None) -> ThermalResult | None:
     """Forward Euler on the ranks; the in-process :func:`~.explicit.run_explicit`'s arguments
-    and result (on rank 0; None on the others). Collective."""
+    and result (on rank 0; None on the others). ``T0`` matters on rank 0 only. Collective."""
+    start = {}
+
+    def prelude():
+        net = dist.net
+        T, t, step0, energy0, src, ref, state_dt = start_state(net, T0, t_start, "explicit")
+        times_c = check_times(times, t)
+        dt_ = dt
+        if dt_ is None:
+            dt_ = state_dt if state_dt is not None else safety * net.dt_max_s
+            if not (0 < safety <= 1 or (safety > 1 and allow_unstable)):
+                raise ValueError(f"safety = {safety}: must be in (0, 1] (above 1 only with "
+                                 "allow_unstable)")
+        dt_ = float(dt_)
+        flags = list(net.flags) + list(check_dt(net, dt_, allow_unstable))
+        start.update(T=T, ref=ref, energy0=energy0)
+        return dict(t=t, step0=step0, src=src, dt=dt_, flags=flags, times=times_c)
+
+    p = dist.on_root(prelude)
+    times, dt, t = p["times"], p["dt"], p["t"]
     net = dist.net
-    prob = net.problem
-    T, t, step0, energy0, src_energy, ref, state_dt = start_state(net, T0, t_start, "explicit")
-    times = check_times(times, t)
-    if dt is None:
-        dt = state_dt if state_dt is not None else safety * net.dt_max_s
-        if not (0 < safety <= 1 or (safety > 1 and allow_unstable)):
-            raise ValueError(f"safety = {safety}: must be in (0, 1] (above 1 only with "
-                             "allow_unstable)")
-    dt = float(dt)
-    flags = list(net.flags) + list(check_dt(net, dt, allow_unstable))
-    const_b = np.asarray(net.constant_boundary_flow_w, dtype=np.float64)
-    # the held-jump energy of start_state and the constant power are counted once, on rank 0
-    energy = energy0.copy() if dist.rank == 0 else np.zeros_like(energy0)
-    rec = Recorder(net, times, ref) if dist.rank == 0 else None
-    plan, t_prev = [], t
-    for tk in times:
-        plan.append(interval_steps(t_prev, float(tk), dt))
-        t_prev = float(tk)
+    energy = start["energy0"].copy() if dist.rank == 0 else np.zeros(dist.nb)
+    const_b = np.asarray(net.constant_boundary_flow_w, dtype=np.float64) if dist.rank == 0 \
+        else np.zeros(dist.nb)
+    rec = Recorder(net, times, start["ref"]) if dist.rank == 0 else None
+    src = [p["src"]]
+    plan = _plan(times, t, dt)
     n_total = sum(n for n, _ in plan)
-    tl = np.ascontiguousarray(T[dist.mine])
+    tl = dist.scatter(start.get("T"))
     inv_c_free = np.where(dist.free, 1.0 / dist.capacity, 0.0)   # held rows: no change
     step_seconds, done = 0.0, 0
     dist.comm.barrier()
@@ -296,14 +393,10 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
         for s in range(n):
             t0 = t_prev + s * h
             t1 = tk if s == n - 1 else t_prev + (s + 1) * h
-            sw, sw_local = _source_local(dist, prob, t0, t1)
-            if sw is not None:
-                src_energy += h * float(sw.sum())
-                _source_ledger(dist, prob, energy, sw, h)
+            sw_local, sw_root = _source_step(dist, t0, t1, h, src)
+            _source_ledger(net, energy, sw_root, h)
             at = dist.matvec(tl)
-            energy += h * dist.partial_flows(tl, at)
-            if dist.rank == 0:
-                energy += h * const_b
+            energy += h * (dist.partial_flows(tl, at) + const_b)
             rhs = dist.b - at if sw_local is None else dist.b + sw_local - at
             tl += w * rhs
             done += 1
@@ -311,18 +404,18 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
                 progress(done, n_total, t1)
         step_seconds += time.perf_counter() - c0
         t_prev = tk
-        _record(dist, rec, k, tl, energy, src_energy, prob, tk)
+        _record(dist, rec, k, tl, energy, src[0], tk)
     wall = time.perf_counter() - wall0
     finite = dist.mpi.allreduce(bool(np.all(np.isfinite(tl))), op=_land())
     energy_total = dist.total(energy)
     T_end = dist.gather(tl)
     if dist.rank != 0:
         return None
-    if not finite:
-        flags.append("non_finite")
-    state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=step0 + done,
-                        boundary_energy_j=energy_total, source_energy_j=src_energy,
-                        reference_temperature_k=ref, dt_s=dt, method="explicit")
+    prob = net.problem
+    flags = list(p["flags"]) + ([] if finite else ["non_finite"])
+    state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=p["step0"] + done,
+                        boundary_energy_j=energy_total, source_energy_j=src[0],
+                        reference_temperature_k=start["ref"], dt_s=dt, method="explicit")
     cups = net.n_active_contacts * done / step_seconds if step_seconds > 0 else float("nan")
     return ThermalResult(
         method="explicit", times=times, temperature_k=rec.T, boundary_heat_flow_w=rec.flow,
@@ -334,11 +427,6 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
                   steps_per_interval=[n for n, _ in plan], dt_per_interval=[h for _, h in plan],
                   dt_max_particle=net.dt_max_particle, **dist.info()),
         state=state)
-
-
-def _land():
-    from mpi4py import MPI
-    return MPI.LAND
 
 
 # ----------------------------------------------------------------------------- implicit
@@ -357,18 +445,26 @@ def run_implicit(dist: DistributedNetwork, T0, times, *, dt, theta=1.0, scheme="
     if startup_steps is None:
         startup_steps = RANNACHER_STEPS if scheme == "rannacher" else 0
     startup_steps = int(startup_steps) if scheme != "theta" else 0
-    pc = dist.preconditioner(pc)
-    net = dist.net
-    prob = net.problem
-    T, t, step0, energy0, src_energy, ref, _ = start_state(net, T0, t_start, "implicit")
-    times = check_times(times, t)
     dt = float(dt)
     if not dt > 0:
         raise ValueError(f"dt = {dt}: the time step must be > 0")
-    flags = list(net.flags)
-    const_b = np.asarray(net.constant_boundary_flow_w, dtype=np.float64)
-    energy = energy0.copy() if dist.rank == 0 else np.zeros_like(energy0)
-    dist.set_unknowns(~net.held)
+    pc = dist.preconditioner(pc)
+    start = {}
+
+    def prelude():
+        net = dist.net
+        T, t, step0, energy0, src, ref, _ = start_state(net, T0, t_start, "implicit")
+        start.update(T=T, ref=ref, energy0=energy0)
+        return dict(t=t, step0=step0, src=src, flags=list(net.flags),
+                    times=check_times(times, t))
+
+    p = dist.on_root(prelude)
+    times, t, step0 = p["times"], p["t"], p["step0"]
+    net = dist.net
+    const_b = np.asarray(net.constant_boundary_flow_w, dtype=np.float64) if dist.rank == 0 \
+        else np.zeros(dist.nb)
+    energy = start["energy0"].copy() if dist.rank == 0 else np.zeros(dist.nb)
+    src = [p["src"]]
     c0 = time.perf_counter()
     cache: dict = {}
     iterations: list = []
@@ -381,7 +477,7 @@ def run_implicit(dist: DistributedNetwork, T0, times, *, dt, theta=1.0, scheme="
             if th0 == th and abs(h - h0) <= 1e-9 * h0:
                 return h0, s
         f0 = time.perf_counter()
-        s = dist.ksp(dist.masked_matrix(cap / h, th, free), tol, pc)
+        s = dist.ksp(dist.matrix(cap / h, th, free), tol, pc)
         factor_seconds += time.perf_counter() - f0
         cache[(h, th)] = s
         return h, s
@@ -395,16 +491,13 @@ def run_implicit(dist: DistributedNetwork, T0, times, *, dt, theta=1.0, scheme="
         return np.where(free, r, 0.0)
 
     def flows(tl):
-        return dist.partial_flows(tl, dist.matvec(tl)) + (const_b if dist.rank == 0 else 0.0)
+        return dist.partial_flows(tl, dist.matvec(tl)) + const_b
 
-    rec = Recorder(net, times, ref) if dist.rank == 0 else None
-    plan, t_prev = [], t
-    for tk in times:
-        plan.append(interval_steps(t_prev, float(tk), dt))
-        t_prev = float(tk)
+    rec = Recorder(net, times, start["ref"]) if dist.rank == 0 else None
+    plan = _plan(times, t, dt)
     n_total = sum(n for n, _ in plan)
     setup_seconds = time.perf_counter() - c0
-    tl = np.ascontiguousarray(T[dist.mine])
+    tl = dist.scatter(start.get("T"))
     done, step_seconds = 0, 0.0
     dist.comm.barrier()
     wall0 = time.perf_counter()
@@ -421,15 +514,15 @@ def run_implicit(dist: DistributedNetwork, T0, times, *, dt, theta=1.0, scheme="
             t0 = t_prev + s * h
             t1 = tk if s == n - 1 else t_prev + (s + 1) * h
             s0 = time.perf_counter()
-            sw, sw_local = _source_local(dist, prob, t0, t1)
-            if sw is not None:
-                src_energy += h * float(sw.sum())
+            # the source's energy once per step; its ledger share with each flux evaluation
+            # below (the step's, or each half step's)
+            sw_local, sw_root = _source_step(dist, t0, t1, h, src)
             if step0 + done < startup_steps:
                 hh, half = solver_for(0.5 * h, 1.0)
                 for _ in range(2):
                     tl = tl + dist.solve(half, rhs_at(tl, sw_local), iterations)
                     energy += hh * flows(tl)
-                    _source_ledger(dist, prob, energy, sw, hh)
+                    _source_ledger(net, energy, sw_root, hh)
             elif scheme == "tr-bdf2":
                 d = _TRB_D * h
                 tn = tl.copy()
@@ -439,30 +532,30 @@ def run_implicit(dist: DistributedNetwork, T0, times, *, dt, theta=1.0, scheme="
                     free, (_TRB_A1 / d) * (cap * inc1), 0.0), iterations)
                 t_theta = np.where(free, _TRB_W01 * (tn + tg) + _TRB_W2 * (tg + inc2), tl)
                 energy += h * flows(t_theta)
-                _source_ledger(dist, prob, energy, sw, h)
+                _source_ledger(net, energy, sw_root, h)
                 tl = tg + inc2
             else:
                 inc = dist.solve(solver, rhs_at(tl, sw_local), iterations)
                 energy += h * flows(tl + theta * inc)
-                _source_ledger(dist, prob, energy, sw, h)
+                _source_ledger(net, energy, sw_root, h)
                 tl = tl + inc
             step_seconds += time.perf_counter() - s0
             done += 1
             if progress is not None and dist.rank == 0:
                 progress(done, n_total, t1)
         t_prev = tk
-        _record(dist, rec, k, tl, energy, src_energy, prob, tk)
+        _record(dist, rec, k, tl, energy, src[0], tk)
     wall = time.perf_counter() - wall0
     finite = dist.mpi.allreduce(bool(np.all(np.isfinite(tl))), op=_land())
     energy_total = dist.total(energy)
     T_end = dist.gather(tl)
     if dist.rank != 0:
         return None
-    if not finite:
-        flags.append("non_finite")
+    prob = net.problem
+    flags = list(p["flags"]) + ([] if finite else ["non_finite"])
     state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=step0 + done,
-                        boundary_energy_j=energy_total, source_energy_j=src_energy,
-                        reference_temperature_k=ref, dt_s=dt, method="implicit")
+                        boundary_energy_j=energy_total, source_energy_j=src[0],
+                        reference_temperature_k=start["ref"], dt_s=dt, method="implicit")
     return ThermalResult(
         method=scheme_name(scheme, theta), times=times, temperature_k=rec.T,
         boundary_heat_flow_w=rec.flow, boundary_energy_j=rec.energy,
@@ -488,52 +581,65 @@ def solve_steady(dist: DistributedNetwork, T0=None, *, tol=1e-12, pc="gamg",
     """The in-process :func:`~.steady.solve_steady` on the ranks: (L + G) T = b for the free
     particles of tied clusters by CG + ``pc`` (relative residual ``tol``), the deviation from
     T_ref solved for as in-process; floating clusters and rattlers on rank 0 as in-process.
-    Result on rank 0 (None elsewhere). Collective."""
+    ``T0`` matters on rank 0 only. Result on rank 0 (None elsewhere). Collective."""
     pc = dist.preconditioner(pc)
-    net = dist.net
-    prob = net.problem
-    n = net.n
-    flags = list(net.flags)
     dist.comm.barrier()
     wall0 = time.perf_counter()
-    held_t = net.held_temperature_k
-    prescribed = np.concatenate([held_t[net.fixed_particle],
-                                 net.exchange_row_temperature_k[net.exchange_row_g_w_k > 0]])
-    t_ref = float(prescribed.mean()) if prescribed.size else 0.0
-    if T0 is not None:
-        T0 = np.array(T0, dtype=np.float64)
-        if T0.ndim == 0:
-            T0 = np.full(n, float(T0))
-        if T0.shape != (n,) or not np.all(np.isfinite(T0)):
-            raise ValueError(f"T0: expected ({n},) finite temperatures, got shape {T0.shape}")
-    b = net.constant_rhs_w.copy()
-    sw = None
-    if prob.source is not None:
-        if source_interval is None:
-            flags.append("source_ignored")
-        else:
-            sw = np.asarray(prob.source(*source_interval), dtype=np.float64)
-            b += sw
-    in_untied = ~net.clusters.tied_particle
-    unknown = ~net.held & ~in_untied                    # packing order
-    dist.set_unknowns(unknown)
-    u_local = unknown[dist.mine]
-    t_d = np.where(dist.held, held_t[dist.mine] - t_ref, 0.0)
+    start = {}
+
+    def prelude():
+        net = dist.net
+        prob = net.problem
+        flags = list(net.flags)
+        held_t = net.held_temperature_k
+        prescribed = np.concatenate([held_t[net.fixed_particle],
+                                     net.exchange_row_temperature_k[net.exchange_row_g_w_k > 0]])
+        t_ref = float(prescribed.mean()) if prescribed.size else 0.0
+        t0 = T0
+        if t0 is not None:
+            t0 = np.array(t0, dtype=np.float64)
+            if t0.ndim == 0:
+                t0 = np.full(net.n, float(t0))
+            if t0.shape != (net.n,) or not np.all(np.isfinite(t0)):
+                raise ValueError(f"T0: expected ({net.n},) finite temperatures, got shape "
+                                 f"{t0.shape}")
+        b = net.constant_rhs_w.copy()
+        sw = None
+        if prob.source is not None:
+            if source_interval is None:
+                flags.append("source_ignored")
+            else:
+                sw = np.asarray(prob.source(*source_interval), dtype=np.float64)
+                b += sw
+        start.update(b=b, sw=sw, T0=t0)
+        return dict(t_ref=t_ref, flags=flags)
+
+    p = dist.on_root(prelude)
+    t_ref = p["t_ref"]
+    b_local = dist.scatter(start.get("b"))
+    unknown = ~dist.held & dist.tied                     # this rank's rows
+    t_d = np.where(dist.held, dist.held_t - t_ref, 0.0)
     # rhs_u = b_u - (L t_d)_u - T_ref g_u; on a free row (A t_d) = (L t_d) (t_d = 0 there)
-    rhs = np.where(u_local, b[dist.mine] - dist.matvec(t_d) - t_ref * dist.g, 0.0)
+    rhs = np.where(unknown, b_local - dist.matvec(t_d) - t_ref * dist.g, 0.0)
     iterations: list = []
-    n_unknowns = int(np.count_nonzero(unknown))
+    n_unknowns = int(dist.mpi.allreduce(int(np.count_nonzero(unknown))))
     if n_unknowns:
-        ksp = dist.ksp(dist.masked_matrix(np.zeros(dist.n_local), 1.0, u_local), tol, pc,
-                       maxiter)
+        ksp = dist.ksp(dist.matrix(np.zeros(dist.n_local), 1.0, unknown), tol, pc, maxiter)
         x = dist.solve(ksp, rhs, iterations)
     else:
         x = np.zeros(dist.n_local)
-    x_all = dist.gather(np.where(u_local, x, 0.0))
+    x_all = dist.gather(np.where(unknown, t_ref + x, np.nan))
     if dist.rank != 0:
         return None
+    net = dist.net
+    prob = net.problem
+    flags = list(p["flags"])
+    T0 = start["T0"]
+    b, sw = start["b"], start["sw"]
+    held_t = net.held_temperature_k
+    solved = ~net.held & net.clusters.tied_particle
     T = np.where(net.held, held_t, 0.0)
-    T[unknown] = t_ref + x_all[unknown]
+    T[solved] = x_all[solved]
     no_steady = _untied(net, T, T0, b, t_ref, flags)
     wall = time.perf_counter() - wall0
     flow = net.boundary_heat_flow(T, sw)
@@ -603,5 +709,5 @@ def _untied(net, T, T0, b, t_ref, flags) -> list:
     return no_steady
 
 
-__all__ = ["DistributedNetwork", "run_explicit", "run_implicit", "solve_steady",
+__all__ = ["DistributedNetwork", "on_root", "run_explicit", "run_implicit", "solve_steady",
            "PRECONDITIONERS", "HYPRE_OPTIONS"]
