@@ -6,12 +6,14 @@
 This is the command a user runs on a cluster (with ``--hostfile``; docs/scaling.md).
 ``tdem run --ranks N`` (:mod:`.solvers.mpi_launch`) starts it from the project's venv. It lives
 beside :mod:`.run` (not in ``solvers/``, which never import the scene or the problem builder:
-``tests/test_boundaries.py``). Every rank reads
-the scene and the packing, builds the problem with the one law registry and the boundary kinds
-(:func:`~thermal_kernel.problem.build_problem`) and assembles the network; the solve is
+``tests/test_boundaries.py``). Every rank reads the scene;
+rank 0 alone reads the packing, builds the problem with the one law registry and the boundary
+kinds (:func:`~thermal_kernel.problem.build_problem`) and assembles the network, then sends each
+rank its rows (:class:`~thermal_kernel.solvers.petsc_backend.DistributedNetwork`); the solve is
 distributed (:mod:`.solvers.petsc_backend`); rank 0 checks the physics (the in-process
 :func:`~thermal_kernel.solvers.check_physics`) and writes the ordinary ``thermal.h5`` with the
-in-process run's attributes, plus ``backend``, ``ranks`` and ``cut_contacts``.
+in-process run's attributes, plus ``backend``, ``ranks``, ``cut_contacts``, ``linear_solver``
+and ``run_seconds``.
 
 Bad input: one line (``tdem: error: ...``) from rank 0, exit 2; with ``--status`` (the
 launcher's) rank 0 writes the line there instead and every rank exits 0 (a non-zero exit makes
