@@ -356,19 +356,9 @@ packing):
     return "".join(out)
 
 
-def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s,
-            extra=None) -> CaseResult:
-    extra = extra or {}
-    main = [runs[(main_n, s, "haddad")] for s in seeds]
-    radius_r = float(np.mean([r.get("radius_over_mean_radius", np.nan) for r in main]))
-    terr = [runs[(main_n, s, "terreros")] for s in seeds]
-    per_time = np.array([r["max_error_over_dT_per_time"] for r in main])   # (seeds, times)
-    worst = float(per_time.max())
-    terr_worst = float(max(r["max_error_over_dT"] for r in terr))
-    n_actual = [r["n_particles"] for r in main]
-    cts = [r["ct_held_plane"] for r in main]
-
-    # figure 1: profiles (seed mean, min-max band) against eq. 8
+def _figure_profiles(ctx, main, seeds, n_actual):
+    """Figure 1: the profiles (seed mean, min-max band) against eq. 8; (its file, the times
+    in ms)."""
     prof = np.array([r["profile_k"] for r in main])         # (seeds, times, bins)
     exact = np.array(main[0]["exact_k"])
     edges = np.array(main[0]["edges_over_L"])   # per packing L differs slightly; the bins are
@@ -399,8 +389,12 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s,
         ax.legend(fontsize=7)
     f_prof = _plot(ctx, "profiles", draw_profiles,
                    "fourier,paper_time_ms,x_over_L,T_mean_K,T_min_K,T_max_K,T_exact_bin_K", rows)
+    return f_prof, times_ms
 
-    # figure 2: convergence with N
+
+def _figure_convergence(ctx, ladder, runs, seeds):
+    """Figure 2: the error against N over the seeds; (its file, the ladder's rows, the fitted
+    order)."""
     conv = []
     for n in ladder:
         rs = [runs[(n, s, "haddad")] for s in seeds]
@@ -427,8 +421,12 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s,
     f_conv = _plot(ctx, "convergence", draw_conv,
                    "n_mean,max_err_over_dT_mean,min,max,thermal_seconds_mean",
                    [tuple(float(v) for v in r) for r in conv])
+    return f_conv, conv, order
 
-    # figure 3: speed against error (time step at the main N; N ladder)
+
+def _figure_speed(ctx, dt_runs, conv):
+    """Figure 3: speed against error, the time step at the main N and the N ladder; (its
+    file, the time step's rows)."""
     ref = np.array(dt_runs[-1]["profile_k"])
     dt_rows = []
     for r in dt_runs[:-1]:
@@ -448,6 +446,27 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s,
     f_speed = _plot(ctx, "speed", draw_speed,
                     "dt_fourier,steps,run_seconds,dt_error_over_dT,error_vs_eq8_over_dT",
                     [tuple(float(v) for v in r) for r in dt_rows])
+    return f_speed, dt_rows
+
+
+def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s,
+            extra=None) -> CaseResult:
+    """The three figures (:func:`_figure_profiles`, :func:`_figure_convergence`,
+    :func:`_figure_speed`), the section and the summary's columns. Most of its length is the
+    section's text."""
+    extra = extra or {}
+    main = [runs[(main_n, s, "haddad")] for s in seeds]
+    radius_r = float(np.mean([r.get("radius_over_mean_radius", np.nan) for r in main]))
+    terr = [runs[(main_n, s, "terreros")] for s in seeds]
+    per_time = np.array([r["max_error_over_dT_per_time"] for r in main])   # (seeds, times)
+    worst = float(per_time.max())
+    terr_worst = float(max(r["max_error_over_dT"] for r in terr))
+    n_actual = [r["n_particles"] for r in main]
+    cts = [r["ct_held_plane"] for r in main]
+
+    f_prof, times_ms = _figure_profiles(ctx, main, seeds, n_actual)
+    f_conv, conv, order = _figure_convergence(ctx, ladder, runs, seeds)
+    f_speed, dt_rows = _figure_speed(ctx, dt_runs, conv)
 
     ntab = ["| N (mean of seeds) | max error, mean / min / max of seeds | seeds under 1 % | "
             "thermal s (calibration + run) |", "|---|---|---|---|"]
