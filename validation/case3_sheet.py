@@ -262,20 +262,9 @@ def run(ctx: Context) -> CaseResult:
                    point_index, grids, pack_s, time.perf_counter() - t_start)
 
 
-def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, point_index,
-            grids, pack_s, total_s) -> CaseResult:
-    from .case2_beam import _plot, _rel
-    from .framework import fit_order
-    names = list(POINTS)
-    # continuum convergence at the check-points themselves (rows 0..2)
-    rise_pt = np.array([np.max(ref[i] - T0) for i in range(3)])
-    rich_pt = np.array([np.max(est.error[i]) for i in range(3)]) / rise_pt
-    grid_diff = [[float(np.max(np.abs(f[i] - ref[i])) / rise_pt[i]) for i in range(3)]
-                 for f in fields[:-1]]
-    cmp = {k: compare(d, times, ref, point_index) for k, d in dems.items()}
-    big = max(sizes)
-    dt_err = {p: float(np.max(np.abs(dt_check["probe_t"][p] - dems[(big, seeds[0])]["probe_t"][p]))
-                       / cmp[(big, seeds[0])][p]["rise"]) for p in names}
+def _rows_by_n(sizes, seeds, dems, cmp, names):
+    """Per N (means over the seeds): each point's errors, dispersion and rise, the source's
+    energy against the exact, the seconds; (the rows, the convergence rows)."""
     table, conv = [], []
     for n in sizes:
         row = {"n": float(np.mean([dems[(n, s)]["n_particles"] for s in seeds]))}
@@ -299,11 +288,13 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
         table.append(row)
         conv.append((row["n"], *[row[p]["err_mean_of_seeds"] for p in names],
                      *[row[p]["dispersion"] for p in names], row["seconds"]))
-    conv = np.array(conv)
-    worst = conv[:, 1:4].max(axis=1)
-    order, const = fit_order(conv[:, 0], worst) if len(conv) > 1 else (float("nan"),) * 2
+    return table, conv
 
-    # figure 1: T(t) at A, B, C (Fig. 12-14): continuum, DEM seed means per N
+
+def _figure_history(ctx, times, ref, sizes, seeds, dems, names):
+    """Figure 1: T(t) at A, B, C (000 Fig. 12-14), the continuum and the DEM's seed means per
+    N; its file."""
+    from .case2_beam import _plot
     rows = []
     for k, t in enumerate(times):
         r = [float(t)] + [float(ref[i, k]) for i in range(3)]
@@ -324,8 +315,12 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
     f_t = _plot(ctx, "history", draw_t,
                 "t_s," + ",".join(f"ref_{p}_K" for p in names) + "," + ",".join(
                     f"dem{n}_{p}_K" for n in sizes for p in names), rows)
+    return f_t
 
-    # figure 2: error and dispersion vs N (Fig. 11)
+
+def _figure_convergence(ctx, conv, order, const, names):
+    """Figure 2: error and dispersion against N (000 Fig. 11); its file."""
+    from .case2_beam import _plot
     def draw_conv(ax):
         for i, p in enumerate(names):
             line, = ax.loglog(conv[:, 0], 100 * conv[:, 1 + i], "o-", label=f"{p}: error")
@@ -341,8 +336,13 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
                    "n_mean," + ",".join(f"err_{p}" for p in names) + ","
                    + ",".join(f"dispersion_{p}" for p in names) + ",thermal_seconds",
                    [tuple(float(v) for v in r) for r in conv])
+    return f_conv
 
-    # figure 3: speed against error (DEM per N; continuum per grid against the Richardson limit)
+
+def _figure_speed(ctx, conv, worst, cont_s, fields, est, rise_pt, grids):
+    """Figure 3: speed against error, the DEM per N and the continuum per grid against its
+    Richardson limit; its file."""
+    from .case2_beam import _plot
     cont_err = [float(max(np.max(np.abs(f[i] - est.extrapolated[i])) / rise_pt[i]
                           for i in range(3))) for f in fields]
 
@@ -357,6 +357,33 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
                     [("dem", float(c[0]), float(c[-1]), float(w)) for c, w in zip(conv, worst)]
                     + [("continuum", float(g[0] * round(g[0] * LY / LX)), float(s), float(e))
                        for g, s, e in zip(grids, cont_s, cont_err)])
+    return f_speed
+
+
+def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, point_index,
+            grids, pack_s, total_s) -> CaseResult:
+    """The rows per N (:func:`_rows_by_n`), the three figures, the section and the summary's
+    columns. Most of its length is the section's text."""
+    from .case2_beam import _rel
+    from .framework import fit_order
+    names = list(POINTS)
+    # continuum convergence at the check-points themselves (rows 0..2)
+    rise_pt = np.array([np.max(ref[i] - T0) for i in range(3)])
+    rich_pt = np.array([np.max(est.error[i]) for i in range(3)]) / rise_pt
+    grid_diff = [[float(np.max(np.abs(f[i] - ref[i])) / rise_pt[i]) for i in range(3)]
+                 for f in fields[:-1]]
+    cmp = {k: compare(d, times, ref, point_index) for k, d in dems.items()}
+    big = max(sizes)
+    dt_err = {p: float(np.max(np.abs(dt_check["probe_t"][p] - dems[(big, seeds[0])]["probe_t"][p]))
+                       / cmp[(big, seeds[0])][p]["rise"]) for p in names}
+    table, conv = _rows_by_n(sizes, seeds, dems, cmp, names)
+    conv = np.array(conv)
+    worst = conv[:, 1:4].max(axis=1)
+    order, const = fit_order(conv[:, 0], worst) if len(conv) > 1 else (float("nan"),) * 2
+
+    f_t = _figure_history(ctx, times, ref, sizes, seeds, dems, names)
+    f_conv = _figure_convergence(ctx, conv, order, const, names)
+    f_speed = _figure_speed(ctx, conv, worst, cont_s, fields, est, rise_pt, grids)
 
     src_txt = "; ".join(f"{row['n']:,.0f} spheres {row['source_energy_ratio']:.4f} (seeds "
                         f"{row['source_energy_ratio_range'][0]:.4f}–"
