@@ -104,6 +104,55 @@ def _raw_stats(packing, problem, net, res, q_macro, phi):
             "mean_abs": float(np.linalg.norm(q[inside], axis=1).mean() / q_macro)}, moments
 
 
+def _halo_row(kind, ratio, arrays, rng, max_eval, seed):
+    """One halo radius kind and ratio: the CoV, mean, min and max of the flux over the particles
+    whose halo lies inside the cube (a random ``max_eval`` of them), the halo sizes and the
+    seconds; None when fewer than MIN_EVAL particles qualify."""
+    (pos, rad, lo, hi, free, phi, moments, volume, q_macro, r_mean, tree) = arrays
+    reach = np.maximum(halo_radii(rad, max(ratio, 0.0), kind), rad)[:, None]
+    inside = free & np.all((pos - reach >= lo) & (pos + reach <= hi), axis=1)
+    cand = np.flatnonzero(inside)
+    if len(cand) < MIN_EVAL:
+        return None
+    pick = np.sort(rng.choice(cand, max_eval, replace=False)) \
+        if len(cand) > max_eval else cand
+    h0 = time.perf_counter()
+    if ratio <= 0:
+        q = phi * moments[pick] / (2.0 * volume[pick, None])
+    else:
+        q = halo_flux(pos, rad, moments, volume, phi, ratio, particles=pick, tree=tree,
+                      halo_radius=kind)
+    halo_s = time.perf_counter() - h0
+    members = alone = float("nan")
+    class_members = [float("nan")] * (len(CLASSES) - 1)
+    size = np.digitize(rad / r_mean, CLASSES[1:-1])
+    if ratio > 0:       # halo sizes on a random 1,000 of the evaluated particles
+        sub = np.random.default_rng(seed + 1).permutation(pick)[:1000]
+        count = tree.query_ball_point(pos[sub], halo_radii(rad, ratio, kind)[sub],
+                                      return_length=True)
+        members, alone = float(np.mean(count)), float(np.mean(count == 1))
+        class_members = [float(np.mean(count[size[sub] == c]))
+                         if np.any(size[sub] == c) else float("nan")
+                         for c in range(len(CLASSES) - 1)]
+    mag = np.linalg.norm(q, axis=1) / q_macro
+    # rms deviation of |q| from the mean, per class of R_p / r_mean
+    dev = (mag / mag.mean() - 1) ** 2
+    class_dev = [float(np.sqrt(dev[size[pick] == c].mean()))
+                 if np.any(size[pick] == c) else float("nan")
+                 for c in range(len(CLASSES) - 1)]
+    qx = -q[:, 0] / q_macro                           # along the imposed gradient
+    return {
+        "ratio": ratio, "n_inside": int(len(cand)), "n_eval": int(len(pick)),
+        "cov_abs": float(mag.std() / mag.mean()),
+        "cov_abs_volume": coefficient_of_variation(q, weights=volume[pick]),
+        "cov_x": float(qx.std() / qx.mean()),
+        "mean_abs": float(mag.mean()), "mean_x": float(qx.mean()),
+        "min_abs": float(mag.min()), "max_abs": float(mag.max()),
+        "members_mean": members, "alone_fraction": alone,
+        "class_rms_dev": class_dev, "class_members": class_members,
+        "seconds": halo_s, "seconds_per_particle": halo_s / len(pick)}
+
+
 def halo_cov(packing_path, ratios=RATIOS, max_eval=MAX_EVAL, seed=1, kinds=KINDS,
              target_z=Z_PAPER):
     """Steady slab through the neighbours of bulk coordination ``target_z`` (002's Z 7.5, as the
@@ -130,52 +179,14 @@ def halo_cov(packing_path, ratios=RATIOS, max_eval=MAX_EVAL, seed=1, kinds=KINDS
     r_mean = reference_radius(rad)
     tree = cKDTree(pos)
     rng = np.random.default_rng(seed)
+    arrays = (pos, rad, lo, hi, free, phi, moments, volume, q_macro, r_mean, tree)
     rows = {}
     for kind in kinds:
         rows[kind] = []
         for ratio in ratios:
-            reach = np.maximum(halo_radii(rad, max(ratio, 0.0), kind), rad)[:, None]
-            inside = free & np.all((pos - reach >= lo) & (pos + reach <= hi), axis=1)
-            cand = np.flatnonzero(inside)
-            if len(cand) < MIN_EVAL:
-                continue
-            pick = np.sort(rng.choice(cand, max_eval, replace=False)) \
-                if len(cand) > max_eval else cand
-            h0 = time.perf_counter()
-            if ratio <= 0:
-                q = phi * moments[pick] / (2.0 * volume[pick, None])
-            else:
-                q = halo_flux(pos, rad, moments, volume, phi, ratio, particles=pick, tree=tree,
-                              halo_radius=kind)
-            halo_s = time.perf_counter() - h0
-            members = alone = float("nan")
-            class_members = [float("nan")] * (len(CLASSES) - 1)
-            size = np.digitize(rad / r_mean, CLASSES[1:-1])
-            if ratio > 0:       # halo sizes on a random 1,000 of the evaluated particles
-                sub = np.random.default_rng(seed + 1).permutation(pick)[:1000]
-                count = tree.query_ball_point(pos[sub], halo_radii(rad, ratio, kind)[sub],
-                                              return_length=True)
-                members, alone = float(np.mean(count)), float(np.mean(count == 1))
-                class_members = [float(np.mean(count[size[sub] == c]))
-                                 if np.any(size[sub] == c) else float("nan")
-                                 for c in range(len(CLASSES) - 1)]
-            mag = np.linalg.norm(q, axis=1) / q_macro
-            # rms deviation of |q| from the mean, per class of R_p / r_mean
-            dev = (mag / mag.mean() - 1) ** 2
-            class_dev = [float(np.sqrt(dev[size[pick] == c].mean()))
-                         if np.any(size[pick] == c) else float("nan")
-                         for c in range(len(CLASSES) - 1)]
-            qx = -q[:, 0] / q_macro                           # along the imposed gradient
-            rows[kind].append({
-                "ratio": ratio, "n_inside": int(len(cand)), "n_eval": int(len(pick)),
-                "cov_abs": float(mag.std() / mag.mean()),
-                "cov_abs_volume": coefficient_of_variation(q, weights=volume[pick]),
-                "cov_x": float(qx.std() / qx.mean()),
-                "mean_abs": float(mag.mean()), "mean_x": float(qx.mean()),
-                "min_abs": float(mag.min()), "max_abs": float(mag.max()),
-                "members_mean": members, "alone_fraction": alone,
-                "class_rms_dev": class_dev, "class_members": class_members,
-                "seconds": halo_s, "seconds_per_particle": halo_s / len(pick)})
+            row = _halo_row(kind, ratio, arrays, rng, max_eval, seed)
+            if row is not None:
+                rows[kind].append(row)
     # the scatter against the coordination: the same cube through every dumped pair (the
     # dump's gap_tolerance 0.1: bulk Z ~8.8), raw and with the common halo at 4 and 11
     gap_dump = float(packing.attrs.get("gap_tolerance", float("nan")))
