@@ -470,3 +470,25 @@ def test_case8_runs_are_records():
     del bad["rows"][2]["err_maxwell"]
     with pytest.raises(RecordError, match=r"runs\[0\]: rows\[2\]: err_maxwell: missing"):
         case8_inclusion.read_runs([bad])
+
+
+@pytest.mark.slow       # ~5 s each: the figures are drawn again
+@pytest.mark.parametrize("number", [4, 6])
+def test_a_rebuilt_report_is_the_saved_one(number, tmp_path, monkeypatch, capsys):
+    """Reports are written from the record: `tdem validate N --action rebuild` makes case N's
+    section, summary columns and numbers again from its saved result alone and gets the saved
+    ones back (figures to a temporary folder; the saved result copied there too)."""
+    import shutil
+    saved = json.loads((framework.RESULTS / f"case{number}.json").read_text())
+    results = tmp_path / "results"
+    results.mkdir()
+    shutil.copy(framework.RESULTS / f"case{number}.json", results)
+    monkeypatch.setattr(framework, "RESULTS", results)
+    monkeypatch.setattr(framework, "IMG", tmp_path / "img")
+    assert run.validate([str(number)], action="rebuild") == 0
+    again = json.loads((results / f"case{number}.json").read_text())
+    for key in ("section_md", "our_n", "our_error", "wall_time", "numbers"):
+        assert again["result"][key] == saved["result"][key], key
+    assert again["run_seconds"] == saved["run_seconds"]
+    assert (tmp_path / "img" / f"validation_case{number}_"
+            f"{'convergence' if number == 4 else 'ct'}.csv").exists()

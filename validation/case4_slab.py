@@ -33,7 +33,7 @@ from thermal_kernel.atomic import savefig_atomic, write_text_atomic
 
 from .framework import (ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today, write_csv)
-from .framework import Judgement, fit_order, scene_toml
+from .framework import Action, Judgement, fit_order, judged, rebuild_saved, scene_toml
 
 CASE = CaseInfo(number=4, title="cube slab, eq. 17", paper="002 sec. 2.2", paper_n="1e5",
                 paper_error="max rel. error 0.7 %",
@@ -590,3 +590,16 @@ in °C, 5 % of ΔT) and the C_t conversion; `tdem validate 4 --quick` runs the s
         wall_time=(f"551 s CPU + {head.run_seconds:.0f} s (explicit, {head.steps:,} steps, "
                    f"1 thread)" + (f"; 1e6: + {b6.run_seconds:.0f} s" if b6 else "")),
         verdict=verdict, section_md=section, numbers=n)
+
+
+def _rebuild(ctx: Context) -> None:
+    """The section, figures and summary again from the saved rows (no slab is run)."""
+    def build(numbers):
+        rows = read_rows(numbers)
+        result = _result(rows, _figures(ctx, rows))
+        return judged(result, judge(result.numbers))
+    print(rebuild_saved(CASE, build))
+
+
+ACTIONS = {"rebuild": Action(_rebuild, "section, figures and summary again from the saved "
+                                       "result (no solve)")}

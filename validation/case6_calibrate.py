@@ -32,6 +32,7 @@ import numpy as np
 from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import savefig_atomic, write_text_atomic
 
+from .framework import Action, rebuild_saved
 from .framework import (OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
                         optional_packing, previous_numbers, register_packing,
                         today, write_csv)
@@ -664,3 +665,17 @@ Times: the steady solves of every variant, one thread, shared machine.){carried_
                   f"docs/packings.md); steady solves per realisation, 3 axes: {times}",
         verdict="", section_md=section, numbers=n,
         command="tdem validate 6 (seeds 2-4: TDEM_VALIDATE_ALL_PACKINGS=1)")
+
+
+def _rebuild(ctx: Context) -> None:
+    """The section, figure and summary again from the saved rows (no calibration is run)."""
+    def build(numbers):
+        rows = read_rows(numbers)
+        stats = realisation_stats(rows)
+        png, csv_name = _figure(ctx, rows, stats)
+        return judged(_result(rows, stats, png, csv_name), judge(dict(realisations=stats)))
+    print(rebuild_saved(CASE, build))
+
+
+ACTIONS = {"rebuild": Action(_rebuild, "section, figure and summary again from the saved "
+                                       "result (no solve)")}

@@ -219,6 +219,17 @@ def save_result(info: CaseInfo, result: CaseResult, seconds: float) -> Path:
     return write_text_atomic(path, json.dumps(record, indent=1, default=float))
 
 
+def rebuild_saved(info: CaseInfo, build) -> Path:
+    """``tdem validate N --action rebuild``: the case's result made again by ``build(numbers)``
+    from its saved record alone (section, figures, summary columns; nothing measured) and saved
+    with the record's run seconds."""
+    record = load_result(info.number)
+    if record is None:
+        raise UserError(f"validate: --action rebuild: case {info.number} has no saved result "
+                        f"(`tdem validate {info.number}` measures it)")
+    return save_result(info, build(record["result"]["numbers"]), record["run_seconds"])
+
+
 # ---------------------------------------------------------------- helpers for the cases
 def packing_built(name: str) -> bool:
     """True when the shared packing ``name`` is already on this machine (no YADE needed)."""
