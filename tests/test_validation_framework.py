@@ -492,3 +492,18 @@ def test_a_rebuilt_report_is_the_saved_one(number, tmp_path, monkeypatch, capsys
     assert again["run_seconds"] == saved["run_seconds"]
     assert (tmp_path / "img" / f"validation_case{number}_"
             f"{'convergence' if number == 4 else 'ct'}.csv").exists()
+
+
+def test_case10_runs_are_records():
+    """Case 10's saved runs read back as DispersionRun records (a FractionRow per f) and write
+    back to the same data; an unknown field in a row is refused in one line."""
+    from tdem_post.records import RecordError, to_dict
+    from validation import case10_dispersion
+    numbers = framework.load_result(10)["result"]["numbers"]
+    runs = case10_dispersion.read_runs(numbers["runs"])
+    assert [to_dict(r) for r in runs] == numbers["runs"]
+    assert all(len(r.rows) == len(numbers["fractions"]) for r in runs)
+    bad = json.loads(json.dumps(numbers["runs"][0]))
+    bad["rows"][0]["err_ref_pct"] = 1.0
+    with pytest.raises(RecordError, match=r"rows\[0\]: err_ref_pct: unknown field"):
+        case10_dispersion.read_runs([bad])

@@ -27,11 +27,13 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from tdem_post import fft_conductivity as fft
 from tdem_post.analytic import bruggeman, hashin_shtrikman, maxwell
+from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 from validation import framework
 from validation import inclusions as I
@@ -307,33 +309,74 @@ def _carried_over(reals, fractions) -> list:
 
 
 PAPER_TARGET = 0.005                      # 002: within 0.5 % of the FFT solve, f 0.1-0.5, 8e6
+_OPT = column(optional=True)
+
+
+@dataclass(frozen=True, kw_only=True)
+class FractionRow:
+    """tdem's k_eff / k_m at one inclusion fraction f, the FFT reference and the estimates
+    (dimensionless), the inclusion's particles and bridging contacts, the solve's seconds."""
+    f: float
+    k: float
+    ref: float
+    err_ref: float
+    maxwell: float
+    bruggeman: float
+    hs_low: float
+    hs_high: float
+    f_particles: float
+    inclusion_particles: int
+    bridges: int | None = field(default=None, metadata=_OPT)     # counted later on old rows
+    seconds: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class DispersionRun:
+    """One packing's series over f: its size, a row per f, the thermal seconds over its steady
+    solves, its packing's seconds (None: not built here); ``carried_over``: the date of a run
+    kept from an earlier result."""
+    name: str
+    n: int
+    rows: tuple[FractionRow, ...]
+    a_over_r: float                     # the inclusions' radius over the mean sphere radius
+    thermal_s: float
+    solves: int
+    pack_s: float | None
+    carried_over: str | None = field(default=None, metadata=_OPT)
+
+
+def read_runs(runs: list) -> list[DispersionRun]:
+    """Case 10's runs (saved dicts, or records already) as records (RecordError in one line)."""
+    return [r if isinstance(r, DispersionRun) else
+            from_dict(DispersionRun, r, f"case 10: runs[{k}]") for k, r in enumerate(runs)]
 
 
 def finish(ctx: Context, reals: dict, runs: list, total: float,
            bridges: list | None = None) -> CaseResult:
     """Figures, section and summary row from the realisations and the measured series (also
     used to rebuild them from a saved result)."""
+    runs = read_runs(runs)
     fractions = sorted(reals)
     grids = reals[fractions[0]]["grids"]
     orders = _plots(ctx, runs, reals)
-    rs = sorted(runs, key=lambda r: r["n"])
+    rs = sorted(runs, key=lambda r: r.n)
     big = rs[-1]
-    max_err = max(abs(r["err_ref"]) for r in big["rows"])
+    max_err = max(abs(r.err_ref) for r in big.rows)
     ref_unc = max(reals[f]["ref_unc"] / reals[f]["ref"] for f in fractions)
     numbers = dict(contrast=CONTRAST, fractions=list(fractions), grids=list(grids),
                    order=orders, max_error_vs_ref=max_err, reference_uncertainty=ref_unc,
                    realisations={str(f): {k: (v.tolist() if isinstance(v, np.ndarray) else v)
                                           for k, v in rl.items()}
                                  for f, rl in reals.items()},
-                   runs=runs, bridge_test=bridges or [])
+                   runs=[to_dict(r) for r in runs], bridge_test=bridges or [])
     section = _section(runs, reals, grids, orders) + _bridge_text(bridges or [])
-    pack = ", ".join(f"{r['name']} {r['pack_s']:.0f} s" for r in runs if r.get("pack_s"))
+    pack = ", ".join(f"{r.name} {r.pack_s:.0f} s" for r in runs if r.pack_s)
     f_text = f"f {min(fractions)}–{max(fractions)}"
     j = judge(numbers)
     return CaseResult(
-        our_n=" / ".join(f"{r['n']:,}" for r in rs),
+        our_n=" / ".join(f"{r.n:,}" for r in rs),
         our_error=f"max {100 * max_err:.2f} % vs the FFT reference (± {100 * ref_unc:.2f} %) "
-                  f"at N {big['n']:,} ({f_text})",
+                  f"at N {big.n:,} ({f_text})",
         wall_time=f"packing {pack or 'shared'} + FFT and thermal {total:.0f} s",
         verdict=j.verdict, section_md=section, numbers=numbers,
         command="tdem validate 10",
@@ -344,36 +387,36 @@ def judge(numbers: dict) -> framework.Judgement:
     """Issue 23's columns from the saved numbers: tdem at the paper's N (8e6) by the paper's
     measure, the max over f 0.1-0.5 of |k / k_FFT - 1|; the target 0.5 % (None when 8e6 was not
     run: then the measured N's and a projection are stated)."""
-    runs = numbers.get("runs", [])
+    runs = read_runs(numbers.get("runs", []))
     if not runs:
         return framework.Judgement("", "", None)
-    fractions = numbers.get("fractions") or [x["f"] for x in runs[0]["rows"]]
+    fractions = numbers.get("fractions") or [x.f for x in runs[0].rows]
     f_text = f"f {min(fractions)}–{max(fractions)}"
-    rs = sorted(runs, key=lambda r: r["n"])
+    rs = sorted(runs, key=lambda r: r.n)
     big = rs[-1]
-    max_err = max(abs(x["err_ref"]) for x in big["rows"])
-    per_n = ", ".join(f"{r['n']:,}: {100 * max(abs(x['err_ref']) for x in r['rows']):.2f} %"
+    max_err = max(abs(x.err_ref) for x in big.rows)
+    per_n = ", ".join(f"{r.n:,}: {100 * max(abs(x.err_ref) for x in r.rows):.2f} %"
                       for r in rs)
-    at_8e6 = [r for r in rs if r["n"] >= 7_000_000]
+    at_8e6 = [r for r in rs if r.n >= 7_000_000]
     if at_8e6:
-        e8 = max(abs(x["err_ref"]) for x in at_8e6[0]["rows"])
-        at_paper_n = (f"N {at_8e6[0]['n']:,}: max {100 * e8:.2f} % vs the FFT reference "
-                      f"({f_text}: " + " / ".join(f"{100 * x['err_ref']:+.2f}"
-                                                  for x in at_8e6[0]["rows"]) + " %)"
-                      + (f", measured {at_8e6[0]['carried_over']}"
-                         if at_8e6[0].get("carried_over") else ""))
+        e8 = max(abs(x.err_ref) for x in at_8e6[0].rows)
+        at_paper_n = (f"N {at_8e6[0].n:,}: max {100 * e8:.2f} % vs the FFT reference "
+                      f"({f_text}: " + " / ".join(f"{100 * x.err_ref:+.2f}"
+                                                  for x in at_8e6[0].rows) + " %)"
+                      + (f", measured {at_8e6[0].carried_over}"
+                         if at_8e6[0].carried_over else ""))
         met = bool(e8 <= PAPER_TARGET)
     else:
         at_paper_n = (f"not run at 8e6 ({COST_8E6}); max |error| vs the FFT reference over "
                       f"{f_text} by N: {per_n}" + _projection(rs))
         met = None
-    missed = [x["f"] for x in big["rows"] if abs(x["err_ref"]) > PAPER_TARGET]
-    verdict = (f"max {100 * max_err:.2f} % vs the FFT reference at N {big['n']:,}: "
+    missed = [x.f for x in big.rows if abs(x.err_ref) > PAPER_TARGET]
+    verdict = (f"max {100 * max_err:.2f} % vs the FFT reference at N {big.n:,}: "
                + ("within 002's 0.5 % at every f" if not missed else
                   "over 002's 0.5 % at f " + ", ".join(f"{f:.2f}" for f in missed)
                   + (f", within it at f {min(fractions)}–"
-                     f"{max(x['f'] for x in big['rows'] if abs(x['err_ref']) <= PAPER_TARGET):.1f}"
-                     if len(missed) < len(big["rows"]) else ""))
+                     f"{max(x.f for x in big.rows if abs(x.err_ref) <= PAPER_TARGET):.1f}"
+                     if len(missed) < len(big.rows) else ""))
                + ("" if at_8e6 else " (the paper's N 8e6 not run)"))
     bt = [b for b in numbers.get("bridge_test", []) if b["f"] > 0.45]
     if bt and missed:
@@ -389,16 +432,16 @@ def judge(numbers: dict) -> framework.Judgement:
 def _projection(rs) -> str:
     """The error per f at 8e6 projected from the two largest N's (each f's own power law):
     a projection, not a measurement."""
-    top = [r for r in rs if r["n"] >= 50_000][-2:]
+    top = [r for r in rs if r.n >= 50_000][-2:]
     if len(top) < 2:
         return ""
     (a, b) = top
     out = []
-    for xa, xb in zip(a["rows"], b["rows"]):
-        ea, eb = abs(xa["err_ref"]), abs(xb["err_ref"])
-        p = math.log(eb / ea) / math.log(b["n"] / a["n"]) if ea > 0 and eb > 0 else float("nan")
-        out.append(f"f {xb['f']:.1f}: {100 * eb * (8e6 / b['n']) ** p:.2f} %")
-    return (f"; projected to 8e6 from each f's slope between N {a['n']:,} and {b['n']:,} (not "
+    for xa, xb in zip(a.rows, b.rows):
+        ea, eb = abs(xa.err_ref), abs(xb.err_ref)
+        p = math.log(eb / ea) / math.log(b.n / a.n) if ea > 0 and eb > 0 else float("nan")
+        out.append(f"f {xb.f:.1f}: {100 * eb * (8e6 / b.n) ** p:.2f} %")
+    return (f"; projected to 8e6 from each f's slope between N {a.n:,} and {b.n:,} (not "
             "measured): " + ", ".join(out))
 
 
@@ -406,15 +449,15 @@ def _speed_vs_error(rs) -> str:
     """The N (and the time per steady solve) tdem needs for 002's 0.5 %, from the measured
     series: the first N that reaches it, else the power-law fit's projection."""
     for r in rs:
-        e = max(abs(x["err_ref"]) for x in r["rows"])
+        e = max(abs(x.err_ref) for x in r.rows)
         if e <= PAPER_TARGET:
-            return (f"0.5 % reached at N {r['n']:,} (max {100 * e:.2f} %), "
-                    f"{r['thermal_s'] / r['solves']:.0f} s per steady solve")
-    n = np.array([r["n"] for r in rs], float)
-    e = np.array([max(abs(x["err_ref"]) for x in r["rows"]) for r in rs])
-    t = np.array([r["thermal_s"] / r["solves"] for r in rs])
+            return (f"0.5 % reached at N {r.n:,} (max {100 * e:.2f} %), "
+                    f"{r.thermal_s / r.solves:.0f} s per steady solve")
+    n = np.array([r.n for r in rs], float)
+    e = np.array([max(abs(x.err_ref) for x in r.rows) for r in rs])
+    t = np.array([r.thermal_s / r.solves for r in rs])
     big = rs[-1]
-    text = (f"not reached up to N {big['n']:,} (max {100 * e[-1]:.2f} %, "
+    text = (f"not reached up to N {big.n:,} (max {100 * e[-1]:.2f} %, "
             f"{t[-1]:.0f} s per steady solve)")
     top = n >= 50_000
     if top.sum() >= 2:
@@ -457,16 +500,16 @@ def _figure_fraction(ctx, runs, reals) -> None:
     ax.plot([reals[f]["f"] for f in fs], [reals[f]["periodic"] for f in fs], "x", color="0.4",
             label="FFT, the cube as a periodic cell")
     csv = []
-    for k, r in enumerate(sorted(runs, key=lambda r: r["n"])):
+    for k, r in enumerate(sorted(runs, key=lambda r: r.n)):
         col = f"C{k}"
-        ax.plot([x["f"] for x in r["rows"]], [x["k"] for x in r["rows"]], "o", color=col,
-                label=f"tdem {r['n']:,} spheres")
-        bx.plot([x["f"] for x in r["rows"]], [100 * x["err_ref"] for x in r["rows"]], "o-",
-                color=col, label=f"{r['n']:,} spheres")
-        for x, f in zip(r["rows"], fs):
-            csv.append((r["n"], x["f"], x["k"], x["ref"], reals[f]["ref_unc"],
-                        reals[f]["periodic"], x["maxwell"], x["bruggeman"], x["hs_low"],
-                        x["hs_high"], x["err_ref"]))
+        ax.plot([x.f for x in r.rows], [x.k for x in r.rows], "o", color=col,
+                label=f"tdem {r.n:,} spheres")
+        bx.plot([x.f for x in r.rows], [100 * x.err_ref for x in r.rows], "o-",
+                color=col, label=f"{r.n:,} spheres")
+        for x, f in zip(r.rows, fs):
+            csv.append((r.n, x.f, x.k, x.ref, reals[f]["ref_unc"],
+                        reals[f]["periodic"], x.maxwell, x.bruggeman, x.hs_low,
+                        x.hs_high, x.err_ref))
     jams = [reals[f]["jam"] for f in fs if reals[f]["jam"] is not None]
     if jams:
         ax.axvline(jams[0], color="C1", ls="--", lw=0.8, label=f"RSA jams (f {jams[0]:.3f})")
@@ -496,22 +539,22 @@ def _figure_convergence(ctx, runs, reals) -> float:
     from thermal_kernel.atomic import savefig_atomic
     fs = sorted(reals)
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
-    rs = sorted(runs, key=lambda r: r["n"])
-    n = np.array([r["n"] for r in rs], float)
-    e = np.array([max(abs(x["err_ref"]) for x in r["rows"]) for r in rs])
+    rs = sorted(runs, key=lambda r: r.n)
+    n = np.array([r.n for r in rs], float)
+    e = np.array([max(abs(x.err_ref) for x in r.rows) for r in rs])
     p, _ = framework.fit_order(n, e)
     ax.loglog(n, 100 * e, "o-", label=f"max over f of |error| (N^{p:.2f})")
     for j, f in enumerate(fs):
-        ax.loglog(n, [100 * abs(r["rows"][j]["err_ref"]) for r in rs], ".:", lw=0.8,
+        ax.loglog(n, [100 * abs(r.rows[j].err_ref) for r in rs], ".:", lw=0.8,
                   label=f"f {reals[f]['f']:.2f}")
     ax.axhline(0.5, color="C1", ls="--", lw=0.8, label="002: 0.5 % at 8e6")
     ax.set_xlabel("N (spheres)")
     ax.set_ylabel("|k / k_FFT - 1|, %")
     ax.legend(fontsize=7)
-    t = np.array([r["thermal_s"] / r["solves"] for r in rs])
+    t = np.array([r.thermal_s / r.solves for r in rs])
     bx.loglog(t, 100 * e, "o-")
     for tt, ee, r in zip(t, e, rs):
-        bx.annotate(f"{r['n']:,}", (tt, 100 * ee), fontsize=7)
+        bx.annotate(f"{r.n:,}", (tt, 100 * ee), fontsize=7)
     bx.set_xlabel("wall time per steady solve, s (1 thread, shared machine)")
     bx.set_ylabel("max |error|, %")
     fig.tight_layout()
@@ -520,7 +563,7 @@ def _figure_convergence(ctx, runs, reals) -> float:
     plt.close(fig)
     I.write_csv(path, ("n", "max_abs_rel_error", "seconds_per_solve",
                        *[f"err_f{reals[f]['f']:.3f}" for f in fs]),
-                [(r["n"], ee, tt, *[x["err_ref"] for x in r["rows"]])
+                [(r.n, ee, tt, *[x.err_ref for x in r.rows])
                  for r, ee, tt in zip(rs, e, t)])
     return p
 
@@ -563,7 +606,7 @@ def _figure_fft(ctx, reals) -> None:
 
 def _section(runs, reals, grids, order):
     fs = sorted(reals)
-    rs = sorted(runs, key=lambda r: r["n"])
+    rs = sorted(runs, key=lambda r: r.n)
     real_lines = "\n".join(
         f"| {f:g} | {reals[f]['count']} | {reals[f]['method']}"
         + (f" ({reals[f]['sweeps']} sweeps)" if reals[f]["sweeps"] else "")
@@ -578,13 +621,13 @@ def _section(runs, reals, grids, order):
         f"f {reals[f]['f']:.3f}" for f in fs) + " | s / solve |"
     lines = [head, "|" + "---|" * (len(fs) + 3)]
     for r in rs:
-        lines.append(f"| {r['n']:,} | {r['a_over_r']:.1f} | " + " | ".join(
-            f"{x['k']:.4f} ({100 * x['err_ref']:+.2f} %)" for x in r["rows"])
-            + f" | {r['thermal_s'] / r['solves']:.1f} |")
+        lines.append(f"| {r.n:,} | {r.a_over_r:.1f} | " + " | ".join(
+            f"{x.k:.4f} ({100 * x.err_ref:+.2f} %)" for x in r.rows)
+            + f" | {r.thermal_s / r.solves:.1f} |")
     big = rs[-1]
-    mx = "\n".join(f"| {x['f']:.3f} | {x['k']:.4f} | {x['ref']:.4f} | {x['maxwell']:.4f} | "
-                   f"{x['bruggeman']:.4f} | {x['hs_low']:.4f} – {x['hs_high']:.4f} |"
-                   for x in big["rows"])
+    mx = "\n".join(f"| {x.f:.3f} | {x.k:.4f} | {x.ref:.4f} | {x.maxwell:.4f} | "
+                   f"{x.bruggeman:.4f} | {x.hs_low:.4f} – {x.hs_high:.4f} |"
+                   for x in big.rows)
     jam = next((reals[f]["jam"] for f in fs if reals[f]["jam"] is not None), None)
     jam_text = (f"RSA (seed {SEED}) jams at f = {jam:.3f} "
                 f"({int(round(jam / (4 / 3 * math.pi * RADIUS ** 3)))} "
@@ -633,7 +676,7 @@ k_eff/k_m of tdem (error against the FFT reference):
 
 {chr(10).join(lines)}
 
-At N = {big['n']:,}, against the estimates (Maxwell = the Hashin–Shtrikman lower bound):
+At N = {big.n:,}, against the estimates (Maxwell = the Hashin–Shtrikman lower bound):
 
 | f | tdem | FFT | Maxwell | Bruggeman | HS bounds |
 |---|---|---|---|---|---|
@@ -651,21 +694,22 @@ At N = {big['n']:,}, against the estimates (Maxwell = the Hashin–Shtrikman low
 
 def _limits(rs, reals):
     big = rs[-1]
-    worst = max(big["rows"], key=lambda x: abs(x["err_ref"]))
+    worst = max(big.rows, key=lambda x: abs(x.err_ref))
     unc = max(reals[f]["ref_unc"] / reals[f]["ref"] for f in reals)
-    per = ", ".join(f"{r['n']:,}: {100 * max(abs(x['err_ref']) for x in r['rows']):.2f} %"
+    per = ", ".join(f"{r.n:,}: {100 * max(abs(x.err_ref) for x in r.rows):.2f} %"
                     for r in rs)
-    return (f"**What limits us.** The largest error at N = {big['n']:,} is "
-            f"{100 * worst['err_ref']:+.2f} % at f = {worst['f']:.3f} (max over f by N: {per}). "
-            f"An inclusion of d = L/6 holds a/r̄ = {big['a_over_r']:.1f} mean radii at this N "
+    return (f"**What limits us.** The largest error at N = {big.n:,} is "
+            f"{100 * worst.err_ref:+.2f} % at f = {worst.f:.3f} (max over f by N: {per}). "
+            f"An inclusion of d = L/6 holds a/r̄ = {big.a_over_r:.1f} mean radii at this N "
             "(002: about 20,000 spheres per inclusion, a/r̄ ≈ 30, at 8e6): the interface error of "
             "case 8 (first order in r/a) grows with the interface area, i.e. with f, and the "
             "held and cut faces of the box add theirs. Where two inclusions come closer than "
             "about a particle diameter, contacts join particles of the two (both phase 1: "
             "they conduct at the inclusions' conductivity across the matrix gap) - "
-            + ", ".join(f"f {x['f']:.2f}: {x.get('bridges', '?')}" for x in big["rows"])
+            + ", ".join(f"f {x.f:.2f}: {'?' if x.bridges is None else x.bridges}"
+                        for x in big.rows)
             + " such contacts at this N - a conducting bridge the continuum does not have. "
-            + ("" if big["n"] >= 7_000_000 else
+            + ("" if big.n >= 7_000_000 else
                f"8e6 spheres (box_8e6 of validation/framework.py) were not run: {COST_8E6}. ")
             + "The reference is converged to "
             f"{100 * unc:.3f} % or better at every f (the larger of the Richardson correction "
