@@ -547,11 +547,7 @@ def _contacts(path, O, index, raw, radius, position, periodic, hsize, walls_mode
             if ia > ib:
                 ia, ib = ib, ia
                 a, b = b, a
-            branch = raw[ib] - raw[ia]
-            if periodic:
-                dist = np.array([int(x) for x in i.cellDist], float)
-                sign = 1.0 if a == i.id1 else -1.0
-                branch = branch + sign * (hsize @ dist)
+            branch = _branch(i, a, raw[ib] - raw[ia], hsize if periodic else None)
             overlap = radius[ia] + radius[ib] - float(np.linalg.norm(branch))
             if overlap <= 0 and not gaps:
                 continue
@@ -567,17 +563,7 @@ def _contacts(path, O, index, raw, radius, position, periodic, hsize, walls_mode
                 linear_kn.append((len(pair) - 1, float(i.phys.kn)))
         else:                                          # sphere - wall body
             k = ia if ia is not None else ib
-            wb = O.bodies[other]
-            if type(wb.shape).__name__ == "Box":
-                faces = box_faces[other]
-                s = [float((position[k] - f[1]) @ f[2]) for f in faces]
-                best = int(np.argmax(s))
-                if faces[best][0] is None:
-                    faces[best][0] = _add_wall(walls, faces[best][1], faces[best][2],
-                                               other)
-                w = faces[best][0]
-            else:
-                w = body_wall[other]
+            w = _wall_of(O.bodies[other], position[k], walls, body_wall, box_faces)
             dist = float((position[k] - walls[w]["point"]) @ walls[w]["normal"])
             overlap = radius[k] - dist
             if overlap <= 0 and not gaps:
@@ -607,6 +593,28 @@ def _contacts(path, O, index, raw, radius, position, periodic, hsize, walls_mode
     w_force = np.array(w_force, float)
     return (pair, p_over, p_force, p_branch, p_yade, w_part, w_wall, w_over, w_force, w_yade,
             phys_kinds, linear_kn, clipped, merged)
+
+
+def _branch(i, a, branch, hsize):
+    """The branch vector of interaction ``i`` from sphere ``a``, across the periodic cell
+    (``hsize``; None: not periodic) by YADE's cellDist."""
+    if hsize is None:
+        return branch
+    dist = np.array([int(x) for x in i.cellDist], float)
+    sign = 1.0 if a == i.id1 else -1.0
+    return branch + sign * (hsize @ dist)
+
+
+def _wall_of(body, centre, walls, body_wall, box_faces):
+    """The wall (index) a wall body's contact with the sphere at ``centre`` is on: a Box's
+    face the sphere faces most (made a wall when first touched), else the body's plane."""
+    if type(body.shape).__name__ != "Box":
+        return body_wall[body.id]
+    faces = box_faces[body.id]
+    best = int(np.argmax([float((centre - f[1]) @ f[2]) for f in faces]))
+    if faces[best][0] is None:
+        faces[best][0] = _add_wall(walls, faces[best][1], faces[best][2], body.id)
+    return faces[best][0]
 
 
 def _name_walls(path, walls, w_wall, wall_names):
