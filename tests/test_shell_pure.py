@@ -175,3 +175,71 @@ def test_cloud_layer_puts_the_outer_layer_back_loose_without_overlaps():
     assert np.all(d > reach)
     again, _, _ = shell.cloud_layer(box, centres, radius, layer_m, seed=11, solid_fraction=0.25)
     np.testing.assert_array_equal(again, position)
+
+
+def test_wall_layer_tiles_cover_each_face_once_from_the_nearest_face():
+    """shell_wall_cell: every face of the box gets the wall cell's layer, copied side by side
+    (the in-plane coordinates modulo the cell's period are the cell's, shifted by one offset per
+    face); each sphere lies within the depth of its own face, inside the box, and no nearer to
+    another face; a face's layer holds the cell's spheres per area."""
+    rng = np.random.default_rng(8)
+    cell_uv = np.array([0.3, 0.25])
+    m = 600
+    uvd = np.c_[rng.random(m) * cell_uv[0], rng.random(m) * cell_uv[1], rng.random(m) * 0.2]
+    radius = rng.uniform(0.005, 0.01, m)
+    size = np.array([1.0, 0.8, 0.9])
+    depth = 0.1
+    position, r, face = shell.wall_layer_tiles(size, [(uvd, radius)], cell_uv, depth, seed=3)
+    assert np.all((position >= 0) & (position < size))
+    to_face = np.stack([position[:, a] if side == 0 else size[a] - position[:, a]
+                        for a, side in shell.FACES], axis=1)
+    own = to_face[np.arange(len(face)), face]
+    assert np.all(own < depth)
+    np.testing.assert_array_equal(np.argmin(to_face, axis=1), face)
+    for k, (axis, _side) in enumerate(shell.FACES):
+        mine = face == k
+        u_axis, v_axis = [a for a in range(3) if a != axis]
+        # the same spheres as the cell's: radii and depths are the cell's, and the in-plane
+        # offsets of all copies agree modulo the period
+        key = np.round(own[mine] * 1e9).astype(np.int64)
+        cell_keys = set(np.round(uvd[:, 2] * 1e9).astype(np.int64))
+        assert set(key) <= cell_keys
+        depth_of = dict(zip(np.round(uvd[:, 2] * 1e9).astype(np.int64), range(m)))
+        src = np.array([depth_of[k_] for k_ in key])
+        np.testing.assert_allclose(r[mine], radius[src])
+        offset = np.c_[position[mine, u_axis] - uvd[src, 0], position[mine, v_axis] - uvd[src, 1]]
+        offset = np.mod(offset, cell_uv)
+        np.testing.assert_allclose(np.ptp(np.where(offset > cell_uv / 2, offset - cell_uv,
+                                                   offset), axis=0), 0.0, atol=1e-12)
+        # away from the edges (one depth from every other face) the face has the cell's count
+        # of shallow spheres per area
+        far = mine & np.all([(position[:, a] > depth) & (position[:, a] < size[a] - depth)
+                             for a in (u_axis, v_axis)], axis=0)
+        area = np.prod([size[a] - 2 * depth for a in (u_axis, v_axis)])
+        expected = np.sum(uvd[:, 2] < depth) / np.prod(cell_uv) * area
+        assert abs(far.sum() - expected) < 4 * np.sqrt(expected) + 0.1 * expected
+
+
+def test_drop_overlaps_leaves_no_deep_overlap_and_keeps_the_preferred():
+    rng = np.random.default_rng(9)
+    position = rng.random((500, 3))
+    radius = rng.uniform(0.02, 0.05, 500)
+    prefer = rng.random(500) < 0.5
+    alive = shell.drop_overlaps(position, radius, prefer, tolerance=0.05)
+    p, r = position[alive], radius[alive]
+    d = np.linalg.norm(p[:, None] - p[None], axis=2)
+    depth = (r[:, None] + r[None] - d) / np.minimum(r[:, None], r[None])
+    np.fill_diagonal(depth, -np.inf)
+    assert depth.max() <= 0.05
+    # every dropped sphere overlapped another deeply
+    dead = np.setdiff1d(np.arange(500), alive)
+    d_all = np.linalg.norm(position[:, None] - position[None], axis=2)
+    deep_all = (radius[:, None] + radius[None] - d_all) / np.minimum(radius[:, None], radius[None])
+    np.fill_diagonal(deep_all, -np.inf)
+    assert np.all(deep_all[dead].max(axis=1) > 0.05)
+    # preferred spheres that do not overlap each other deeply all stay (a wall layer kept whole
+    # where it meets the bulk)
+    preferred = np.zeros(500, dtype=bool)
+    preferred[alive] = True
+    again = shell.drop_overlaps(position, radius, preferred, tolerance=0.05)
+    assert set(alive) <= set(again)

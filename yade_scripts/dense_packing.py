@@ -499,13 +499,14 @@ def hertz_overlap(p, young):
     return (p["confining_pressure_pa"] / e_star) ** (2.0 / 3.0)
 
 
-def press_shell(p, box, centres, radii, frozen, shell_m):
+def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None):
     """method = "shell": the free shell and its frozen band in YADE, the walls on the carved
     surface pressed onto the shell until each carries the confining pressure (a servo per wall,
     the compliance of a column of shell_diameters contacts in Hertz's law), through the direct
     path's stages (softened modulus, tenfold stiffening, friction on at the real modulus). The
     radii carry each stage's Hertz overlap and end as given. Returns the pressed state of these
-    spheres (indices into centres)."""
+    spheres (indices into centres). ``cloud``: the spheres put back as a shrunk cloud
+    (shell.cloud_layer), grown back to their radii against the walls first (grow_cloud)."""
     stages = stiffness_stages(p)
     mats, sphere_ids, wall_of_body, collider = build_scene(p, centres, radii, box, stages[0])
     for k, b in enumerate(sphere_ids):
@@ -514,6 +515,9 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
         if frozen[k]:
             body.dynamic = False
     collider.avoidSelfInteractionMask = FROZEN_ONLY
+    cloud_ids = [] if cloud is None else [int(b) for k, b in enumerate(sphere_ids) if cloud[k]]
+    for b in cloud_ids:
+        O.bodies[b].shape.radius *= shell.CLOUD_SHRINK     # placed at these radii
     walls = box.walls()
     body, inward = wall_bodies(walls, wall_of_body)
     p_target = p["confining_pressure_pa"]
@@ -550,6 +554,9 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
         scale_radii(step_factor)
         grown *= step_factor
         O.run(every, True)
+    if cloud_ids:
+        grow_cloud(p, box, cloud_ids, collider, walls, body, inward,
+                   r_mean * layers * hertz_overlap(p, stages[0]), every)
     for k, young in enumerate(stages):
         if young != young_now:
             set_young(mats, young, young_now)
@@ -637,6 +644,68 @@ def press_shell(p, box, centres, radii, frozen, shell_m):
                 pressure_normal=pressure_normal)
 
 
+def grow_cloud(p, box, cloud_ids, collider, walls, body, inward, compliance_m, every):
+    """The cloud of method = "shell" (shell.cloud_layer) grown back from shell.CLOUD_SHRINK to
+    its radii, as the direct path grows its cloud against fixed walls (1 % per control interval
+    while the radii are below 0.9 of theirs, then 0.2 %, the direct path's largest step): the
+    walls hold, except that one carrying more than the confining pressure moves out (its Hertz
+    compliance_m, the shell's column at the soft stage). The soft stage then presses them."""
+    p_target = p["confining_pressure_pa"]
+    size_now = shell.CLOUD_SHRINK      # (press_shell shrank them when it built the scene)
+    t0 = time.time()
+    while size_now < 1.0:
+        factor = min(1.0 + (1e-2 if size_now < 0.9 else 2e-3), 1.0 / size_now)
+        for b in cloud_ids:
+            O.bodies[b].shape.radius *= factor
+        size_now *= factor
+        collider.doSort = True
+        O.run(every, True)
+        lo, hi = wall_extent(box, walls, body)
+        ratio = wall_stresses(walls, body, inward, lo, hi) / p_target
+        out = np.minimum(compliance_m * (np.maximum(ratio, 1e-12) ** (-2.0 / 3.0) - 1.0), 0.0)
+        for w in range(len(walls)):
+            v = inward[body[w]] * (out[w] / (every * O.dt))
+            O.bodies[body[w]].state.vel = Vector3(*(float(x) for x in v))
+    for b in body.values():
+        O.bodies[b].state.vel = Vector3(0, 0, 0)
+    log(f"shell: the cloud grown back to its radii at step {O.iter}, wall stress/target "
+        f"{ratio.min():.3f} ... {ratio.max():.3f}, {time.time() - t0:.0f} s")
+
+
+def wall_cell_layers(p, box, position, radius, kept):
+    """shell_wall_cell (experimental): the spheres within shell_layer_diameters of a face are
+    replaced by the wall layer of a wall cell (a packing periodic along two walls, relaxed
+    against them as the direct box is; shell.wall_layer_tiles), scaled to the bulk's mean
+    radius; spheres overlapping across the seams by more than 5 % of the smaller radius are
+    dropped (bulk ones first). Returns (position, radius, kept contacts reindexed, layer)."""
+    wc = np.load(p["shell_wall_cell"])
+    scale = float(radius.mean()) / float(wc["radius"].mean())
+    xy, z, r_c = wc["position"][:, :2] * scale, wc["position"][:, 2], wc["radius"] * scale
+    samples = [(np.c_[xy, (z - float(wc["z0"])) * scale], r_c),
+               (np.c_[xy, (float(wc["z1"]) - z) * scale], r_c)]
+    depth_m = p["shell_layer_diameters"] * 2.0 * float(radius.mean())
+    lay_p, lay_r, _ = shell.wall_layer_tiles(box.size, samples, np.asarray(wc["L"]) * scale,
+                                             depth_m, p["seed"] + 11)
+    bulk = shell.boundary_distance(box, position) >= depth_m
+    both_p = np.concatenate([position[bulk], lay_p])
+    both_r = np.concatenate([radius[bulk], lay_r])
+    layer = np.r_[np.zeros(int(bulk.sum()), bool), np.ones(len(lay_r), bool)]
+    alive = shell.drop_overlaps(both_p, both_r, prefer_keep=layer)
+    n_bulk = int(bulk.sum())
+    bulk_alive = alive[alive < n_bulk]
+    keep_bulk = np.zeros(len(radius), dtype=bool)
+    keep_bulk[np.flatnonzero(bulk)[bulk_alive]] = True
+    _, rows, pair = carve(keep_bulk, kept[0])
+    kept = (pair,) + tuple(c[rows] for c in kept[1:])
+    log(f"shell: wall cell {p['shell_wall_cell']} (scaled x {scale:.4f}): "
+        f"{int((~bulk).sum())} spheres within {depth_m:.4g} m of the faces replaced by "
+        f"{len(lay_r)} of its wall layer; {len(both_r) - len(alive)} dropped at the seams")
+    return (np.concatenate([position[keep_bulk], both_p[alive[alive >= n_bulk]]]),
+            np.concatenate([radius[keep_bulk], both_r[alive[alive >= n_bulk]]]), kept,
+            np.r_[np.zeros(int(keep_bulk.sum()), bool), np.ones(int((alive >= n_bulk).sum()),
+                                                              bool)])
+
+
 def shell_state(p, state):
     """method = "shell": tile and carve as method = "tiled" (keeping the spheres whose centre
     lies shell_cut_depth of their radii inside), then press walls onto a shell of
@@ -659,20 +728,28 @@ def shell_state(p, state):
     kept = (pair,) + tuple(carved[k][rows] for k in ("branch", "overlap", "normal_force",
                                                      "contact_radius"))
     position, radius, free, band = position[whole], radius[whole], free[whole], band[whole]
-    if p["shell_cloud_diameters"] > 0:
+    if p["shell_wall_cell"]:
+        # the outer layer replaced by the wall cell's (wall_cell_layers): split again
+        position, radius, kept, _ = wall_cell_layers(p, box, position, radius, kept)
+        _, free, band = shell.split(box, position, radius, shell_m, band_m, 0.0)
+    if p["shell_wall_cell"]:
+        clouded = np.zeros(len(radius), dtype=bool)     # the walls start on the faces
+    elif p["shell_cloud_diameters"] > 0:
         # the outer layer put back as a loose cloud in a grown box, the walls on its faces
         try:
             position, clouded, grown = shell.cloud_layer(
                 box, position, radius, p["shell_cloud_diameters"] * 2.0 * float(radius.mean()),
-                p["seed"] + 7)
+                p["seed"] + 7, shrink=shell.CLOUD_SHRINK)
         except ValueError as e:
             fail(str(e), code=3)
         log(f"shell: {int(clouded.sum())} spheres of the outer "
-            f"{p['shell_cloud_diameters']:g} mean diameters put back as a loose cloud (solid "
-            f"fraction {shell.CLOUD_LAYER_SOLID_FRACTION}); walls start "
+            f"{p['shell_cloud_diameters']:g} mean diameters put back as a cloud, radii x "
+            f"{shell.CLOUD_SHRINK} (they fill their layer at "
+            f"{shell.CLOUD_LAYER_SOLID_FRACTION} at their own radii); walls start "
             f"{(grown[0] - box.size[0]) / 2:.4g} m outside the carved faces")
         box = shell.pressed_box(np.zeros(3), grown)
     else:
+        clouded = np.zeros(len(radius), dtype=bool)
         # spheres that protrude past the surface (shell_cut_depth < 1): the walls start at
         # their extent, so that none overlaps a wall
         start_lo, start_hi = shell.walls_start(box, position, radius)
@@ -683,7 +760,7 @@ def shell_state(p, state):
         f"free in a shell of {shell_m:.4g} m ({p['shell_diameters']:g} mean diameters), "
         f"{int(band.sum())} frozen behind it ({band_m:.4g} m), {len(radius) - len(sub)} "
         f"interior spheres stay as tiled")
-    pressed = press_shell(p, box, position[sub], radius[sub], band[sub], shell_m)
+    pressed = press_shell(p, box, position[sub], radius[sub], band[sub], shell_m, clouded[sub])
     position = position.copy()
     position[sub] = pressed["position"]
     position -= pressed["lo"]

@@ -107,26 +107,28 @@ def walls_start(box, position, radius):
     return lo, hi
 
 
-# The outer layer re-inserted as a loose cloud (shell_cloud_diameters > 0) is placed at this
-# solid fraction: loose enough that the spheres settle against the pressed wall as the direct
-# path's cloud does against its walls (it starts at 0.25), dense enough that the walls' travel
-# through it stays short (random sequential addition jams near 0.38).
-CLOUD_LAYER_SOLID_FRACTION = 0.3
+# The outer layer re-inserted as a cloud (shell_cloud_diameters > 0): the walls start where the
+# layer holds its spheres at CLOUD_LAYER_SOLID_FRACTION at their own radii (0.58: the direct
+# box's spheres whose centre lies within 1.5 mean diameters of a wall fill that layer at
+# 0.578-0.581, two seeds at 1e4), and the spheres are put back shrunk by CLOUD_SHRINK (a loose
+# cloud at 0.58 x 0.75^3 = 0.245, the direct path's cloud is at 0.25) and grown back against the
+# walls in YADE (press_shell), as the direct path grows its cloud against fixed walls. Pressing
+# walls onto the layer instead puts the largest spheres on the wall and pushes the small ones
+# away from it (17 % fewer centres within 0.25-0.5 mean diameters of the wall, 6.6 % fewer wall
+# contacts, docs/packings.md).
+CLOUD_LAYER_SOLID_FRACTION = 0.58
+CLOUD_SHRINK = 0.75
 # candidates in the layer per sphere before the placement gives up
 CLOUD_TRIES = 20_000
-
-
-def cloud_layer(box, position, radius, layer_m, seed, solid_fraction=CLOUD_LAYER_SOLID_FRACTION):
-    """The outer layer of a carved box as a loose cloud: the spheres whose centre lies within
-    layer_m of the surface (every sphere cut by it among them) leave their place; the box grows
-    by a margin on each side so that the layer (its thickness now layer_m + margin) holds them
-    at ``solid_fraction``, and they are put back at random in it (random sequential addition,
-    largest first, candidates from a stream seeded by ``seed``; the spheres that stay are
-    obstacles, their radii less 1 %: they overlap each other by the Hertz overlaps of the
-    cell). The walls of the grown box start where they would start for a cloud of the direct
-    path: the spheres settle onto the wall as they are pressed, instead of the wall settling
-    onto a carved surface (the shell's wall layer: 6.6 % fewer wall contacts than the direct
-    box's, docs/packings.md).
+def cloud_layer(box, position, radius, layer_m, seed, solid_fraction=CLOUD_LAYER_SOLID_FRACTION,
+                shrink=1.0):
+    """The outer layer of a carved box as a cloud: the spheres whose centre lies within layer_m
+    of the surface (every sphere cut by it among them) leave their place; the box grows by a
+    margin on each side so that the layer (its thickness now layer_m + margin) holds them at
+    ``solid_fraction`` at their own radii, and they are put back at random in it with their
+    radii times ``shrink`` (random sequential addition, largest first, candidates from one
+    stream seeded by ``seed``; the spheres that stay are obstacles, their radii less 1 %: they
+    overlap each other by the Hertz overlaps of the cell).
 
     Returns (position in the grown box, whether each sphere was re-inserted, grown box size)."""
     from thermal_kernel.placement import random_sequential_addition
@@ -171,7 +173,7 @@ def cloud_layer(box, position, radius, layer_m, seed, solid_fraction=CLOUD_LAYER
                     and z + r <= grown[2]:
                 yield x, y, z
 
-    radii = np.concatenate([radius[near] * 0.99, radius[order]])
+    radii = np.concatenate([radius[near] * 0.99, radius[order] * shrink])
     placed = random_sequential_addition(radii, candidates)
     if len(placed) < len(near):
         raise ValueError("shell_cloud_diameters: the spheres that stay overlap by more than 1 % "
@@ -179,7 +181,75 @@ def cloud_layer(box, position, radius, layer_m, seed, solid_fraction=CLOUD_LAYER
     if len(placed) < len(radii):
         raise ValueError(f"shell_cloud_diameters: placed {len(placed) - len(near)} of "
                          f"{len(order)} spheres of the outer layer at solid fraction "
-                         f"{solid_fraction}")
+                         f"{solid_fraction * shrink ** 3:.3g}")
     out = position + margin
     out[order] = placed[len(near):]
     return out, moved, grown
+
+
+# Faces of a box in the order of Container.walls(): (axis, side), side 0 at 0, 1 at size[axis].
+FACES = [(axis, side) for axis in range(3) for side in (0, 1)]
+
+
+def wall_layer_tiles(size, samples, cell_uv, depth_m, seed):
+    """The wall layer of each face of a box of ``size``, tiled from a wall cell: a packing
+    periodic along its two walls (period cell_uv), relaxed against them as the direct box is.
+
+    samples: a list of (uvd (m, 3), radius (m,)): in-plane coordinates in [0, cell_uv) and the
+    distance of the centre from that wall, one per wall of the cell; face k takes sample
+    k % len(samples), its copies side by side over the face from a seeded random origin, and
+    keeps the spheres whose centre lies inside the face, within depth_m of it and no nearer to
+    another face (the faces' layers meet on the planes that bisect the box's edges).
+    Returns (position (M, 3), radius (M,), face (M,))."""
+    size = np.asarray(size, dtype=float)
+    rng = np.random.default_rng(seed)
+    out_p, out_r, out_f = [], [], []
+    for k, (axis, side) in enumerate(FACES):
+        uvd, r = samples[k % len(samples)]
+        u_axis, v_axis = [a for a in range(3) if a != axis]
+        shift = rng.random(2) * np.asarray(cell_uv)
+        reps = np.ceil(np.array([size[u_axis], size[v_axis]]) / np.asarray(cell_uv)).astype(int) + 1
+        shallow = uvd[:, 2] < depth_m
+        base, rb = uvd[shallow], r[shallow]
+        for i in range(reps[0]):
+            for j in range(reps[1]):
+                p = np.zeros((len(base), 3))
+                p[:, u_axis] = base[:, 0] + (i - 1) * cell_uv[0] + shift[0]
+                p[:, v_axis] = base[:, 1] + (j - 1) * cell_uv[1] + shift[1]
+                p[:, axis] = base[:, 2] if side == 0 else size[axis] - base[:, 2]
+                inside = np.all((p >= 0) & (p < size), axis=1)
+                out_p.append(p[inside]), out_r.append(rb[inside])
+                out_f.append(np.full(int(inside.sum()), k))
+    position, radius, face = np.concatenate(out_p), np.concatenate(out_r), np.concatenate(out_f)
+    # distance of each centre to the six faces, in the order of FACES
+    to_face = np.stack([position[:, a] if side == 0 else size[a] - position[:, a]
+                        for a, side in FACES], axis=1)
+    nearest = np.argmin(to_face, axis=1)
+    keep = nearest == face
+    return position[keep], radius[keep], face[keep]
+
+
+def drop_overlaps(position, radius, prefer_keep, tolerance=0.05):
+    """Indices of the spheres to keep so that no two overlap by more than ``tolerance`` of the
+    smaller radius: pairs taken deepest first, the sphere dropped being the one not preferred
+    (prefer_keep False), else the smaller. Where two relaxed packings are cut and joined (a
+    wall layer on the tiled bulk) the deep overlaps are the seam's; the pressed shell closes
+    the gaps their removal leaves."""
+    from scipy.spatial import cKDTree
+    tree = cKDTree(position)
+    pair = tree.query_pairs(2.0 * float(radius.max()), output_type="ndarray")
+    d = np.linalg.norm(position[pair[:, 0]] - position[pair[:, 1]], axis=1)
+    ri, rj = radius[pair[:, 0]], radius[pair[:, 1]]
+    depth = (ri + rj - d) / np.minimum(ri, rj)
+    deep = depth > tolerance
+    pair, depth = pair[deep], depth[deep]
+    alive = np.ones(len(radius), dtype=bool)
+    for k in np.argsort(-depth, kind="stable"):
+        i, j = pair[k]
+        if not (alive[i] and alive[j]):
+            continue
+        if prefer_keep[i] != prefer_keep[j]:
+            alive[j if prefer_keep[i] else i] = False
+        else:
+            alive[i if radius[i] < radius[j] else j] = False
+    return np.flatnonzero(alive)
