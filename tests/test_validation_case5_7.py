@@ -168,7 +168,8 @@ def test_case5_quotes_case7_from_its_record(monkeypatch):
         dict(n_particles=100_031, rows=rows(1.031)), dict(n_particles=499_972, rows=rows(1.017))]}}}
     assert case7_halo.interior_excess(seven["result"]["numbers"]) == pytest.approx(
         {100_031: 0.031, 499_972: 0.017})
-    main = dict(r_carve_m=0.0501, r_held_m=0.0494)
+    import types
+    main = types.SimpleNamespace(r_carve_m=0.0501, r_held_m=0.0494)
     calib = {10_000: dict(ct_bulk=1.0, ct_domain_mean=1.03, ct_held_mean=1.06),
              1_000_000: dict(ct_bulk=1.0)}
     monkeypatch.setattr(framework, "load_result", lambda n: seven if n == 7 else None)
@@ -179,3 +180,20 @@ def test_case5_quotes_case7_from_its_record(monkeypatch):
     assert f"{facts['paper_centre_c']:.2f}" == "182.18"
     monkeypatch.setattr(framework, "load_result", lambda n: None)
     assert case5_sphere._cross_case_facts(main, calib)["case7"] == ""
+
+
+def test_case5_runs_are_records():
+    """Case 5's saved runs read back as SphereRun records and write back to the same data (the
+    shell profiles stay in the cache); a run missing its centre error is refused in one line."""
+    import json
+
+    from tdem_post.records import RecordError
+    from validation import case5_sphere, framework
+    numbers = framework.load_result(5)["result"]["numbers"]
+    rows = case5_sphere.read_runs(numbers["rows"])
+    assert case5_sphere._saved(rows) == numbers["rows"]
+    assert case5_sphere._saved(case5_sphere.read_runs(numbers["speed"])) == numbers["speed"]
+    bad = json.loads(json.dumps(numbers["rows"][0]))
+    del bad["centre_error_c"]
+    with pytest.raises(RecordError, match=r"rows\[0\]: centre_error_c: missing"):
+        case5_sphere.read_runs([bad])

@@ -30,9 +30,11 @@ max and RMS of |T_p - T_exact(r_p)| (the paper's Fig. 8c measure is the max), an
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import os
 import time
+from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
@@ -40,6 +42,7 @@ import numpy as np
 
 from thermal_kernel.atomic import open_atomic, savefig_atomic
 from tdem_post.analytic import sphere_centre_temperature, sphere_temperature
+from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.calibrate import flux_test
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
@@ -92,6 +95,60 @@ for _n, (_s, _b) in QUICK.items():
 # Haddad's coordination with gaps in the bulk (002 sec. 2.1, Z ~ 7.5), picked per packing from the
 # dumped neighbours (thermal_kernel.neighbours, issue 23)
 TARGET_Z = 7.5
+_OPT = column(optional=True)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SphereRun:
+    """One thermal run of the ball (:func:`sphere_run`, cached under validation/out/case5):
+    its packing, C_t and scheme, the held shell R_h and carving radius R_carve, and the errors
+    at t = 10 s (°C; r/R_h where the max lies). ``centre_*_c``: the centre's history (explicit
+    runs); ``shells``: the shell profile (kept in the cache, not in the saved result);
+    ``label``, ``n_nominal``, ``sphere``: its row of the case (the speed runs have none)."""
+    packing: str
+    n_particles: int
+    ct: float
+    method: str
+    steps: int
+    dt_s: float
+    run_seconds: float
+    assemble_seconds: float
+    threads: int
+    r_carve_m: float
+    r_held_m: float
+    n_held: int
+    n_free: int
+    n_centre_ball: int
+    fourier_end: float
+    time_scale: float
+    unconnected: int
+    centre_dem_c: tuple[float, ...] | None = field(default=None, metadata=_OPT)
+    centre_exact_c: tuple[float, ...] | None = field(default=None, metadata=_OPT)
+    centre_error_c: float
+    max_abs_error_c: float
+    argmax_r_over_R: float
+    rms_error_c: float
+    mean_error_c: float
+    centre_error_carve_radius_c: float
+    max_abs_error_carve_radius_c: float
+    argmax_carve_r_over_R: float
+    # per shell: r/R_h, T_dem, T_exact (°C), particles (an integer: the items are left as read)
+    shells: tuple[tuple, ...] | None = field(default=None, metadata=_OPT)
+    version: int                        # of the cached record (VERSION)
+    label: str | None = field(default=None, metadata=_OPT)
+    n_nominal: int | None = field(default=None, metadata=_OPT)
+    sphere: str | None = field(default=None, metadata=_OPT)
+
+
+def read_runs(runs: list, where: str = "case 5: rows") -> list[SphereRun]:
+    """Runs (saved or cached dicts, their arrays "_field" left out) as SphereRun records."""
+    return [from_dict(SphereRun, {k: v for k, v in r.items() if not k.startswith("_")},
+                      f"{where}[{k}]") for k, r in enumerate(runs)]
+
+
+def _saved(runs: list[SphereRun]) -> list[dict]:
+    """The runs as the saved result holds them (the shell profiles left in the cache)."""
+    return [to_dict(dataclasses.replace(r, shells=None)) for r in runs]
 
 
 def scene_text(packing: str, ct: float, surface: str | None = "surface") -> str:
@@ -267,16 +324,16 @@ def judge(numbers: dict) -> Judgement:
         met = numbers["max_abs_error_c"] <= 1.0
     else:
         return Judgement("not measured", "", None)
-    rows = sorted(numbers.get("rows", []), key=lambda r: r["n_particles"])
-    reached = [r for r in rows if r.get("max_abs_error_c", 9e9) <= 1.93]
-    speed = (f"the paper's 1.93 °C first at N {reached[0]['n_particles']:,} (thermal "
-             f"{reached[0]['run_seconds']:.0f} s)" if reached else "")
-    dom = next((r for r in numbers.get("rows", []) if r.get("label") == "ours, domain length"
-                and r.get("n_nominal") == 100_000), None)
-    gap_mm = 1e3 * (dom["r_carve_m"] - dom["r_held_m"]) if dom else 0.0
+    rows = sorted(read_runs(numbers.get("rows", [])), key=lambda r: r.n_particles)
+    reached = [r for r in rows if r.max_abs_error_c <= 1.93]
+    speed = (f"the paper's 1.93 °C first at N {reached[0].n_particles:,} (thermal "
+             f"{reached[0].run_seconds:.0f} s)" if reached else "")
+    dom = next((r for r in rows if r.label == "ours, domain length"
+                and r.n_nominal == 100_000), None)
+    gap_mm = 1e3 * (dom.r_carve_m - dom.r_held_m) if dom else 0.0
     swing = (f" — the analytical radius R_carve or R_h ({gap_mm:.2f} mm apart, spheres of mean "
              f"radius 1 mm) moves the centre by "
-             f"{dom['centre_error_carve_radius_c'] - dom['centre_error_c']:.2f} °C —"
+             f"{dom.centre_error_carve_radius_c - dom.centre_error_c:.2f} °C —"
              if dom else "")
     verdict = ("met" if met else "not met") + (
         " with the paper's conventions" + ("" if met else (
@@ -295,7 +352,7 @@ def run(ctx: Context) -> CaseResult:
     # forward Euler (the speed-against-error table); TDEM_CASE5_1E6=explicit runs forward Euler
     big_method = "explicit" if os.environ.get("TDEM_CASE5_1E6") == "explicit" else "rannacher"
     out = ctx.out
-    rows, calib, speed = [], {}, []
+    rows, calib, speed, fields = [], {}, [], {}      # fields: (N, label) -> particle arrays
     for n, (sphere_name, box_name) in sizes.items():
         ctx.progress(f"N {n}: packings")
         sphere_path, box_path = ctx.packing(sphere_name), ctx.packing(box_name)
@@ -325,6 +382,8 @@ def run(ctx: Context) -> CaseResult:
                           sphere_run(sphere_path, ct, method=method, steps=steps,
                                      threads=ctx.threads, keep_field=(label == PRIMARY)))
             rec.update(label=label, n_nominal=n, sphere=sphere_name)
+            if "_field" in rec:
+                fields[(n, label)] = rec["_field"]
             rows.append(rec)
     # speed against error: Rannacher CN at the paper's 1e5 (quick: the small sphere)
     n_speed = 100_000 if not ctx.quick else next(iter(sizes))
@@ -336,7 +395,8 @@ def run(ctx: Context) -> CaseResult:
                       lambda steps=steps: sphere_run(ctx.packing(sphere_name), ct_ours,
                                                      method="rannacher", steps=steps))
         speed.append(rec)
-    return _report(ctx, rows, calib, speed, n_speed)
+    return _report(ctx, read_runs(rows), calib, read_runs(speed, "case 5: speed"), n_speed,
+                   fields)
 
 
 def _pack_s(name):
@@ -344,14 +404,14 @@ def _pack_s(name):
     return float("nan") if s is None else s
 
 
-def _report(ctx, rows, calib, speed, n_speed) -> CaseResult:
+def _report(ctx, rows, calib, speed, n_speed, fields) -> CaseResult:
     """The four figures (with their CSVs) and the result, from the runs' records."""
-    ours = [r for r in rows if r["label"] == PRIMARY]
-    by = {(r["n_nominal"], r["label"]): r for r in rows}
-    main_n = 100_000 if (100_000, PRIMARY) in by else ours[-1]["n_nominal"]
+    ours = [r for r in rows if r.label == PRIMARY]
+    by = {(r.n_nominal, r.label): r for r in rows}
+    main_n = 100_000 if (100_000, PRIMARY) in by else ours[-1].n_nominal
     main = by[(main_n, PRIMARY)]
     _figure_centre(ctx, rows)
-    _figure_profile(ctx, rows, main, main_n)
+    _figure_profile(ctx, rows, main, main_n, fields.get((main_n, PRIMARY)))
     orders = _figure_convergence(ctx, rows, ours)
     _figure_speed(ctx, ours, speed)
     return _summary(ctx, rows, calib, speed, main, orders)
@@ -373,15 +433,15 @@ def _figure_centre(ctx, rows) -> None:
         w.writerow(["n_particles", "ct_label", "ct", "paper_time_s", "T_centre_dem_C",
                     "T_centre_exact_C", "error_C"])
         for r in rows:
-            if (r["n_nominal"] < 100_000 and not ctx.quick) or "centre_dem_c" not in r:
+            if (r.n_nominal < 100_000 and not ctx.quick) or r.centre_dem_c is None:
                 continue            # the implicit 1e6 runs keep the final field only
-            d = np.array(r["centre_dem_c"]) - np.array(r["centre_exact_c"])
-            style = {"paper": "o", PRIMARY: "s", "ours, held planes": "^"}.get(r["label"], "v")
-            lab = f"{r['n_particles']:,}, C_t {r['ct']:.3f} ({r['label']})"
-            ax[0].plot(PAPER_TIMES, r["centre_dem_c"], style, ms=4, mfc="none", label=lab)
+            d = np.array(r.centre_dem_c) - np.array(r.centre_exact_c)
+            style = {"paper": "o", PRIMARY: "s", "ours, held planes": "^"}.get(r.label, "v")
+            lab = f"{r.n_particles:,}, C_t {r.ct:.3f} ({r.label})"
+            ax[0].plot(PAPER_TIMES, r.centre_dem_c, style, ms=4, mfc="none", label=lab)
             ax[1].plot(PAPER_TIMES, d, style + "-", ms=4, mfc="none", label=lab)
-            for t, td, te in zip(PAPER_TIMES, r["centre_dem_c"], r["centre_exact_c"]):
-                w.writerow([r["n_particles"], r["label"], f"{r['ct']:.6g}", t, f"{td:.6f}",
+            for t, td, te in zip(PAPER_TIMES, r.centre_dem_c, r.centre_exact_c):
+                w.writerow([r.n_particles, r.label, f"{r.ct:.6g}", t, f"{td:.6f}",
                             f"{te:.6f}", f"{td - te:.6f}"])
     ax[0].set_xlabel("t (s, paper's time; ours at the same Fourier number)")
     ax[0].set_ylabel("centre temperature (C)")
@@ -397,13 +457,12 @@ def _figure_centre(ctx, rows) -> None:
     plt.close(fig)
 
 
-def _figure_profile(ctx, rows, main, main_n) -> None:
+def _figure_profile(ctx, rows, main, main_n, field) -> None:
     """Figure 2: the profile at t = 10 s (002 Fig. 8), the shells of the main N's runs."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    field = main.get("_field")
     png = ctx.figure("profile")
     fig, ax = plt.subplots(figsize=(6, 4))
     if field is not None:
@@ -418,17 +477,17 @@ def _figure_profile(ctx, rows, main, main_n) -> None:
         w.writerow(["n_particles", "ct_label", "r_over_R_shell_mid", "T_dem_C", "T_exact_C",
                     "particles"])
         for r in rows:
-            if r["n_nominal"] != main_n:
+            if r.n_nominal != main_n:
                 continue
-            sh = np.array(r["shells"])
-            ax.plot(sh[:, 0], sh[:, 1], "o" if r["label"] == "paper" else "s", ms=4, mfc="none",
-                    label=f"shell means, C_t {r['ct']:.3f} ({r['label']})")
-            for s in r["shells"]:
-                w.writerow([r["n_particles"], r["label"], f"{s[0]:.4f}", f"{s[1]:.6f}",
+            sh = np.array(r.shells)
+            ax.plot(sh[:, 0], sh[:, 1], "o" if r.label == "paper" else "s", ms=4, mfc="none",
+                    label=f"shell means, C_t {r.ct:.3f} ({r.label})")
+            for s in r.shells:
+                w.writerow([r.n_particles, r.label, f"{s[0]:.4f}", f"{s[1]:.6f}",
                             f"{s[2]:.6f}", s[3]])
     ax.set_xlabel("r / R_held")
     ax.set_ylabel("T at t = 10 s (C)")
-    ax.set_title(f"{main['n_particles']:,} spheres", fontsize=9)
+    ax.set_title(f"{main.n_particles:,} spheres", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
     savefig_atomic(fig, png, dpi=110)
@@ -442,20 +501,20 @@ def _figure_convergence(ctx, rows, ours) -> dict:
     import matplotlib.pyplot as plt
 
     png = ctx.figure("convergence")
-    ns = [r["n_particles"] for r in ours]
+    ns = [r.n_particles for r in ours]
     big = [i for i, n in enumerate(ns) if n >= 10_000] or list(range(len(ns)))
     orders = {}
     fig, ax = plt.subplots(figsize=(6, 4.5))
     for key, lab, mk in (("centre_error_c", "|centre error|", "o"),
                          ("max_abs_error_c", "max |error| (paper's measure)", "s"),
                          ("rms_error_c", "RMS error", "^")):
-        e = np.abs([r[key] for r in ours])
+        e = np.abs([getattr(r, key) for r in ours])
         orders[key] = fit_order([ns[i] for i in big], [e[i] for i in big])[0]
         ax.loglog(ns, e, mk + "-", label=f"{lab}, slope {orders[key]:.2f}")
     for lab in ("paper", "ours, held planes", "ours, domain length"):
-        pr = [r for r in rows if r["label"] == lab]
+        pr = [r for r in rows if r.label == lab]
         if pr:
-            ax.loglog([r["n_particles"] for r in pr], np.abs([r["centre_error_c"] for r in pr]),
+            ax.loglog([r.n_particles for r in pr], np.abs([r.centre_error_c for r in pr]),
                       "x", ms=7, label=f"|centre error|, C_t {lab}")
     ax.axhline(1.93, color="r", ls=":", lw=1, label="paper, 1e5: 1.93 C")
     ax.axhline(1.0, color="g", ls=":", lw=1, label="goal, 1e5: 1 C")
@@ -472,11 +531,11 @@ def _figure_convergence(ctx, rows, ours) -> dict:
                     "centre_error_carve_radius_C", "max_abs_error_C", "rms_error_C",
                     "mean_error_C", "steps", "run_seconds", "pack_seconds"])
         for r in rows:
-            w.writerow([r["n_particles"], r["label"], f"{r['ct']:.6g}", f"{r['r_held_m']:.6g}",
-                        f"{r['r_carve_m']:.6g}", f"{r['centre_error_c']:.5f}",
-                        f"{r['centre_error_carve_radius_c']:.5f}", f"{r['max_abs_error_c']:.5f}",
-                        f"{r['rms_error_c']:.5f}", f"{r['mean_error_c']:.5f}", r["steps"],
-                        f"{r['run_seconds']:.2f}", f"{_pack_s(r['sphere']):.1f}"])
+            w.writerow([r.n_particles, r.label, f"{r.ct:.6g}", f"{r.r_held_m:.6g}",
+                        f"{r.r_carve_m:.6g}", f"{r.centre_error_c:.5f}",
+                        f"{r.centre_error_carve_radius_c:.5f}", f"{r.max_abs_error_c:.5f}",
+                        f"{r.rms_error_c:.5f}", f"{r.mean_error_c:.5f}", r.steps,
+                        f"{r.run_seconds:.2f}", f"{_pack_s(r.sphere):.1f}"])
     return orders
 
 
@@ -486,18 +545,18 @@ def _figure_speed(ctx, ours, speed) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ns = [r["n_particles"] for r in ours]
+    ns = [r.n_particles for r in ours]
     png = ctx.figure("speed_error")
     fig, ax = plt.subplots(figsize=(6, 4.5))
-    ax.loglog([abs(r["centre_error_c"]) for r in ours], [r["run_seconds"] for r in ours], "o-",
+    ax.loglog([abs(r.centre_error_c) for r in ours], [r.run_seconds for r in ours], "o-",
               label="explicit (the paper's scheme), N = " + ", ".join(f"{n:.0e}" for n in ns))
     for r in ours:
-        ax.annotate(f"{r['n_particles']:,}", (abs(r["centre_error_c"]), r["run_seconds"]),
+        ax.annotate(f"{r.n_particles:,}", (abs(r.centre_error_c), r.run_seconds),
                     fontsize=6, xytext=(3, 3), textcoords="offset points")
-    ax.loglog([abs(r["centre_error_c"]) for r in speed], [r["run_seconds"] for r in speed], "s-",
-              label=f"Rannacher CN at N = {speed[0]['n_particles']:,} (labels: steps)")
+    ax.loglog([abs(r.centre_error_c) for r in speed], [r.run_seconds for r in speed], "s-",
+              label=f"Rannacher CN at N = {speed[0].n_particles:,} (labels: steps)")
     for r in speed:
-        ax.annotate(str(r["steps"]), (abs(r["centre_error_c"]), r["run_seconds"]), fontsize=6,
+        ax.annotate(str(r.steps), (abs(r.centre_error_c), r.run_seconds), fontsize=6,
                     xytext=(3, -8), textcoords="offset points")
     ax.set_xlabel("|centre error| at t = 10 s (C)")
     ax.set_ylabel("thermal wall time, 1 thread (s)")
@@ -511,9 +570,9 @@ def _figure_speed(ctx, ours, speed) -> None:
         w.writerow(["solver", "n_particles", "steps", "run_seconds", "centre_error_C",
                     "max_abs_error_C", "rms_error_C"])
         for r in ours + speed:
-            w.writerow([r["method"], r["n_particles"], r["steps"], f"{r['run_seconds']:.3f}",
-                        f"{r['centre_error_c']:.5f}", f"{r['max_abs_error_c']:.5f}",
-                        f"{r['rms_error_c']:.5f}"])
+            w.writerow([r.method, r.n_particles, r.steps, f"{r.run_seconds:.3f}",
+                        f"{r.centre_error_c:.5f}", f"{r.max_abs_error_c:.5f}",
+                        f"{r.rms_error_c:.5f}"])
 
 
 def _cross_case_facts(main, calib) -> dict:
@@ -533,18 +592,18 @@ def _cross_case_facts(main, calib) -> dict:
         f"{100 * e:.1f} % at {n:.0e}".replace("e+0", "e")
         for k, (n, e) in enumerate(sorted(excess.items()))))
     return dict(paper_centre_c=sphere_centre_temperature(PAPER_T_END, PAPER_R, ALPHA, TS_C, T0_C),
-                gap_mm=1e3 * (main["r_carve_m"] - main["r_held_m"]),
+                gap_mm=1e3 * (main.r_carve_m - main.r_held_m),
                 whole_over_bulk=(f"{100 * min(whole):.0f}–{100 * max(whole):.0f} %" if whole
                                  else "a few per cent"),
                 case7=case7)
 
 
 def _fmt_row(r):
-    return (f"| {r['n_particles']:,} | {r['label']} | {r['ct']:.4f} | {1e3 * r['r_held_m']:.2f} / "
-            f"{1e3 * r['r_carve_m']:.2f} | {r['centre_error_c']:+.3f} | "
-            f"{r['centre_error_carve_radius_c']:+.3f} | {r['max_abs_error_c']:.3f} "
-            f"({r['argmax_r_over_R']:.2f}) | {r['rms_error_c']:.3f} | {r['steps']:,} | "
-            f"{r['run_seconds']:.1f} |")
+    return (f"| {r.n_particles:,} | {r.label} | {r.ct:.4f} | {1e3 * r.r_held_m:.2f} / "
+            f"{1e3 * r.r_carve_m:.2f} | {r.centre_error_c:+.3f} | "
+            f"{r.centre_error_carve_radius_c:+.3f} | {r.max_abs_error_c:.3f} "
+            f"({r.argmax_r_over_R:.2f}) | {r.rms_error_c:.3f} | {r.steps:,} | "
+            f"{r.run_seconds:.1f} |")
 
 
 def _paper_texts(by: dict, main: dict) -> dict:
@@ -554,22 +613,22 @@ def _paper_texts(by: dict, main: dict) -> dict:
     big = by.get((1_000_000, PRIMARY))
     big_paper = by.get((1_000_000, "paper"))
     paper_txt = (f"With the paper's C_t (0.806) on our 1e5 sphere the centre is off by "
-                 f"**{paper_1e5['centre_error_c']:+.2f} °C** "
-                 f"(max {paper_1e5['max_abs_error_c']:.2f} °C): C_t calibrates the packing's "
+                 f"**{paper_1e5.centre_error_c:+.2f} °C** "
+                 f"(max {paper_1e5.max_abs_error_c:.2f} °C): C_t calibrates the packing's "
                  "conductance per unit of the law's contact area, so it carries the packing's "
                  "coordination with gaps (the neighbour criterion) and the law's R_m — a packing "
                  "with more conducting neighbours per particle than Haddad's needs a smaller C_t "
-                 f"(ours {main['ct']:.3f}, case 6). The C_t is calibrated on the packing in use."
+                 f"(ours {main.ct:.3f}, case 6). The C_t is calibrated on the packing in use."
                  if paper_1e5 else "")
     # the paper's conventions (002 sec. 2.1-2.3): C_t of the whole-cube flux test with the
     # domain length (002 eq. 8), the analytical sphere of the domain's radius (R_carve)
     pc = by.get((100_000, "ours, domain length"))
     paper_conv = None
-    if pc and "max_abs_error_carve_radius_c" in pc:
-        paper_conv = {"n_particles": pc["n_particles"], "ct": pc["ct"],
-                      "max_abs_error_c": pc["max_abs_error_carve_radius_c"],
-                      "argmax_r_over_R": pc["argmax_carve_r_over_R"],
-                      "centre_error_c": pc["centre_error_carve_radius_c"]}
+    if pc:
+        paper_conv = {"n_particles": pc.n_particles, "ct": pc.ct,
+                      "max_abs_error_c": pc.max_abs_error_carve_radius_c,
+                      "argmax_r_over_R": pc.argmax_carve_r_over_R,
+                      "centre_error_c": pc.centre_error_carve_radius_c}
     paper_conv_txt = (
         f"**With the paper's conventions** (C_t {paper_conv['ct']:.4f} from the whole-cube flux "
         "test with the domain length, 002 eq. 8; the analytical sphere of the domain radius "
@@ -580,14 +639,14 @@ def _paper_texts(by: dict, main: dict) -> dict:
         "domain radius) were not run at 1e5 here.")
     big_txt = ""
     if big:
-        big_txt = (f" At 1e6 ({big['n_particles']:,} spheres) the centre error is "
-                   f"{big['centre_error_c']:+.3f} °C with our C_t"
-                   + (f" and {big_paper['centre_error_c']:+.2f} °C with the paper's 0.834"
+        big_txt = (f" At 1e6 ({big.n_particles:,} spheres) the centre error is "
+                   f"{big.centre_error_c:+.3f} °C with our C_t"
+                   + (f" and {big_paper.centre_error_c:+.2f} °C with the paper's 0.834"
                       if big_paper else "") + ".")
-    big_limit = ((f"At 1e6 the explicit run took {big['steps']:,} steps."
-                  if big["method"] == "explicit" else
-                  f"At 1e6 the run is Rannacher Crank–Nicolson with {big['steps']} steps "
-                  f"({big['run_seconds']:.0f} s; forward Euler would need ~45,000 steps, ~1.5 h "
+    big_limit = ((f"At 1e6 the explicit run took {big.steps:,} steps."
+                  if big.method == "explicit" else
+                  f"At 1e6 the run is Rannacher Crank–Nicolson with {big.steps} steps "
+                  f"({big.run_seconds:.0f} s; forward Euler would need ~45,000 steps, ~1.5 h "
                   f"per C_t on one shared core; at 1e5, {BIG_STEPS} such steps are within "
                   f"0.01 °C of forward Euler, see the speed-against-error table; "
                   f"`TDEM_CASE5_1E6=explicit` runs forward Euler).") if big else
@@ -601,14 +660,14 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
     """The result: the section's tables and text (its sentences on the paper from
     :func:`_paper_texts`) and the summary's columns. Most of its length is the section's
     text."""
-    by = {(r["n_nominal"], r["label"]): r for r in rows}
+    by = {(r.n_nominal, r.label): r for r in rows}
     paper_1e5 = by.get((100_000, "paper"))
     big = by.get((1_000_000, PRIMARY))
-    best_cn = min(speed, key=lambda r: r["run_seconds"] if abs(r["centre_error_c"])
-                  <= 1.1 * abs(main["centre_error_c"]) + 0.05 else math.inf)
-    met = abs(main["centre_error_c"]) <= 1.0
+    best_cn = min(speed, key=lambda r: r.run_seconds if abs(r.centre_error_c)
+                  <= 1.1 * abs(main.centre_error_c) + 0.05 else math.inf)
+    met = abs(main.centre_error_c) <= 1.0
     facts = _cross_case_facts(main, calib)
-    n_fmt = ", ".join(f"{r['n_particles']:,}" for r in rows if r["label"] == PRIMARY)
+    n_fmt = ", ".join(f"{r.n_particles:,}" for r in rows if r.label == PRIMARY)
     table = "\n".join(_fmt_row(r) for r in rows)
     cal_rows = "\n".join(
         f"| {c['n_particles']:,} | {c['ct_bulk']:.4f} | "
@@ -616,8 +675,8 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
            f"{' / '.join(f'{v:.4f}' for v in c['ct_held'])} |" if "ct_held" in c
            else "— | — | — |") for c in calib.values())
     speed_rows = "\n".join(
-        f"| {r['steps']} | {r['run_seconds']:.2f} | {r['centre_error_c']:+.3f} | "
-        f"{r['max_abs_error_c']:.3f} |" for r in speed)
+        f"| {r.steps} | {r.run_seconds:.2f} | {r.centre_error_c:+.3f} | "
+        f"{r.max_abs_error_c:.3f} |" for r in speed)
     t = _paper_texts(by, main)
     paper_txt, paper_conv, paper_conv_txt = t["paper_txt"], t["paper_conv"], t["paper_conv_txt"]
     big_txt, big_limit = t["big_txt"], t["big_limit"]
@@ -676,10 +735,10 @@ the paper's Fig. 8c measure, with where it lies as r/R_h; thermal: 1 thread, sha
 |---|---|---|---|---|---|---|---|---|---|
 {table}
 
-At 1e5 with our C_t the centre error is **{main['centre_error_c']:+.3f} °C** against the paper's
-1.93 °C (max over the particles {main['max_abs_error_c']:.2f} °C, at r/R_h = \
-{main['argmax_r_over_R']:.2f}): ≤ 1 °C is {'met' if met else 'not met'} at the centre and
-{'met' if main['max_abs_error_c'] <= 1.0 else 'not met'} for the max, the paper's measure.\
+At 1e5 with our C_t the centre error is **{main.centre_error_c:+.3f} °C** against the paper's
+1.93 °C (max over the particles {main.max_abs_error_c:.2f} °C, at r/R_h = \
+{main.argmax_r_over_R:.2f}): ≤ 1 °C is {'met' if met else 'not met'} at the centre and
+{'met' if main.max_abs_error_c <= 1.0 else 'not met'} for the max, the paper's measure.\
 {big_txt} {paper_txt}
 
 {paper_conv_txt}
@@ -704,15 +763,15 @@ other side.
 ![convergence with N](img/validation_case5_convergence.png)
 
 **Speed against error** (1 thread; the implicit Rannacher Crank–Nicolson at
-{speed[0]['n_particles']:,} spheres with n steps to t = 10 s, against the explicit run of the
-same packing, {main['steps']:,} steps in {main['run_seconds']:.1f} s):
+{speed[0].n_particles:,} spheres with n steps to t = 10 s, against the explicit run of the
+same packing, {main.steps:,} steps in {main.run_seconds:.1f} s):
 
 | CN steps | thermal (s) | centre error (°C) | max error (°C) |
 |---|---|---|---|
 {speed_rows}
 
-The cheapest implicit run within the explicit one's error takes {best_cn['steps']} steps,
-{best_cn['run_seconds']:.1f} s. The error at this Fourier number is the packing's, not the time
+The cheapest implicit run within the explicit one's error takes {best_cn.steps} steps,
+{best_cn.run_seconds:.1f} s. The error at this Fourier number is the packing's, not the time
 scheme's, once CN has ~20 steps.
 
 ![speed against error](img/validation_case5_speed_error.png)
@@ -721,27 +780,25 @@ What limits us: the packings are one relaxed 10,000-sphere cell repeated (period
 diameters), so N → ∞ does not average new structure in; a packing-to-packing scatter would need
 other cells (seeds), not done here. {big_limit}
 """
-    also_n = ", ".join(f"{r['n_particles']:,}" for r in rows
-                       if r['label'] == PRIMARY and r is not main)
+    also_n = ", ".join(f"{r.n_particles:,}" for r in rows
+                       if r.label == PRIMARY and r is not main)
     return CaseResult(
-        our_n=f"{main['n_particles']:,} (also {also_n})",
-        our_error=(f"centre {main['centre_error_c']:+.2f} °C, max {main['max_abs_error_c']:.2f} °C "
-                   f"(our C_t {main['ct']:.4f})"
-                   + (f"; paper's C_t 0.806: centre {paper_1e5['centre_error_c']:+.1f} °C"
+        our_n=f"{main.n_particles:,} (also {also_n})",
+        our_error=(f"centre {main.centre_error_c:+.2f} °C, max {main.max_abs_error_c:.2f} °C "
+                   f"(our C_t {main.ct:.4f})"
+                   + (f"; paper's C_t 0.806: centre {paper_1e5.centre_error_c:+.1f} °C"
                       if paper_1e5 else "")
-                   + (f"; 1e6: centre {big['centre_error_c']:+.2f} °C" if big else "")),
-        wall_time=(f"{_pack_s(main['sphere']):.0f} s + {main['run_seconds']:.0f} s "
-                   f"(explicit, {main['steps']:,} steps; the cell: 551 s CPU once)"),
+                   + (f"; 1e6: centre {big.centre_error_c:+.2f} °C" if big else "")),
+        wall_time=(f"{_pack_s(main.sphere):.0f} s + {main.run_seconds:.0f} s "
+                   f"(explicit, {main.steps:,} steps; the cell: 551 s CPU once)"),
         verdict=("goal ≤ 1 °C at 1e5 " + ("met" if met else "not met")
                  + " with our calibrated C_t; the paper's C_t does not transfer to our packing"),
         section_md=section,
-        numbers={"centre_error_c": main["centre_error_c"], "paper_conventions": paper_conv,
-                 "max_abs_error_c": main["max_abs_error_c"],
-                 "rms_error_c": main["rms_error_c"], "ct_ours": main["ct"],
-                 "n_particles": main["n_particles"], "orders": orders,
-                 "rows": [{k: v for k, v in r.items() if k != "shells" and not k.startswith("_")}
-                          for r in rows],
+        numbers={"centre_error_c": main.centre_error_c, "paper_conventions": paper_conv,
+                 "max_abs_error_c": main.max_abs_error_c,
+                 "rms_error_c": main.rms_error_c, "ct_ours": main.ct,
+                 "n_particles": main.n_particles, "orders": orders,
+                 "rows": _saved(rows),
                  "calibration": {str(k): v for k, v in calib.items()},
-                 "speed": [{k: v for k, v in r.items() if k != "shells" and not k.startswith("_")}
-                           for r in speed]},
+                 "speed": _saved(speed)},
         command="")
