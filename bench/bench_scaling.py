@@ -344,8 +344,9 @@ def projection(data):
             whole_gb_rank = m["whole_bytes_per_particle"] * n / 1e9
             # nodes: the distributed part must fit in the nodes' memory at half of it
             nodes = max(1, int(np.ceil(solve_gb_total / (0.5 * NODE_GB))))
-            nodes = max(nodes, int(np.ceil(n / 2e6 / NODE_CORES)))   # >= 0.5 us of work per
-            ranks = nodes * NODE_CORES                                # particle-step per core
+            # at most 2e6 particles a rank (the largest block measured per rank here)
+            nodes = max(nodes, int(np.ceil(n / 2e6 / NODE_CORES)))
+            ranks = nodes * NODE_CORES
             halo = _halo(data["synthetic_cuts"], n, ranks)[0]
             comm = LATENCY_S * 26 + 8 * halo / (LINK_GB_S * 1e9 / NODE_CORES)
             if solver == "explicit":

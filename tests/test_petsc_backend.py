@@ -185,3 +185,19 @@ def test_a_bad_scene_on_the_ranks_is_one_line_and_exit_2(tmp_path, capsys):
     assert err == [f"tdem: error: {scene}: law_params.ct: unknown parameter of law 'pipe' "
                    "(known: none)"]
     assert not (tmp_path / "o" / "thermal.h5").exists()
+
+
+@pytest.mark.parametrize("extra,message", [
+    (["--ranks", "0"], "tdem: error: --ranks: expected a number of MPI ranks >= 1, got 0"),
+    (["--ranks", "2", "--checkpoint-every", "1"],
+     'tdem: error: --checkpoint-every: not with the PETSc backend (--ranks, or solver.backend = '
+     '"petsc"); expected an in-process run for it'),
+    (["--ranks", "2", "--threads", "2"],
+     'tdem: error: --threads: not with the PETSc backend (--ranks, or solver.backend = '
+     '"petsc"); expected an in-process run for it'),
+])
+def test_options_the_backend_does_not_take_are_one_line(tmp_path, capsys, extra, message):
+    scene = _scene(tmp_path, "s", f'packing = "{BED}"\nlaw = "pipe"\n{BED_THERMAL}'
+                                  f'[solver]\n{SOLVERS["explicit"]}')
+    assert main(["run", str(scene), "--out", str(tmp_path / "o"), *extra]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [message]
