@@ -162,10 +162,13 @@ def test_case5_quotes_case7_from_its_record(monkeypatch):
     record, and computes the paper's centre temperature and its own radius gap."""
     from validation import case5_sphere, case7_halo, framework
 
-    def rows(mean_x):
-        return [dict(ratio=3.0, mean_x=9.0), dict(ratio=4.0, mean_x=mean_x)]
-    seven = {"result": {"numbers": {"records": [
-        dict(n_particles=100_031, rows=rows(1.031)), dict(n_particles=499_972, rows=rows(1.017))]}}}
+    import json
+    seven = json.loads(json.dumps(framework.load_result(7)))     # case 7's record, edited
+    for rec, mean_x in zip(seven["result"]["numbers"]["records"], (1.031, 1.017)):
+        for row in rec["rows"]:
+            row["mean_x"] = mean_x if row["ratio"] == 4.0 else 9.0
+    assert [r["n_particles"] for r in seven["result"]["numbers"]["records"]] == [100_031,
+                                                                                 499_972]
     assert case7_halo.interior_excess(seven["result"]["numbers"]) == pytest.approx(
         {100_031: 0.031, 499_972: 0.017})
     import types
@@ -197,3 +200,20 @@ def test_case5_runs_are_records():
     del bad["centre_error_c"]
     with pytest.raises(RecordError, match=r"rows\[0\]: centre_error_c: missing"):
         case5_sphere.read_runs([bad])
+
+
+def test_case7_records_round_trip():
+    """Case 7's saved cubes read back as HaloRecord records (a HaloRow per ratio and radius)
+    and write back to the same data; a row without its CoV is refused in one line."""
+    import json
+
+    from tdem_post.records import RecordError, to_dict
+    from validation import case7_halo, framework
+    numbers = framework.load_result(7)["result"]["numbers"]
+    recs = case7_halo.read_records(numbers["records"])
+    assert json.dumps([to_dict(r) for r in recs]) == json.dumps(numbers["records"])
+    assert case7_halo._at(recs[0], 4.0) == numbers["cov_ratio4"]
+    bad = json.loads(json.dumps(numbers["records"][0]))
+    del bad["rows"][3]["cov_abs"]
+    with pytest.raises(RecordError, match=r"records\[0\]: rows\[3\]: cov_abs: missing"):
+        case7_halo.read_records([bad])

@@ -23,12 +23,14 @@ from __future__ import annotations
 
 import csv
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from thermal_kernel.atomic import open_atomic, savefig_atomic
+from tdem_post.records import column, from_dict, to_dict
 from tdem_post.flux import (coefficient_of_variation, contact_moments, halo_flux, halo_radii,
                             reference_radius)
 from thermal_kernel.calibrate import cross_section
@@ -193,8 +195,8 @@ def halo_cov(packing_path, ratios=RATIOS, max_eval=MAX_EVAL, seed=1, kinds=KINDS
     z_rows = [dict(criterion=f"bulk Z {target_z:g}" if choice else "every dumped pair",
                    gap=choice.gap if choice else gap_dump,
                    z_bulk=choice.bulk_z if choice else float("nan"),
-                   halo4=_at({"rows": rows["common"]}, 4.0),
-                   halo11=_at({"rows": rows["common"]}, 11.0), **raw)]
+                   halo4=_cov_at(rows["common"], 4.0),
+                   halo11=_cov_at(rows["common"], 11.0), **raw)]
     if choice is not None:
         scene_all = load_scene(SCENE_PATH, text=scene_text(packing_path, target_z=None))
         p2, n2, r2, _ = _steady(scene_all, packing)
@@ -241,14 +243,74 @@ def run(ctx: Context) -> CaseResult:
     return _report(ctx, recs)
 
 
+def _cov_at(rows: list[dict], ratio: float) -> float:
+    """The CoV of |q| of the measured rows (dicts) at ``ratio`` (NaN: not measured)."""
+    return next((r["cov_abs"] for r in rows if r["ratio"] == ratio), float("nan"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class HaloRow:
+    """One halo radius kind and ratio on one cube: the CoV of the flux (|q| per particle and
+    volume-weighted, q_x), its mean / min / max over Q/A, over ``n_eval`` of the ``n_inside``
+    particles whose halo lies inside; the halo sizes, by class of R_p / r̄ too; the seconds."""
+    ratio: float
+    n_inside: int
+    n_eval: int
+    cov_abs: float
+    cov_abs_volume: float
+    cov_x: float
+    mean_abs: float
+    mean_x: float
+    min_abs: float
+    max_abs: float
+    members_mean: float
+    alone_fraction: float
+    class_rms_dev: tuple[float, ...]
+    class_members: tuple[float, ...]
+    seconds: float
+    seconds_per_particle: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class HaloRecord:
+    """One cube of the case (:func:`halo_cov`, cached under validation/out/case7): its steady
+    slab, the rows of the two halo radii, the raw flux's scatter (``raw``), the scatter
+    against the neighbour criterion (``z_rows``) and the criterion's summary (``neighbours``);
+    ``name`` and ``n_nominal``: its packing in the case."""
+    packing: str
+    n_particles: int
+    steady_seconds: float
+    q_macro_w_m2: float
+    balance: float
+    solid_fraction: float
+    length_m: float
+    r_mean_m: float
+    r3_mean_over_r_mean3: float
+    rows: tuple[HaloRow, ...]
+    rows_own: tuple[HaloRow, ...]
+    raw: dict
+    z_rows: tuple[dict, ...]
+    neighbours: dict | None
+    version: int
+    name: str | None = field(default=None, metadata=column(optional=True))
+    n_nominal: int | None = field(default=None, metadata=column(optional=True))
+
+
+def read_records(recs: list) -> list[HaloRecord]:
+    """The cubes' records (cached or saved dicts, or records already); RecordError in one
+    line."""
+    return [r if isinstance(r, HaloRecord) else from_dict(HaloRecord, r, f"case 7: records[{k}]")
+            for k, r in enumerate(recs)]
+
+
 def _rows(rec, kind="common"):
-    return rec["rows"] if kind == "common" else rec["rows_own"]
+    return rec.rows if kind == "common" else rec.rows_own
 
 
 def _at(rec, ratio, key="cov_abs", kind="common"):
     for r in _rows(rec, kind):
-        if r["ratio"] == ratio:
-            return r[key]
+        if r.ratio == ratio:
+            return getattr(r, key)
     return float("nan")
 
 
@@ -256,14 +318,15 @@ def interior_excess(numbers: dict, ratio: float = 4.0) -> dict[int, float]:
     """From case 7's saved numbers: {N: mean q_x / (Q/A) - 1} at the Halo ``ratio`` (common
     radius), how much more than the average flux the cube's interior carries (the layers along
     its adiabatic cut faces conduct less). Other cases quote it from here, not by hand."""
-    return {int(r["n_particles"]): _at(r, ratio, "mean_x") - 1.0
-            for r in numbers.get("records", [])}
+    return {int(r.n_particles): _at(r, ratio, "mean_x") - 1.0
+            for r in read_records(numbers.get("records", []))}
 
 
 def _report(ctx, recs) -> CaseResult:
     """The three figures (with their CSVs) and the result, from the packings' records."""
+    recs = read_records(recs)
     slopes = _figure_cov(ctx, recs)
-    main = next((r for r in recs if r["n_nominal"] == 100_000), recs[-1])
+    main = next((r for r in recs if r.n_nominal == 100_000), recs[-1])
     _figure_minmax(ctx, main)
     _figure_speed(ctx, recs, main)
     return _summary(recs, main, slopes, quick=ctx.quick)
@@ -280,18 +343,18 @@ def _figure_cov(ctx, recs) -> dict:
     slopes = {}
     for k, rec in enumerate(recs):
         for kind, style in (("common", "o-"), ("own", "^--")):
-            rr = [r for r in _rows(rec, kind) if r["ratio"] >= 2]
-            x = np.array([r["ratio"] for r in rr])
-            y = 100 * np.array([r["cov_abs"] for r in rr])
+            rr = [r for r in _rows(rec, kind) if r.ratio >= 2]
+            x = np.array([r.ratio for r in rr])
+            y = 100 * np.array([r.cov_abs for r in rr])
             ax.loglog(x, y, style, ms=4, color=f"C{k}", mfc="none" if kind == "own" else None,
-                      label=f"{rec['n_particles']:,} spheres, halo ratio × "
+                      label=f"{rec.n_particles:,} spheres, halo ratio × "
                             + ("r̄ (common)" if kind == "common" else "R_p (own)"))
             fit = x >= 5
             if fit.sum() >= 2:
-                slopes[f"{rec['n_particles']}_{kind}"] = float(
+                slopes[f"{rec.n_particles}_{kind}"] = float(
                     np.polyfit(np.log(x[fit]), np.log(y[fit]), 1)[0])
-        ax.loglog([1.0], [100 * rec["raw"]["cov_number"]], "o", color=f"C{k}")
-        ax.loglog([1.0], [100 * rec["raw"]["cov_volume"]], "s", mfc="none", color=f"C{k}")
+        ax.loglog([1.0], [100 * rec.raw["cov_number"]], "o", color=f"C{k}")
+        ax.loglog([1.0], [100 * rec.raw["cov_volume"]], "s", mfc="none", color=f"C{k}")
     ax.loglog([p[0] for p in PAPER], [p[1] for p in PAPER], "r*", ms=12,
               label="002 (values in its text; raw at ratio 1)")
     ax.axhline(5, color="0.6", lw=0.6)
@@ -312,13 +375,13 @@ def _figure_cov(ctx, recs) -> dict:
         for rec in recs:
             for kind in KINDS:
                 for r in _rows(rec, kind):
-                    w.writerow([rec["n_particles"], kind if r["ratio"] > 0 else "raw",
-                                r["ratio"], r["n_inside"], r["n_eval"],
-                                f"{r['members_mean']:.1f}", f"{100 * r['cov_abs']:.4f}",
-                                f"{100 * r['cov_abs_volume']:.4f}", f"{100 * r['cov_x']:.4f}",
-                                f"{r['mean_abs']:.5f}", f"{r['mean_x']:.5f}",
-                                f"{r['min_abs']:.5f}", f"{r['max_abs']:.5f}",
-                                f"{r['seconds']:.3f}"])
+                    w.writerow([rec.n_particles, kind if r.ratio > 0 else "raw",
+                                r.ratio, r.n_inside, r.n_eval,
+                                f"{r.members_mean:.1f}", f"{100 * r.cov_abs:.4f}",
+                                f"{100 * r.cov_abs_volume:.4f}", f"{100 * r.cov_x:.4f}",
+                                f"{r.mean_abs:.5f}", f"{r.mean_x:.5f}",
+                                f"{r.min_abs:.5f}", f"{r.max_abs:.5f}",
+                                f"{r.seconds:.3f}"])
         for p in PAPER:
             w.writerow(["paper_text", "", p[0], "", "", "", p[1], "", "", "", "", "", "", ""])
     return slopes
@@ -332,16 +395,16 @@ def _figure_minmax(ctx, main) -> None:
 
     png = ctx.figure("minmax")
     fig, ax = plt.subplots(figsize=(6, 4))
-    rr = main["rows"]
-    x = [max(r["ratio"], 1.0) for r in rr]
-    ax.semilogx(x, [r["mean_abs"] for r in rr], "o-", label="mean |q|")
-    ax.semilogx(x, [r["mean_x"] for r in rr], "s--", ms=3, label="mean q_x")
-    ax.semilogx(x, [r["max_abs"] for r in rr], "^-", label="max |q|")
-    ax.semilogx(x, [r["min_abs"] for r in rr], "v-", label="min |q|")
+    rr = main.rows
+    x = [max(r.ratio, 1.0) for r in rr]
+    ax.semilogx(x, [r.mean_abs for r in rr], "o-", label="mean |q|")
+    ax.semilogx(x, [r.mean_x for r in rr], "s--", ms=3, label="mean q_x")
+    ax.semilogx(x, [r.max_abs for r in rr], "^-", label="max |q|")
+    ax.semilogx(x, [r.min_abs for r in rr], "v-", label="min |q|")
     ax.axhline(1.0, color="k", lw=0.8)
     ax.set_xlabel("halo / DE radius ratio (halo ratio × r̄; raw at 1)")
     ax.set_ylabel("flux / (Q / A)")
-    ax.set_title(f"{main['n_particles']:,} spheres", fontsize=9)
+    ax.set_title(f"{main.n_particles:,} spheres", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
     savefig_atomic(fig, png, dpi=110)
@@ -351,8 +414,8 @@ def _figure_minmax(ctx, main) -> None:
         w.writerow(["n_particles", "halo_radius", "ratio", "mean_abs_over_QA",
                     "mean_x_over_QA", "min_abs_over_QA", "max_abs_over_QA"])
         for r in rr:
-            w.writerow([main["n_particles"], "common", r["ratio"], f"{r['mean_abs']:.5f}",
-                        f"{r['mean_x']:.5f}", f"{r['min_abs']:.5f}", f"{r['max_abs']:.5f}"])
+            w.writerow([main.n_particles, "common", r.ratio, f"{r.mean_abs:.5f}",
+                        f"{r.mean_x:.5f}", f"{r.min_abs:.5f}", f"{r.max_abs:.5f}"])
 
 
 def _figure_speed(ctx, recs, main) -> None:
@@ -369,16 +432,16 @@ def _figure_speed(ctx, recs, main) -> None:
                     "microseconds_per_particle"])
         for k, rec in enumerate(recs):
             for kind, style in (("common", "o-"), ("own", "^--")):
-                rr = [r for r in _rows(rec, kind) if r["ratio"] >= 2]
-                ax.loglog([100 * r["cov_abs"] for r in rr],
-                          [1e6 * r["seconds_per_particle"] for r in rr], style, ms=4,
-                          color=f"C{k}", label=f"{rec['n_particles']:,} spheres, {kind}")
+                rr = [r for r in _rows(rec, kind) if r.ratio >= 2]
+                ax.loglog([100 * r.cov_abs for r in rr],
+                          [1e6 * r.seconds_per_particle for r in rr], style, ms=4,
+                          color=f"C{k}", label=f"{rec.n_particles:,} spheres, {kind}")
                 for r in rr:
-                    w.writerow([rec["n_particles"], kind, r["ratio"],
-                                f"{100 * r['cov_abs']:.4f}",
-                                f"{1e6 * r['seconds_per_particle']:.3f}"])
-    for r in [r for r in main["rows"] if r["ratio"] >= 2]:
-        ax.annotate(f"{r['ratio']:g}", (100 * r["cov_abs"], 1e6 * r["seconds_per_particle"]),
+                    w.writerow([rec.n_particles, kind, r.ratio,
+                                f"{100 * r.cov_abs:.4f}",
+                                f"{1e6 * r.seconds_per_particle:.3f}"])
+    for r in [r for r in main.rows if r.ratio >= 2]:
+        ax.annotate(f"{r.ratio:g}", (100 * r.cov_abs, 1e6 * r.seconds_per_particle),
                     fontsize=6, xytext=(3, 3), textcoords="offset points")
     ax.set_xlabel("CoV of |q| (%)")
     ax.set_ylabel("Halo evaluation, µs per particle (1 thread)")
@@ -392,11 +455,11 @@ def _figure_speed(ctx, recs, main) -> None:
 
 def _ratio_for(rec, level, kind="common"):
     """Halo ratio at which CoV(|q|) falls to ``level`` (log-log interpolation; nan if never)."""
-    rr = [r for r in _rows(rec, kind) if r["ratio"] >= 1]
+    rr = [r for r in _rows(rec, kind) if r.ratio >= 1]
     for a, b in zip(rr[:-1], rr[1:]):
-        if a["cov_abs"] >= level > b["cov_abs"]:
-            f = np.log(level / a["cov_abs"]) / np.log(b["cov_abs"] / a["cov_abs"])
-            return float(np.exp(np.log(a["ratio"]) + f * np.log(b["ratio"] / a["ratio"])))
+        if a.cov_abs >= level > b.cov_abs:
+            f = np.log(level / a.cov_abs) / np.log(b.cov_abs / a.cov_abs)
+            return float(np.exp(np.log(a.ratio) + f * np.log(b.ratio / a.ratio)))
     return float("nan")
 
 
@@ -407,7 +470,7 @@ def _pct(v, digits=2):
 def _tables(recs, slopes) -> tuple:
     """The section's tables over the packings: the CoV by ratio, the raw flux's CoV, the two
     neighbour criteria, the ratios reaching 5 % and 2 % (with their times)."""
-    ns = [r["n_particles"] for r in recs]
+    ns = [r.n_particles for r in recs]
     header = ("| ratio | " + " | ".join(f"{n:,}: ratio × r̄ (common) | {n:,}: ratio × R_p (own)"
                                           for n in ns) + " |")
     sep = "|---|" + "---|---|" * len(recs)
@@ -427,25 +490,25 @@ def _tables(recs, slopes) -> tuple:
         lines.append(f"| {ratio:g}{note} | " + " | ".join(cells) + " |")
     table = "\n".join([header, sep] + lines)
     raw_lines = "\n".join(
-        f"| {rec['n_particles']:,} | {_pct(rec['raw']['cov_number'], 1)} | "
-        f"{_pct(rec['raw']['cov_volume'], 1)} | {_pct(rec['raw']['cov_number_small_half'], 1)}"
-        f" | {_pct(rec['raw']['cov_number_large_half'], 1)} | {rec['raw']['n_inside']:,} |"
+        f"| {rec.n_particles:,} | {_pct(rec.raw['cov_number'], 1)} | "
+        f"{_pct(rec.raw['cov_volume'], 1)} | {_pct(rec.raw['cov_number_small_half'], 1)}"
+        f" | {_pct(rec.raw['cov_number_large_half'], 1)} | {rec.raw['n_inside']:,} |"
         for rec in recs)
     z_lines = "\n".join(
-        f"| {rec['n_particles']:,} | {z['criterion']} | {z['gap']:.4f} | {z['z_bulk']:.2f} | "
+        f"| {rec.n_particles:,} | {z['criterion']} | {z['gap']:.4f} | {z['z_bulk']:.2f} | "
         f"{_pct(z['cov_number'], 1)} | {_pct(z['cov_volume'], 1)} | {_pct(z['halo4'])} | "
         f"{_pct(z['halo11'])} |"
-        for rec in recs for z in rec["z_rows"])
-    r5 = {rec["n_particles"]: _ratio_for(rec, 0.05) for rec in recs}
-    r2 = {rec["n_particles"]: _ratio_for(rec, 0.02) for rec in recs}
-    r5o = {rec["n_particles"]: _ratio_for(rec, 0.05, "own") for rec in recs}
-    r2o = {rec["n_particles"]: _ratio_for(rec, 0.02, "own") for rec in recs}
+        for rec in recs for z in rec.z_rows)
+    r5 = {rec.n_particles: _ratio_for(rec, 0.05) for rec in recs}
+    r2 = {rec.n_particles: _ratio_for(rec, 0.02) for rec in recs}
+    r5o = {rec.n_particles: _ratio_for(rec, 0.05, "own") for rec in recs}
+    r2o = {rec.n_particles: _ratio_for(rec, 0.02, "own") for rec in recs}
     ratio_lines = "\n".join(
         f"| {n:,} | {r5[n]:.2f} | {r2[n]:.2f} | {r5o[n]:.2f} | {r2o[n]:.2f} | "
         f"{slopes.get(f'{n}_common', float('nan')):.2f} | "
-        f"{rec['steady_seconds']:.1f} | "
-        f"{sum(r['seconds'] for k in KINDS for r in _rows(rec, k)):.1f} | "
-        f"{_pack(rec['name'])} |"
+        f"{rec.steady_seconds:.1f} | "
+        f"{sum(r.seconds for k in KINDS for r in _rows(rec, k)):.1f} | "
+        f"{_pack(rec.name)} |"
         for n, rec in zip(r5, recs))
     return table, raw_lines, z_lines, ratio_lines, (r5, r2, r5o, r2o)
 
@@ -457,11 +520,11 @@ def _judged(recs, quick) -> tuple[bool | None, str, dict]:
     for rec in recs:
         for ratio, level in TARGET.items():
             v = _at(rec, ratio)
-            judged[(rec["n_particles"], ratio)] = (v, bool(np.isfinite(v) and v <= level))
+            judged[(rec.n_particles, ratio)] = (v, bool(np.isfinite(v) and v <= level))
     met = None if quick else all(ok for _, ok in judged.values())
     at_paper = "; ".join(
-        f"N {rec['n_particles']:,}: " + ", ".join(
-            f"{_pct(judged[(rec['n_particles'], r)][0])} at {r:g}" for r in TARGET)
+        f"N {rec.n_particles:,}: " + ", ".join(
+            f"{_pct(judged[(rec.n_particles, r)][0])} at {r:g}" for r in TARGET)
         + f" (own radius: {_pct(_at(rec, 4.0, kind='own'))} / {_pct(_at(rec, 11.0, kind='own'))})"
         for rec in recs) + ("; CoV of |q| per particle, halo ratio × r̄ (r̄ the mean radius: "
                             "002's halo of a pre-defined number of DE)")
@@ -486,10 +549,10 @@ def _summary(recs, main, slopes, quick=False) -> CaseResult:
     """The result: the section (its tables from :func:`_tables` and :func:`_class_table`, the
     target from :func:`_judged`) and the summary's columns. Most of its length is the section's
     text."""
-    ns = [r["n_particles"] for r in recs]
+    ns = [r.n_particles for r in recs]
     table, raw_lines, z_lines, ratio_lines, (r5, r2, r5o, r2o) = _tables(recs, slopes)
-    n_main = main["n_particles"]
-    raw_n, raw_v = main["raw"]["cov_number"], main["raw"]["cov_volume"]
+    n_main = main.n_particles
+    raw_n, raw_v = main.raw["cov_number"], main.raw["cov_volume"]
     c4, c11 = _at(main, 4.0), _at(main, 11.0)
     o4, o11 = _at(main, 4.0, kind="own"), _at(main, 11.0, kind="own")
     mean_x4 = _at(main, 4.0, "mean_x")
@@ -498,7 +561,7 @@ def _summary(recs, main, slopes, quick=False) -> CaseResult:
     frac11o = 100 * _at(main, 11.0, "n_inside", "own") / n_main
     met, at_paper, judged = _judged(recs, quick)
     class_table = _class_table(main)
-    z = main["z_rows"]
+    z = main.z_rows
     z75, zall = (z[0], z[1]) if len(z) > 1 else (None, None)
     z_text = ("" if z75 is None else
               f"Through 002's coordination (bulk Z {z75['z_bulk']:.2f}, relative gap ≤ "
@@ -514,15 +577,15 @@ def _summary(recs, main, slopes, quick=False) -> CaseResult:
               + f" The Halo CoV follows: {_pct(z75['halo4'])} / {_pct(z75['halo11'])} at "
               f"ratios 4 / 11 through Z 7.5 against {_pct(zall['halo4'])} / "
               f"{_pct(zall['halo11'])} through every dumped pair.")
-    speed_n = min(recs, key=lambda r: r["n_particles"])
-    t11 = _at(speed_n, 11.0, "seconds_per_particle") * speed_n["n_particles"]
+    speed_n = min(recs, key=lambda r: r.n_particles)
+    t11 = _at(speed_n, 11.0, "seconds_per_particle") * speed_n.n_particles
     speed = ("the CoV does not depend on N (the paper's finding, and ours: "
-             + ", ".join(f"{_pct(_at(r, 11.0))} at 11 on {r['n_particles']:,}" for r in recs)
-             + f"); at N {speed_n['n_particles']:,}: packing {_pack(speed_n['name'])} + steady "
-             f"{speed_n['steady_seconds']:.0f} s + Halo 11 (common) for every sphere ≈ "
+             + ", ".join(f"{_pct(_at(r, 11.0))} at 11 on {r.n_particles:,}" for r in recs)
+             + f"); at N {speed_n.n_particles:,}: packing {_pack(speed_n.name)} + steady "
+             f"{speed_n.steady_seconds:.0f} s + Halo 11 (common) for every sphere ≈ "
              f"{t11:.0f} s (from {1e6 * _at(speed_n, 11.0, 'seconds_per_particle'):.0f} µs per "
-             f"sphere); 5 % is reached at ratio {r5[speed_n['n_particles']]:.1f}, 2 % at "
-             f"{r2[speed_n['n_particles']]:.1f}")
+             f"sphere); 5 % is reached at ratio {r5[speed_n.n_particles]:.1f}, 2 % at "
+             f"{r2[speed_n.n_particles]:.1f}")
     miss = [f"{_pct(v)} at ratio {r:g} on {n:,}" for (n, r), (v, ok) in judged.items() if not ok]
     section = f"""
 Setup (002 sec. 3): the cube of case 4 at steady state (faces normal to x held at 25 and 35 °C,
@@ -534,7 +597,7 @@ cubes carved from copies of the relaxed
 (`tdem_post.flux.halo_flux`). **The halo radius** is read two ways (`halo_radius`):
 **common**, ratio × r̄ for every particle, r̄ the arithmetic mean radius of the packing — 002's
 Halo "contains a pre-defined number of DE", which a common radius gives (φ ratio³ r̄³/⟨r³⟩
-≈ {main['solid_fraction'] / main['r3_mean_over_r_mean3']:.2f} ratio³ spheres here; the number
+≈ {main.solid_fraction / main.r3_mean_over_r_mean3:.2f} ratio³ spheres here; the number
 mean is the "radius of the DE" a packing is described by); this is tdem's default since issue 23.
 **own**, ratio × R_p, each particle's own radius (tdem's reading before): with radii of σ/μ 0.3
 the halo of a small sphere holds few others and that of a large one reaches ~2× further. The CoV
@@ -616,7 +679,7 @@ disorder; N sets how many particles have a whole halo inside the cube (at ratio 
 
 **Speed against error**: the Halo evaluation costs about the number of spheres in a halo per
 particle (ratio³): {us4:.0f} µs per particle at ratio 4, {us11:.0f} µs at 11 (1 thread); the
-steady solve itself is {main['steady_seconds']:.0f} s at {n_main:,}. At the paper's N: \
+steady solve itself is {main.steady_seconds:.0f} s at {n_main:,}. At the paper's N: \
 {speed}.
 
 ![speed against error of the Halo smoothing](img/validation_case7_speed_error.png)
@@ -632,8 +695,8 @@ consistent, but it is no longer centred on p) — case 9 measures what that does
                    f"{_pct(raw_v, 1)} volume-weighted; 5 % at ratio "
                    f"{r5.get(n_main, float('nan')):.1f}, 2 % at "
                    f"{r2.get(n_main, float('nan')):.1f}"),
-        wall_time=(f"{_pack(main['name'])} + {main['steady_seconds']:.0f} s steady + "
-                   f"{sum(r['seconds'] for k in KINDS for r in _rows(main, k)):.0f} s Halo "
+        wall_time=(f"{_pack(main.name)} + {main.steady_seconds:.0f} s steady + "
+                   f"{sum(r.seconds for k in KINDS for r in _rows(main, k)):.0f} s Halo "
                    f"({len(RATIOS)} ratios × 2 radii)"),
         verdict=(("target met" if met else "target missed" if met is False else "quick run")
                  + f": CoV {_pct(c4)} at ratio 4 (≤ 5 %), {_pct(c11)} at 11 (≤ 2 %) with the "
@@ -645,7 +708,7 @@ consistent, but it is no longer centred on p) — case 9 measures what that does
                  "cov_ratio11_own": o11, "ratio_at_5pct": r5, "ratio_at_2pct": r2,
                  "ratio_at_5pct_own": r5o, "ratio_at_2pct_own": r2o, "slopes": slopes,
                  "target": {f"{n}_{r:g}": v for (n, r), (v, _) in judged.items()},
-                 "records": [{k: v for k, v in r.items()} for r in recs]},
+                 "records": [to_dict(r) for r in recs]},
         command="tdem validate 7",
         at_paper_n=at_paper, speed_vs_error=speed, target_met=met)
 
