@@ -138,3 +138,19 @@ def test_case9_caches_through_the_framework(tmp_path):
     assert case9._cached(path, make) == {"n": 5} and len(calls) == 1
     assert case9._cached(path, make, version=case9.VERSION + 1) == {"n": 5}
     assert len(calls) == 2
+
+
+def test_case9_runs_are_records():
+    """Case 9's saved cubes read back as PointsRun records and write back to the same data; a
+    cube without its errors against 002's FE is refused in one line."""
+    import json
+
+    from tdem_post.records import RecordError, to_dict
+    from validation import framework
+    numbers = framework.load_result(9)["result"]["numbers"]
+    runs = case9.read_runs(numbers["runs"])
+    assert json.dumps([to_dict(r) for r in runs]) == json.dumps(numbers["runs"])
+    bad = json.loads(json.dumps(numbers["runs"][1]))
+    del bad["err_q_fe"]
+    with pytest.raises(RecordError, match=r"runs\[0\]: err_q_fe: missing"):
+        case9.read_runs([bad])

@@ -37,11 +37,13 @@ errors against our converged FV reference are given beside.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from tdem_post.continuum import interpolate, richardson
+from tdem_post.records import from_dict, to_dict
 from tdem_post.flux import contact_moments, halo_flux
 from validation import framework
 from validation import inclusions as I
@@ -315,10 +317,55 @@ def _timed_reference(grids) -> dict:
     return rec
 
 
+Values = dict[str, tuple[float, ...]]      # per reading (raw, common_4, ...): A, B, C
+
+
+@dataclass(frozen=True, kw_only=True)
+class PointsRun:
+    """One cube of the case: T (°C) and |q| (W/m², the paper's cube) at A, B, C per reading
+    (:func:`dem_points`), their samples over the equivalent points, the homogeneous cube's
+    and the locally normalised values, C_t, the solves' and Halo's seconds; then the errors
+    (:func:`_errors`: against the FV reference, 002's FE, per point and over the samples) and
+    the judgement (:func:`_judge`). The nested tables stay as measured (dicts by reading and
+    point)."""
+    name: str
+    n: int
+    T: tuple[float, ...]
+    q: Values
+    samples: dict
+    homogeneous: dict
+    local: dict
+    ct_calibrated: float
+    calibration: dict
+    solve_s: dict[str, float]
+    halo_s: float
+    balance: dict
+    mean_radius_over_l: float
+    pack_s: float | None
+    err_T: tuple[float, ...]
+    err_T_of_dT: tuple[float, ...]
+    err_q: Values
+    err_q_fe: Values
+    scatter: dict
+    homogeneous_err: Values
+    homogeneous_mean: Values
+    local_err_fe: Values
+    local_err_fv: Values
+    local_mean_err_fv: Values
+    local_std: Values
+    judged: dict
+
+
+def read_runs(runs: list) -> list[PointsRun]:
+    """The cubes, measured and judged (dicts), as records (RecordError in one line)."""
+    return [r if isinstance(r, PointsRun) else from_dict(PointsRun, r, f"case 9: runs[{k}]")
+            for k, r in enumerate(runs)]
+
+
 def _near(rs, n):
     """The run whose N is within 10 % of ``n`` (None if there is none)."""
-    best = min(rs, key=lambda r: abs(r["n"] - n))
-    return best if abs(best["n"] - n) <= 0.1 * n else None
+    best = min(rs, key=lambda r: abs(r.n - n))
+    return best if abs(best.n - n) <= 0.1 * n else None
 
 
 def _judge(r):
@@ -366,39 +413,41 @@ def run(ctx: Context) -> CaseResult:
     for r in runs + every:
         _errors(r, ref_T, ref_q)
         r["judged"] = _judge(r)
+    runs, every = read_runs(runs), read_runs(every)
     _plot(ctx, runs, ref_T, ref_q, ref, dT, q0)
-    big = max(runs, key=lambda r: r["n"])
-    err_t = max(big["err_T"])
-    err_q = max(abs(e) for e in big["err_q"][_key(*MAIN)])
+    big = max(runs, key=lambda r: r.n)
+    err_t = max(big.err_T)
+    err_q = max(abs(e) for e in big.err_q[_key(*MAIN)])
     numbers = dict(points=POINTS, grids=list(grids), reference_T_c=ref_T, reference_q=ref_q,
                    reference_T_unc_k=[dT * v for v in ref["T_unc"]],
-                   reference_q_unc=[q0 * v for v in ref["q_unc"]], fv=fv, runs=runs,
+                   reference_q_unc=[q0 * v for v in ref["q_unc"]], fv=fv,
+                   runs=[to_dict(r) for r in runs],
                    paper=PAPER, paper_point_errors=PAPER_ERR, max_T_error=err_t,
                    max_q_error_halo11=err_q, fv_seconds=fv_s, main_reading=_key(*MAIN),
                    neighbours=f"bulk Z {TARGET_Z:g}",
-                   every_dumped_pair=[{k: r[k] for k in ("name", "n", "T", "q", "err_q",
-                                                         "err_q_fe", "scatter", "judged")}
-                                      for r in every])
+                   every_dumped_pair=[{k: to_dict(r)[k] for k in (
+                                      "name", "n", "T", "q", "err_q", "err_q_fe", "scatter",
+                                      "judged")} for r in every])
     section, at_paper, speed, met = _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, every,
                                              quick=ctx.quick)
-    pack = ", ".join(f"{r['name']} {r['pack_s']:.0f} s" for r in runs if r.get("pack_s"))
+    pack = ", ".join(f"{r.name} {r.pack_s:.0f} s" for r in runs if r.pack_s)
     main_run = _near(runs, 150_000) or big
-    e = main_run["err_q_fe"][_key(*MAIN)]
+    e = main_run.err_q_fe[_key(*MAIN)]
     return CaseResult(
-        our_n=" / ".join(f"{r['n']:,}" for r in runs),
-        our_error=f"N {main_run['n']:,}, Halo 11 r̄: |q| vs 002's FE "
+        our_n=" / ".join(f"{r.n:,}" for r in runs),
+        our_error=f"N {main_run.n:,}, Halo 11 r̄: |q| vs 002's FE "
                   + " / ".join(f"{100 * v:+.1f} %" for v in e)
                   + " at A / B / C (paper "
                   + " / ".join(f"{100 * v:+.1f} %" for v in PAPER_ERR[150_000]) + "); "
-                  f"T max {100 * max(main_run['err_T']):.2f} %",
+                  f"T max {100 * max(main_run.err_T):.2f} %",
         wall_time=f"packing {pack or 'shared'} + FV {fv_s:.0f} s + thermal "
-                  f"{sum(sum(r['solve_s'].values()) + r['halo_s'] for r in runs):.0f} s "
+                  f"{sum(sum(r.solve_s.values()) + r.halo_s for r in runs):.0f} s "
                   f"({len(axes)} gradient axes, composite and C_t solve each)",
         verdict=("target met" if met else "target missed" if met is False else "quick run")
-        + f" at N {main_run['n']:,}: |q| at A, B, C vs 002's FE "
+        + f" at N {main_run.n:,}: |q| at A, B, C vs 002's FE "
         + ", ".join(f"{lab} {100 * v:+.1f} %" for lab, v in zip("ABC", e))
         + " (paper +0.4 / +2.2 / −3.8 %); T within 1 %"
-        + ("" if max(main_run["err_T"]) <= 0.01 else " NOT met"),
+        + ("" if max(main_run.err_T) <= 0.01 else " NOT met"),
         section_md=section, numbers=numbers,
         command="",
         at_paper_n=at_paper, speed_vs_error=speed, target_met=met)
@@ -412,7 +461,7 @@ def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.5))
     names = list(POINTS)
     x = np.arange(3)
-    rs = sorted(runs, key=lambda r: r["n"])
+    rs = sorted(runs, key=lambda r: r.n)
     w = 0.8 / (len(rs) + 3)
     ax.bar(x - 0.4 + w / 2, ref_T, w, yerr=[dT * v for v in ref["T_unc"]], color="k",
            label="FV (h -> 0)")
@@ -422,9 +471,9 @@ def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
            ("002 DE", 150000, "", *PAPER["150,000 DE"]["T"], *PAPER["150,000 DE"]["q"]),
            ("002 DE", 500000, "", *PAPER["500,000 DE"]["T"], *PAPER["500,000 DE"]["q"])]
     for k, r in enumerate(rs):
-        ax.bar(x - 0.4 + (2.5 + k) * w, r["T"], w, color=f"C{k}", label=f"tdem {r['n']:,}")
+        ax.bar(x - 0.4 + (2.5 + k) * w, r.T, w, color=f"C{k}", label=f"tdem {r.n:,}")
         for key in KEYS:
-            csv.append(("tdem", r["n"], key, *r["T"], *r["q"][key]))
+            csv.append(("tdem", r.n, key, *r.T, *r.q[key]))
     ax.set_xticks(x, names)
     ax.set_ylim(24, 36)
     ax.set_ylabel("T, °C")
@@ -436,13 +485,13 @@ def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
                 else "m*", ms=11, label=lab)
     for k, r in enumerate(rs):
         off = -0.3 + 0.6 * k / max(len(rs) - 1, 1)
-        sc = r["scatter"][_key(*MAIN)]
-        bx.errorbar(x + off, [100 * v for v in r["err_q_fe"][_key(*MAIN)]],
+        sc = r.scatter[_key(*MAIN)]
+        bx.errorbar(x + off, [100 * v for v in r.err_q_fe[_key(*MAIN)]],
                     yerr=[100 * sc[lab]["std"] if np.isfinite(sc[lab]["std"]) else 0
                           for lab in names], fmt="o", color=f"C{k}", capsize=3,
-                    label=f"tdem {r['n']:,}, Halo 11 r̄ (bar: std over the symmetric points)")
-        bx.plot(x + off + 0.04, [100 * v for v in r["err_q_fe"]["own_11"]], "^", mfc="none",
-                color=f"C{k}", label=f"tdem {r['n']:,}, Halo 11 R_p (own)")
+                    label=f"tdem {r.n:,}, Halo 11 r̄ (bar: std over the symmetric points)")
+        bx.plot(x + off + 0.04, [100 * v for v in r.err_q_fe["own_11"]], "^", mfc="none",
+                color=f"C{k}", label=f"tdem {r.n:,}, Halo 11 R_p (own)")
     bx.axhline(0, color="k", lw=0.8)
     bx.set_xticks(x, names)
     bx.set_ylabel("|q| against 002's FE (%)")
@@ -469,9 +518,9 @@ def _point_tables(rs, ref_T, ref_q, ref, dT, q0, grids) -> tuple:
                                                         PAPER["150,000 DE"]["T"],
                                                         PAPER["500,000 DE"]["T"])) + " |"]
     for r in rs:
-        t_rows.append(f"| tdem {r['n']:,} | " + " | ".join(
+        t_rows.append(f"| tdem {r.n:,} | " + " | ".join(
             f"{t:.3f} ({100 * e:.2f} %; {100 * d:.2f} % of ΔT)"
-            for t, e, d in zip(r["T"], r["err_T"], r["err_T_of_dT"])) + " |")
+            for t, e, d in zip(r.T, r.err_T, r.err_T_of_dT)) + " |")
     q_rows = ["| FV reference (h → 0) | " + " | ".join(
         f"{v:.0f} ± {q0 * u:.0f}" for v, u in zip(ref_q, ref["q_unc"])) + " |",
         "| 002 FE | " + " | ".join(f"{v}" for v in PAPER["FE"]["q"]) + " |"]
@@ -482,14 +531,14 @@ def _point_tables(rs, ref_T, ref_q, ref, dT, q0, grids) -> tuple:
              "own_4": "Halo 4 R_p (own)", "own_11": "Halo 11 R_p (own)"}
     for r in rs:
         for key in ("common_11", "own_11", "common_4", "own_4", "raw"):
-            q_rows.append(f"| tdem {r['n']:,}, {names[key]} | " + " | ".join(
+            q_rows.append(f"| tdem {r.n:,}, {names[key]} | " + " | ".join(
                 f"{v:.0f} ({100 * e:+.1f} %; FV {100 * f:+.1f} %)"
-                for v, e, f in zip(r["q"][key], r["err_q_fe"][key], r["err_q"][key])) + " |")
+                for v, e, f in zip(r.q[key], r.err_q_fe[key], r.err_q[key])) + " |")
     sc_rows = []
     for r in rs:
         for key in ("common_11", "own_11", "common_4"):
-            sc = r["scatter"][key]
-            sc_rows.append(f"| tdem {r['n']:,}, {names[key]} | " + " | ".join(
+            sc = r.scatter[key]
+            sc_rows.append(f"| tdem {r.n:,}, {names[key]} | " + " | ".join(
                 f"{100 * sc[lab]['mean_err']:+.1f} % ± {100 * sc[lab]['std']:.1f} % "
                 f"(max {100 * sc[lab]['max_abs_err']:.1f} %, {sc[lab]['n']})"
                 for lab in "ABC") + " |")
@@ -497,49 +546,49 @@ def _point_tables(rs, ref_T, ref_q, ref, dT, q0, grids) -> tuple:
     for r in rs:
         for key in ("common_11", "own_11"):
             h_rows.append(
-                f"| tdem {r['n']:,}, {names[key]} | " + " | ".join(
+                f"| tdem {r.n:,}, {names[key]} | " + " | ".join(
                     f"{100 * h:+.1f} % (mean {100 * hm:+.1f} %) | {100 * le:+.1f} % "
                     f"(mean {100 * lm:+.1f} % ± {100 * ls:.1f} %)"
-                    for h, hm, le, lm, ls in zip(r["homogeneous_err"][key],
-                                                 r["homogeneous_mean"][key],
-                                                 r["local_err_fv"][key],
-                                                 r["local_mean_err_fv"][key],
-                                                 r["local_std"][key])) + " |")
+                    for h, hm, le, lm, ls in zip(r.homogeneous_err[key],
+                                                 r.homogeneous_mean[key],
+                                                 r.local_err_fv[key],
+                                                 r.local_mean_err_fv[key],
+                                                 r.local_std[key])) + " |")
     return t_rows, q_rows, sc_rows, h_rows
 
 
 def _speed(rs, judged, key) -> str:
     """The speed-against-error column: the smallest N within the paper's point errors."""
-    ok_runs = [r for r in rs if judged[r["n"]]["met"]]
+    ok_runs = [r for r in rs if judged[r.n]["met"]]
     if ok_runs:
         r0 = ok_runs[0]
-        t = (r0["pack_s"] or 0) + r0["solve_s"]["y"] + r0["halo_s"] / max(len(r0["solve_s"]), 1)
-        all_n = ", ".join(f"{r['n']:,}" for r in rs)
-        speed = (f"N {r0['n']:,} is the smallest of {all_n} "
+        t = (r0.pack_s or 0) + r0.solve_s["y"] + r0.halo_s / max(len(r0.solve_s), 1)
+        all_n = ", ".join(f"{r.n:,}" for r in rs)
+        speed = (f"N {r0.n:,} is the smallest of {all_n} "
                  f"within the paper's point errors at A, B and C: about {t:.0f} s "
-                 f"(packing {r0['pack_s'] or 0:.0f} s from the shared cell + composite and "
-                 f"single-phase solves {r0['solve_s']['y']:.0f} s + Halo)")
-        later = [r["n"] for r in rs if r["n"] > r0["n"] and not judged[r["n"]]["met"]]
+                 f"(packing {r0.pack_s or 0:.0f} s from the shared cell + composite and "
+                 f"single-phase solves {r0.solve_s['y']:.0f} s + Halo)")
+        later = [r.n for r in rs if r.n > r0.n and not judged[r.n]["met"]]
         if later:
             speed += (f"; not at {', '.join(f'{n:,}' for n in later)}: the point value carries "
                       "the halo's scatter (below), so meeting it is not monotone in N")
     else:
-        speed = ("not reached up to N " + f"{rs[-1]['n']:,}: " + "; ".join(
-            f"{r['n']:,}: " + ", ".join(
+        speed = ("not reached up to N " + f"{rs[-1].n:,}: " + "; ".join(
+            f"{r.n:,}: " + ", ".join(
                 f"{lab} {100 * e:+.1f} %" for lab, e, ok in zip(
-                    "ABC", r["err_q_fe"][key], judged[r["n"]]["points"]) if not ok)
+                    "ABC", r.err_q_fe[key], judged[r.n]["points"]) if not ok)
             for r in rs) + " against 002's FE (the solves: "
-            + ", ".join(f"{r['n']:,} {r['solve_s']['y']:.0f} s" for r in rs) + ")")
+            + ", ".join(f"{r.n:,} {r.solve_s['y']:.0f} s" for r in rs) + ")")
     return speed
 
 
 def _every_md(every, key) -> str:
     """The table through every dumped pair (tdem's network before issue 23)."""
     every_rows = "\n".join(
-        f"| {r['n']:,} | " + " | ".join(
+        f"| {r.n:,} | " + " | ".join(
             f"{v:.0f} ({100 * e:+.1f} %; FV {100 * f:+.1f} %)"
-            for v, e, f in zip(r["q"][key], r["err_q_fe"][key], r["err_q"][key]))
-        + f" | {'met' if r['judged']['met'] else 'missed'} |" for r in every)
+            for v, e, f in zip(r.q[key], r.err_q_fe[key], r.err_q[key]))
+        + f" | {'met' if r.judged['met'] else 'missed'} |" for r in every)
     every_md = "" if not every else f"""
 Through every dumped pair instead (bulk Z ≈ 8.8, the dump's gap tolerance 0.1; tdem's network
 before issue 23), Halo 11 r̄, against 002's FE (and our FV):
@@ -554,56 +603,56 @@ before issue 23), Halo 11 r̄, against 002's FE (and our FV):
 def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, every=(), quick=False):
     """The section (its tables from :func:`_point_tables`, :func:`_every_md`) and the summary's
     columns (:func:`_speed`). Most of its length is the section's text."""
-    rs = sorted(runs, key=lambda r: r["n"])
+    rs = sorted(runs, key=lambda r: r.n)
     t_rows, q_rows, sc_rows, h_rows = _point_tables(rs, ref_T, ref_q, ref, dT, q0, grids)
-    judged = {r["n"]: r["judged"] for r in rs}
+    judged = {r.n: r.judged for r in rs}
     main_run = _near(rs, 150_000) or rs[-1]
     five = _near(rs, 500_000)
-    met = None if quick else judged[main_run["n"]]["met"]
+    met = None if quick else judged[main_run.n]["met"]
     key = _key(*MAIN)
 
     def errs(r, k=key):
-        return " / ".join(f"{100 * v:+.1f} %" for v in r["err_q_fe"][k])
+        return " / ".join(f"{100 * v:+.1f} %" for v in r.err_q_fe[k])
 
-    at_paper = (f"N {main_run['n']:,} (bulk Z {TARGET_Z:g}): |q| (Halo 11 × r̄, the particle "
+    at_paper = (f"N {main_run.n:,} (bulk Z {TARGET_Z:g}): |q| (Halo 11 × r̄, the particle "
                 f"nearest the point) vs "
                 f"002's FE {errs(main_run)} at A / B / C (paper +0.4 / +2.2 / −3.8 %), "
-                f"T max {100 * max(main_run['err_T']):.2f} %")
+                f"T max {100 * max(main_run.err_T):.2f} %")
     if five is not None:
-        at_paper += (f"; N {five['n']:,}: {errs(five)} (paper +0.5 / +1.0 / −4.1 %), T max "
-                     f"{100 * max(five['err_T']):.2f} %")
-    at_paper += (f"; own radius at {main_run['n']:,}: {errs(main_run, 'own_11')}")
+        at_paper += (f"; N {five.n:,}: {errs(five)} (paper +0.5 / +1.0 / −4.1 %), T max "
+                     f"{100 * max(five.err_T):.2f} %")
+    at_paper += (f"; own radius at {main_run.n:,}: {errs(main_run, 'own_11')}")
     speed = _speed(rs, judged, key)
     timing = "; ".join(
-        f"{r['n']:,}: solves {', '.join(f'{a} {v:.1f} s' for a, v in r['solve_s'].items())}, "
-        f"Halo {r['halo_s']:.1f} s" for r in rs)
+        f"{r.n:,}: solves {', '.join(f'{a} {v:.1f} s' for a, v in r.solve_s.items())}, "
+        f"Halo {r.halo_s:.1f} s" for r in rs)
     miss = []
     for r in rs:
-        j = judged[r["n"]]
+        j = judged[r.n]
         bad = [lab for lab, ok in zip("ABC", j["points"]) if not ok]
         if bad:
-            miss.append(f"{r['n']:,}: {', '.join(bad)}")
-    sc_main = main_run["scatter"][key]
+            miss.append(f"{r.n:,}: {', '.join(bad)}")
+    sc_main = main_run.scatter[key]
     every_md = _every_md(every, key)
 
     def series(field, i):
-        return ", ".join(f"{100 * r[field][key][i]:+.1f} %" for r in rs)
+        return ", ".join(f"{100 * getattr(r, field)[key][i]:+.1f} %" for r in rs)
 
     m = main_run
     causes = f"""**Causes, measured.** *At A* the error is a bias, not scatter (symmetric mean
-{100 * m['scatter'][key]['A']['mean_err']:+.1f} ± {100 * m['scatter'][key]['A']['std']:.1f} % at
-{m['n']:,}). The homogeneous cube already gives {100 * m['homogeneous_err'][key][0]:+.1f} % at the
+{100 * m.scatter[key]['A']['mean_err']:+.1f} ± {100 * m.scatter[key]['A']['std']:.1f} % at
+{m.n:,}). The homogeneous cube already gives {100 * m.homogeneous_err[key][0]:+.1f} % at the
 centre: the layers along the cube's cut faces conduct less, so the interior carries more than
 Q/A (case 7's mean q_x/(Q/A) above 1), and C_t is calibrated on the whole cube's Q/A as in 002.
-Normalised by it, the error at A is {100 * m['local_err_fv'][key][0]:+.1f} % against the FV
+Normalised by it, the error at A is {100 * m.local_err_fv[key][0]:+.1f} % against the FV
 reference; that remainder falls with N ({series('local_err_fv', 0)} at
-N = {', '.join(f"{r['n']:,}" for r in rs)}), as the interface error of case 8 does (first order
-in r̄/a). *At B* the halo of 11 r̄ is {11 * m['mean_radius_over_l']:.3f} L in radius at
-{m['n']:,}, against B's 0.08 L from the adiabatic face and 0.087 L from the inclusion's surface:
+N = {', '.join(f"{r.n:,}" for r in rs)}), as the interface error of case 8 does (first order
+in r̄/a). *At B* the halo of 11 r̄ is {11 * m.mean_radius_over_l:.3f} L in radius at
+{m.n:,}, against B's 0.08 L from the adiabatic face and 0.087 L from the inclusion's surface:
 the halo is cut by the face on one side and reaches towards the inclusion on the other, where
 |q| changes fast; the homogeneous cube at B is off by only
-{100 * m['homogeneous_err'][key][1]:+.1f} %, and normalised by it the error stays
-({100 * m['local_err_fv'][key][1]:+.1f} %): it is the field's variation over the halo, and it
+{100 * m.homogeneous_err[key][1]:+.1f} %, and normalised by it the error stays
+({100 * m.local_err_fv[key][1]:+.1f} %): it is the field's variation over the halo, and it
 falls as the halo shrinks against L ({series('err_q', 1)} against FV at the same N). *At C* the
 error is within the paper's at every N. With the own radius the halo of a large sphere near B
 reaches 11 × its radius (up to 18 r̄): the +23 % at B on 1e5 before issue 23 came from that.
@@ -615,8 +664,8 @@ and 1e6 beside them. DEM: one steady solve (law `haddad`, conducting through the
 neighbours of Haddad's bulk coordination Z {TARGET_Z:g} as the dense scenes state it,
 `[neighbours] target_z_with_gaps`; phases by the particles' centres, harmonic interfaces; C_t
 calibrated on each packing so that the single-phase test gives
-33 W/m/K, 002 sec. 2.1: {', '.join(f"{r['ct_calibrated']:.4f}" for r in rs)} at \
-N = {', '.join(f"{r['n']:,}" for r in rs)});
+33 W/m/K, 002 sec. 2.1: {', '.join(f"{r.ct_calibrated:.4f}" for r in rs)} at \
+N = {', '.join(f"{r.n:,}" for r in rs)});
 T at a point from a linear least-squares fit over its 32 nearest particles; |q| the Halo flux
 (002 eq. 22–23) of the particle nearest the point, scaled to the paper's L = 10 cm (3,300 W/m²
 without the inclusion). **The halo**: ratio 11 (002's choice) × r̄, the packing's mean radius,
@@ -655,7 +704,7 @@ points (max |error|, count):
 |---|---|---|---|
 {chr(10).join(sc_rows)}
 
-At {main_run['n']:,} the std of one point value (Halo 11 r̄) is
+At {main_run.n:,} the std of one point value (Halo 11 r̄) is
 {100 * sc_main['A']['std']:.1f} / {100 * sc_main['B']['std']:.1f} / \
 {100 * sc_main['C']['std']:.1f} %
 at A / B / C: a target of 0.4 % at A is below the scatter of a single halo there, so meeting it
@@ -678,17 +727,17 @@ C: normalised |
 **Target** (issue 23, at N 150,000 against 002's FE, Halo 11 r̄):
 {"met" if met else ("not met (" + "; ".join(miss) + ")") if met is False else "not judged (quick)"}.
 {"" if not miss else "Where a point misses: "
- + "; ".join(f"{r['n']:,}: " + ", ".join(
-     f"{lab} {100 * e:+.1f} % (symmetric mean {100 * r['scatter'][key][lab]['mean_err']:+.1f} "
-     f"± {100 * r['scatter'][key][lab]['std']:.1f} %)"
-     for lab, e, ok in zip("ABC", r["err_q_fe"][key], judged[r["n"]]["points"]) if not ok)
-     for r in rs if not judged[r["n"]]["met"])
+ + "; ".join(f"{r.n:,}: " + ", ".join(
+     f"{lab} {100 * e:+.1f} % (symmetric mean {100 * r.scatter[key][lab]['mean_err']:+.1f} "
+     f"± {100 * r.scatter[key][lab]['std']:.1f} %)"
+     for lab, e, ok in zip("ABC", r.err_q_fe[key], judged[r.n]["points"]) if not ok)
+     for r in rs if not judged[r.n]["met"])
  + " — the error at the point set against its own scatter over the symmetric points."}
 
 Timing: {timing} (one thread, shared machine; the solves are the composite and the single-phase
 calibration along each axis). B and C lie 0.08 L from a face (adiabatic, held): that is
-{', '.join(f"{0.08 / r['mean_radius_over_l']:.1f}" for r in rs)} mean radii at
-N = {', '.join(f"{r['n']:,}" for r in rs)}, so the halo of 11 r̄ is cut by that face below
+{', '.join(f"{0.08 / r.mean_radius_over_l:.1f}" for r in rs)} mean radii at
+N = {', '.join(f"{r.n:,}" for r in rs)}, so the halo of 11 r̄ is cut by that face below
 ~1e6 (eq. 23 then averages over the particles inside only). Errors are at the three points
 only; 002's 19.6 % is the maximum over the section's map.
 """
