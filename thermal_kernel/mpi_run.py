@@ -22,6 +22,7 @@ mpirun print a banner of its own): the launcher prints it and exits 2.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import sys
@@ -51,12 +52,14 @@ def main(argv=None) -> int:
     from .errors import SceneError, UserError
     from .network import NetworkError
     from .packing import PackingError
+    from .atomic import OutputBusyError
     args = _args(argv)
     rank = PETSc.COMM_WORLD.getRank()
     try:
-        _run(args, rank)
-    except (SceneError, UserError, PackingError, NetworkError, ValueError,
-            RuntimeError) as e:
+        with contextlib.ExitStack() as held:
+            _run(args, rank, held)
+    except (SceneError, UserError, PackingError, NetworkError, ValueError, RuntimeError,
+            OutputBusyError, OSError) as e:
         line = " ".join(str(e).split("\n"))
         if rank == 0 and args.status:       # the launcher says it, once
             Path(args.status).write_text(line + "\n", encoding="utf-8")
@@ -66,9 +69,11 @@ def main(argv=None) -> int:
     return 0
 
 
-def _run(args, rank):
+def _run(args, rank, held):
+    """The run; ``held`` (an ExitStack) keeps rank 0's lock on the output until it returns."""
     from petsc4py import PETSc
 
+    from .atomic import output_lock
     from .checkpoint import packing_sha256
     from .network import assemble
     from .output import scene_text_difference, scene_to_json, write_thermal
@@ -86,7 +91,9 @@ def _run(args, rank):
     built = {}
 
     def build():
-        """Rank 0 only: the packing, the problem (laws, boundary kinds) and the network."""
+        """Rank 0 only: the output's lock (a second run onto it is refused at once, as
+        in-process), the packing, the problem (laws, boundary kinds) and the network."""
+        held.enter_context(output_lock(scene.output))
         packing_path = Path(args.packing) if args.packing else scene.packing
         if packing_path is None:
             raise SceneError(f"{scene.path}: pack: a [pack] scene needs its packing built "

@@ -281,20 +281,29 @@ class DistributedNetwork:
                     cut_contacts=int(self.cut), partition_seconds=self.setup_seconds)
 
 
+class RankAbort(RuntimeError):
+    """Raised on the other ranks when rank 0's part failed (rank 0 raises its own error)."""
+
+
 def on_root(mpi_comm, fn):
-    """``fn()`` on rank 0 of the mpi4py communicator, its (small) result on every rank; an
-    exception it raises is raised on every rank (so none waits for the others in a
-    collective)."""
+    """``fn()`` on rank 0 of the mpi4py communicator, its (small) result on every rank. An
+    exception it raises is raised on rank 0 as it is and on the others as :class:`RankAbort`
+    with its message (so none waits for the others in a collective; an exception need not
+    pickle)."""
     value, error = None, None
     if mpi_comm.Get_rank() == 0:
         try:
             value = fn()
         except Exception as e:              # noqa: BLE001 (re-raised below, on every rank)
             error = e
-    value, error = mpi_comm.bcast((value, error), root=0)
+    sent, message = mpi_comm.bcast(
+        (value, None) if error is None else (None, str(error) or type(error).__name__),
+        root=0)
     if error is not None:
         raise error
-    return value
+    if message is not None:
+        raise RankAbort(message)
+    return sent
 
 
 def _share_keys():
