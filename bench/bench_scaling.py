@@ -415,6 +415,12 @@ def document(data) -> str:
       "Per-rank reading (parallel HDF5 by blocks of the Morton order, each contact sent to "
       "its owners, the boundary kinds on a block), a distributed cluster search and parallel "
       "output are the next step; the cost model states what they change.\n")
+    w("Limits of the backend today: no checkpoints (`--checkpoint-every` and `--resume` are "
+      "refused with `--ranks`: in-process runs only); no progress bar; `tdem campaign` and "
+      "`tdem validate` run their cases in-process whatever the scene's `backend` (only "
+      "`tdem run` reads it); the preconditioner is GAMG unless PETSC_OPTIONS says "
+      "`-pc_type hypre` (hypre was faster here, the table; GAMG stays the default because it "
+      "is part of every PETSc build, hypre an optional package).\n")
     w(f"## Measured ({data['date']}, this machine: 2 cores, shared)\n")
     w(f"Load while it ran: {' / '.join(' '.join(x) for x in data['load'])} (1/5/15-min load "
       f"averages at start and end; `{data['uptime']}`). A load above 2 means other jobs (here "
