@@ -504,6 +504,13 @@ def document(data) -> str:
           f"on 2 ranks: wall {m['speedup_2']:.2f}x, CPU of the busiest rank "
           f"{m['cpu_ratio_2']:.2f}x of 1 rank's.")
     w("")
+    st = model.get("steady")
+    if st:
+        per = st["whole_bytes_per_particle"] + st["solve_bytes_per_particle"]
+        w(f"On this 24 GB machine (all ranks on it), a steady solve needs ~{per:.0f} B per "
+          f"particle in all (rank 0's whole network + the solver, whatever the ranks): the "
+          f"largest it holds with 10 % to spare is ~{0.9 * 24e9 / per:.1e} particles"
+          + (" (the measured row above: its peaks)." if largest else ".") + "\n")
     kappa = proj[0]["kappa"] if proj else float("nan")
     w(f"Model: time per step or per CG iteration on R ranks = a N / R + halo, with halo = "
       f"26 latencies + 8 B x h / bandwidth, h = {kappa:.2f} (N/R)^(2/3) values per rank (the "

@@ -134,7 +134,9 @@ class DistributedNetwork:
             for r in range(1, self.size):             # one share at a time: rank 0's peak is
                 share = _share(net, self.order, new_index,  # its own network + one share
                                int(self.starts[r]), int(self.starts[r + 1]))
-                for key in sorted(share):             # one array a message (< 2 GiB each)
+                # the receivers expect _share_keys(), in sorted order, one array a message
+                assert sorted(share) == sorted(_share_keys()), sorted(share)
+                for key in sorted(share):             # (< 2 GiB each)
                     self.mpi.send(share[key], dest=r, tag=_SHARE_TAG)
                 del share
             own = _share(net, self.order, new_index, 0, int(self.starts[1]))
