@@ -64,7 +64,7 @@ CASES = [
     ("shell_loaded_slow_10000", "shell", 10_000, (1, 2), False,
      dict(shell_loaded_step=0.002)),
     ("shell_cloud_10000", "shell", 10_000, (1, 2, 3), False, dict(shell_cloud_diameters=1.5)),
-    ("shell_cloud3_10000", "shell", 10_000, (1,), False, dict(shell_cloud_diameters=3.0)),
+    ("shell_cloud3_10000", "shell", 10_000, (1, 2, 3), False, dict(shell_cloud_diameters=3.0)),
     ("shell_thin_10000", "shell", 10_000, (1,), False, dict(shell_diameters=3.0)),
     ("shell_100000", "shell", 100_000, (1,), False, {}),
     ("shell_1000000", "shell", 1_000_000, (1,), False, {}),

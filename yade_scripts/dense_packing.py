@@ -672,40 +672,6 @@ def grow_cloud(p, box, cloud_ids, collider, walls, body, inward, compliance_m, e
         f"{ratio.min():.3f} ... {ratio.max():.3f}, {time.time() - t0:.0f} s")
 
 
-def wall_cell_layers(p, box, position, radius, kept):
-    """shell_wall_cell (experimental): the spheres within shell_layer_diameters of a face are
-    replaced by the wall layer of a wall cell (a packing periodic along two walls, relaxed
-    against them as the direct box is; shell.wall_layer_tiles), scaled to the bulk's mean
-    radius; spheres overlapping across the seams by more than 5 % of the smaller radius are
-    dropped (bulk ones first). Returns (position, radius, kept contacts reindexed, layer)."""
-    wc = np.load(p["shell_wall_cell"])
-    scale = float(radius.mean()) / float(wc["radius"].mean())
-    xy, z, r_c = wc["position"][:, :2] * scale, wc["position"][:, 2], wc["radius"] * scale
-    samples = [(np.c_[xy, (z - float(wc["z0"])) * scale], r_c),
-               (np.c_[xy, (float(wc["z1"]) - z) * scale], r_c)]
-    depth_m = p["shell_layer_diameters"] * 2.0 * float(radius.mean())
-    lay_p, lay_r, _ = shell.wall_layer_tiles(box.size, samples, np.asarray(wc["L"]) * scale,
-                                             depth_m, p["seed"] + 11)
-    bulk = shell.boundary_distance(box, position) >= depth_m
-    both_p = np.concatenate([position[bulk], lay_p])
-    both_r = np.concatenate([radius[bulk], lay_r])
-    layer = np.r_[np.zeros(int(bulk.sum()), bool), np.ones(len(lay_r), bool)]
-    alive = shell.drop_overlaps(both_p, both_r, prefer_keep=layer)
-    n_bulk = int(bulk.sum())
-    bulk_alive = alive[alive < n_bulk]
-    keep_bulk = np.zeros(len(radius), dtype=bool)
-    keep_bulk[np.flatnonzero(bulk)[bulk_alive]] = True
-    _, rows, pair = carve(keep_bulk, kept[0])
-    kept = (pair,) + tuple(c[rows] for c in kept[1:])
-    log(f"shell: wall cell {p['shell_wall_cell']} (scaled x {scale:.4f}): "
-        f"{int((~bulk).sum())} spheres within {depth_m:.4g} m of the faces replaced by "
-        f"{len(lay_r)} of its wall layer; {len(both_r) - len(alive)} dropped at the seams")
-    return (np.concatenate([position[keep_bulk], both_p[alive[alive >= n_bulk]]]),
-            np.concatenate([radius[keep_bulk], both_r[alive[alive >= n_bulk]]]), kept,
-            np.r_[np.zeros(int(keep_bulk.sum()), bool), np.ones(int((alive >= n_bulk).sum()),
-                                                              bool)])
-
-
 def shell_state(p, state):
     """method = "shell": tile and carve as method = "tiled" (keeping the spheres whose centre
     lies shell_cut_depth of their radii inside), then press walls onto a shell of
@@ -728,13 +694,7 @@ def shell_state(p, state):
     kept = (pair,) + tuple(carved[k][rows] for k in ("branch", "overlap", "normal_force",
                                                      "contact_radius"))
     position, radius, free, band = position[whole], radius[whole], free[whole], band[whole]
-    if p["shell_wall_cell"]:
-        # the outer layer replaced by the wall cell's (wall_cell_layers): split again
-        position, radius, kept, _ = wall_cell_layers(p, box, position, radius, kept)
-        _, free, band = shell.split(box, position, radius, shell_m, band_m, 0.0)
-    if p["shell_wall_cell"]:
-        clouded = np.zeros(len(radius), dtype=bool)     # the walls start on the faces
-    elif p["shell_cloud_diameters"] > 0:
+    if p["shell_cloud_diameters"] > 0:
         # the outer layer put back as a loose cloud in a grown box, the walls on its faces
         try:
             position, clouded, grown = shell.cloud_layer(

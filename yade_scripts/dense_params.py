@@ -80,13 +80,6 @@ PARAMS = {
                                        "fraction 0.3) in a box grown to hold it, and the walls "
                                        "pressed from there (0: the walls start on the carved "
                                        "faces)"),
-    "shell_wall_cell": dict(kind="str", default="",
-                            help="shell (experimental): a wall cell (.npz: a packing periodic "
-                                 "along two walls, relaxed against them) whose wall layer "
-                                 "replaces the outer shell_layer_diameters of each face"),
-    "shell_layer_diameters": dict(kind="float", default=2.5, minimum=0.5,
-                                  help="shell_wall_cell: depth of the wall layer taken from the "
-                                       "wall cell, in mean diameters"),
     "cell_particles": dict(kind="int", default=10000, minimum=20,
                            help="tiled, shell: spheres in the periodic cell that is copied"),
     "cell_packing": dict(kind="str", default="",
