@@ -1,23 +1,42 @@
-"""Same outputs before and after a refactoring (issue 26): snapshot what the campaign and post
-write, then diff two snapshots.
+"""Same outputs before and after a refactoring (issue 26): snapshot what the campaign, post and
+validation write, then diff two snapshots.
 
-    python tools/same_outputs.py snap DIR [small] [seeds] [campaign_7500]
+    python tools/same_outputs.py snap DIR [small] [seeds] [campaign_7500] [validation]
+                                          [validation_quick[=1,2,11]]
     python tools/same_outputs.py diff DIR_BEFORE DIR_AFTER            (exit 1 when they differ)
 
-``snap`` writes into DIR, for each instance asked (all three by default):
+``snap`` writes into DIR, for each instance asked (the campaign's three by default):
 - ``small``: a campaign (laws pipe, bob) run on the two committed 300-sphere beds of tests/data;
 - ``seeds``: the same with ``seeds = [3, 5]`` (the beds stand in for each seed's series);
 - ``campaign_7500``: report.md, results.csv and the figures re-written (``write_report``) from
   the 21 case summaries of ``runs/out/campaign_7500`` (when present), nothing run again;
 its report.md, results.csv, contact_angles.csv, the three figures (PNG bytes) and every case's
 summary.json, with what changes from run to run masked: the seconds in report.md's first lines,
-the wall-time columns and keys, post_sha256. Take the "before" snapshot with the old code, e.g.
+the wall-time columns and keys, post_sha256.
+
+Take the "before" snapshot with the old code, e.g.
 ``git worktree add /tmp/base <commit>`` and ``PYTHONPATH=/tmp/base python tools/same_outputs.py
 snap /tmp/before`` (this file's code is the same in both; it calls only the campaign's entry
 points: run_campaign, write_report, read_campaign, target_pressure).
+
+Validation (docs/validation.md, ``tdem validate``):
+- ``validation``: what the current code makes of the saved results, nothing measured: every
+  validation/results/caseN.json (its ``finished`` date and ``run_seconds`` masked), each case's
+  ``numbers`` read by the case's own records and written back (``records_caseN.json``: its
+  ``read_numbers`` or ``read_rows`` and ``records.to_dict``, when it has one), the summary's
+  columns from each case's ``judge(numbers)``, docs/validation.md's generated parts as
+  ``validation.run.assemble_text`` rebuilds them from the saved results (dates and seconds
+  masked), the committed docs/validation.md as it is, and every docs/img/validation_*.csv (the
+  figures' numbers). Run the cases' ``--action rebuild`` (or a case itself) first to include
+  what they rewrite;
+- ``validation_quick[=N,N,...]``: the quick instance of each case named (1, 2, 11 by default;
+  3 needs its 1,000-sphere sheet under validation/out, built by YADE once) run again with a
+  deterministic clock (``time.perf_counter`` a counter): its result (judged) and the CSVs of
+  its figures (under validation/out/caseN_quick).
 """
 from __future__ import annotations
 
+import dataclasses
 import filecmp
 import io
 import json
@@ -31,6 +50,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 WALL = ("case_wall_seconds", "thermal_wall_seconds", "run_wall_seconds", "post_sha256")
 INSTANCES = ("small", "seeds", "campaign_7500")
+QUICK_CASES = (1, 2, 11)
+MASKED = ("finished", "run_seconds")
 
 
 def _keep(out: Path, dest: Path, mask_wall: bool) -> None:
@@ -106,10 +127,92 @@ def _campaign_7500(work: Path) -> Path | None:
     return work / "out"
 
 
+def _case_records(mod, numbers: dict):
+    """The case's saved numbers read through its own records (``read_numbers(numbers)`` or
+    ``read_rows(numbers)``) and written back by ``records.to_dict``; None when the case has
+    neither (its ``judge`` still reads them): a reader that drops or renames a field shows as a
+    difference."""
+    from tdem_post.records import to_dict
+    reader = getattr(mod, "read_numbers", None) or getattr(mod, "read_rows", None)
+    if reader is None:
+        return None
+    got = reader(numbers)
+    return [to_dict(r) for r in got] if isinstance(got, (list, tuple)) else to_dict(got)
+
+
+def _validation(dest: Path) -> None:
+    """The saved validation results as the current code reads, judges and assembles them."""
+    from validation import framework as fw
+    from validation import run as vrun
+    dest.mkdir(parents=True)
+    cases = vrun.discover()
+    records = vrun._records()
+    for n, rec in sorted(records.items()):
+        data = {k: ("X" if k in MASKED else v) for k, v in rec.items()}
+        (dest / f"case{n}.json").write_text(json.dumps(data, indent=1))
+        mod = cases.get(n)
+        if mod is None or isinstance(mod, vrun.Broken):
+            continue
+        numbers = rec["result"].get("numbers", {})
+        read = _case_records(mod, numbers)
+        if read is not None:
+            (dest / f"records_case{n}.json").write_text(json.dumps(read, indent=1,
+                                                                   default=float))
+        if hasattr(mod, "judge"):
+            j = mod.judge(numbers)
+            (dest / f"judge_case{n}.json").write_text(json.dumps(
+                dataclasses.asdict(j), indent=1, default=float))
+    doc = fw.ROOT / "docs" / "validation.md"
+    (dest / "validation.md").write_text(doc.read_text())
+    rebuilt = vrun.assemble_text(doc.read_text(), cases, records)
+    rebuilt = re.sub(r"last run [0-9-]+ [0-9:]+, \d+ s", "last run DATE, N s", rebuilt)
+    (dest / "validation_assembled.md").write_text(rebuilt)
+    img = dest / "img"
+    img.mkdir()
+    for path in sorted((fw.ROOT / "docs" / "img").glob("validation_*.csv")):
+        shutil.copy(path, img / path.name)
+
+
+def _validation_quick(dest: Path, numbers) -> None:
+    """The quick instances of cases ``numbers`` run again with a counter for a clock."""
+    import time
+
+    from validation import framework as fw
+    from validation import run as vrun
+    dest.mkdir(parents=True)
+    cases = vrun.discover()
+    real = time.perf_counter
+    for n in numbers:
+        tick = iter(range(10 ** 9))
+        time.perf_counter = lambda tick=tick: float(next(tick))
+        try:
+            mod = cases[n]
+            ctx = fw.Context(number=n, quick=True)
+            for old in ctx.out.glob("validation_*.csv"):
+                old.unlink()
+            result = mod.run(ctx)
+            if not result.at_paper_n and hasattr(mod, "judge"):
+                result = fw.judged(result, mod.judge(result.numbers))
+        finally:
+            time.perf_counter = real
+        (dest / f"case{n}_quick.json").write_text(json.dumps(
+            dataclasses.asdict(result), indent=1, default=float))
+        for path in sorted(ctx.out.glob("validation_*.csv")):
+            shutil.copy(path, dest / path.name)
+
+
 def snap(dest: Path, instances) -> None:
     dest = Path(dest)
     if dest.exists():
         raise SystemExit(f"{dest}: exists; give a new folder")
+    for name in [i for i in instances if i.startswith("validation")]:
+        if name == "validation":
+            _validation(dest / name)
+        else:
+            picked = name.partition("=")[2]
+            _validation_quick(dest / "validation_quick",
+                              [int(x) for x in picked.split(",")] if picked else QUICK_CASES)
+    instances = [i for i in instances if not i.startswith("validation")]
     # one fixed work folder: the summaries name their thermal.h5 by its absolute path
     work = Path(tempfile.gettempdir()) / "tdem_same_outputs"
     for name in instances:
@@ -140,7 +243,7 @@ def diff(a: Path, b: Path) -> int:
         bad.extend(f"{rel}{n}: differs" for n in mismatch + errors)
         for n, sub in cmp.subdirs.items():
             walk(sub, f"{rel}{n}/")
-    walk(filecmp.dircmp(a, b))
+    walk(filecmp.dircmp(a, b, ignore=[]))
     print("\n".join(bad) if bad else f"same outputs: {a} and {b}")
     return 1 if bad else 0
 
