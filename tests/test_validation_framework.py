@@ -423,6 +423,28 @@ def test_case4_rows_are_records():
         case4_slab.read_rows({"rows": [dict(numbers["rows"][0], max_err_over_dt=0.1)]})
 
 
+def test_case1_and_case11_numbers_are_records():
+    """Cases 1 and 11 save their numbers as one record each (LatticeResult, TwoSphereResult
+    with a TwoSphereRow per value): the saved numbers read back and write back to the same
+    JSON; a missing or misspelt field is refused in one line, by the judge too."""
+    from tdem_post.records import RecordError, to_dict
+    from validation import case1_lattice, case11_two_spheres
+    for mod in (case1_lattice, case11_two_spheres):
+        numbers = framework.load_result(mod.CASE.number)["result"]["numbers"]
+        assert json.dumps(to_dict(mod.read_numbers(numbers))) == json.dumps(numbers)
+    n1 = framework.load_result(1)["result"]["numbers"]
+    bad = {k: v for k, v in n1.items() if k != "capacity_rel_error"}
+    with pytest.raises(RecordError, match="case 1: numbers: capacity_rel_error: missing"):
+        case1_lattice.judge(bad)
+    n11 = framework.load_result(11)["result"]["numbers"]
+    rows = [dict(r) for r in n11["rows"]]
+    rows[2]["closed_from"] = rows[2].pop("closed_form")
+    with pytest.raises(RecordError, match=r"rows\[2\]: closed_form: missing.*'closed_from'"):
+        case11_two_spheres.read_numbers(dict(n11, rows=rows))
+    m = case11_two_spheres.read_numbers(n11)
+    assert m.max_rel_error == max(r.rel_error for r in m.rows) < 1e-12
+
+
 def test_case6_rows_are_records():
     """Case 6's saved rows read back as CalibRow records (variants and axes as nested records)
     and write back to the same data; a variant missing its gap is refused in one line."""

@@ -11,7 +11,9 @@ instead of asserted.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
+from tdem_post.records import from_dict, to_dict
 from thermal_kernel.hand_inputs import (POISSON, YOUNG_PA, conductance,
                                         hertz_radius_equal_spheres, one_contact)
 
@@ -26,8 +28,34 @@ TESTS = ("tests/test_laws.py::test_pipe_by_hand_equal_spheres", "test_pipe_by_ha
          "test_chaudhuri_by_hand")
 
 
-def measure() -> list[tuple[str, float, float, str]]:
-    """(quantity, tdem, closed form, reference) for each two-sphere value."""
+@dataclass(frozen=True, kw_only=True)
+class TwoSphereRow:
+    """One two-sphere value: tdem's and its closed form's, in the quantity's unit (a
+    conductance H in W/K, or H / (κ ζ) and pipe / BOB dimensionless, as ``quantity`` says)."""
+    quantity: str
+    tdem: float
+    closed_form: float
+    source: str                     # where the closed form is (003 eq. 36-39, 004, ...)
+
+    @property
+    def rel_error(self) -> float:
+        return abs(self.tdem / self.closed_form - 1)
+
+
+@dataclass(frozen=True, kw_only=True)
+class TwoSphereResult:
+    """Case 11's saved ``numbers``: every row, and the largest relative error over them."""
+    rows: tuple[TwoSphereRow, ...]
+    max_rel_error: float
+
+
+def read_numbers(numbers: dict) -> TwoSphereResult:
+    """Case 11's saved numbers as its record (a missing or unknown field: RecordError)."""
+    return from_dict(TwoSphereResult, numbers, "case 11: numbers")
+
+
+def measure() -> TwoSphereResult:
+    """tdem's value and the closed form's for each two-sphere value."""
     E, NU = YOUNG_PA, POISSON
 
     def h(name, contact):
@@ -64,26 +92,27 @@ def measure() -> list[tuple[str, float, float, str]]:
     rows.append(("Chaudhuri: H",
                  h("chaudhuri", one_contact(1e-3, 2e-3, 3e-3 - 1e-6, 1.0, 3.0, force=5.0)),
                  3.0 * (3 * 5.0 * (2e-3 / 3) / (4 * e_star2)) ** (1 / 3), "004"))
-    return rows
+    rows = tuple(TwoSphereRow(quantity=q, tdem=v, closed_form=ref, source=src)
+                 for q, v, ref, src in rows)
+    return TwoSphereResult(rows=rows, max_rel_error=max(r.rel_error for r in rows))
 
 
 
 def judge(numbers: dict) -> Judgement:
     """Issue 23's columns: an exact case (two spheres, no N to choose)."""
-    worst = numbers.get("max_rel_error")
-    if worst is None:
+    if not numbers:
         return Judgement("not measured", "", None)
+    worst = read_numbers(numbers).max_rel_error
     return Judgement(at_paper_n=f"two spheres: max {worst:.1e} against the closed forms",
                      speed_vs_error="seconds", target_met=worst < 1e-12)
 
 
 def run(ctx: Context) -> CaseResult:
-    rows = measure()
-    errs = [abs(v / ref - 1) for _, v, ref, _ in rows]
-    worst = max(errs)
-    table = "\n".join(f"| {q} | {v:.10g} | {ref:.10g} | {e:.1e} | {src} |"
-                      for (q, v, ref, src), e in zip(rows, errs))
-    printed = rows[1][1]
+    m = measure()
+    worst = m.max_rel_error
+    table = "\n".join(f"| {r.quantity} | {r.tdem:.10g} | {r.closed_form:.10g} | "
+                      f"{r.rel_error:.1e} | {r.source} |" for r in m.rows)
+    printed = m.rows[1].tdem
     section = f"""\
 Exact case: each law's conductance of two spheres in contact (003 Table 1 particle, R = 2 mm,
 κ = 205 W/m/K, F_n = 10 N; E = 50 GPa, ν = 0.2; ζ the Hertz contact radius of eq. 34-35)
@@ -101,5 +130,4 @@ this case computes them with the tests' own helpers."""
                                        f"digits ({printed:.5f})",
         wall_time="— (seconds)",
         verdict="exact: " + ", ".join(f"`{t}`" for t in TESTS), section_md=section,
-        numbers=dict(rows=[dict(quantity=q, tdem=v, closed_form=ref, source=s)
-                           for q, v, ref, s in rows], max_rel_error=worst))
+        numbers=to_dict(m))
