@@ -84,3 +84,22 @@ def test_dem_moving_source_heats_as_much_as_the_continuum():
     assert c.source_energy_j[-1] == pytest.approx(exact, rel=2e-3)
     # the DEM samples the disc with sphere centres: a few % at 1,000 spheres
     assert d["source_energy_j"] == pytest.approx(c.source_energy_j[-1], rel=0.05)
+
+
+def test_case2_numbers_are_a_record():
+    """Case 2 saves its numbers as a BeamResult (its further series' beams BeamRun records): the
+    saved numbers read back and write back to the same JSON text; a beam without its error, or
+    a misspelt field, is refused in one line, by the judge too."""
+    import json
+
+    from tdem_post.records import RecordError, to_dict
+    numbers = fw.load_result(2)["result"]["numbers"]
+    m = case2_beam.read_numbers(numbers)
+    assert json.dumps(to_dict(m)) == json.dumps(numbers)
+    assert m.series["cell10k"]["1"].max_error_over_dT > 0
+    bad = json.loads(json.dumps(numbers))
+    del bad["series"]["cell10k"]["3"]["max_error_over_dT"]
+    with pytest.raises(RecordError, match=r"series\.cell10k\.3: max_error_over_dT: missing"):
+        case2_beam.judge(bad)
+    with pytest.raises(RecordError, match="per_seeds: unknown field"):
+        case2_beam.read_numbers(dict(numbers, per_seeds=[0.01]))

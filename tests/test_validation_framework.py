@@ -327,7 +327,9 @@ def test_the_judges_use_the_stricter_measure_at_the_papers_n():
             run8("faces", 999_902, (0.001, 0, 0)), run8("periodic_harmonic", 80_000, (0, 0, 0))]
     j = case8_inclusion.judge({"runs": runs})
     assert j.target_met is False and "N 100,031" in j.at_paper_n and "0.60 %" in j.at_paper_n
-    j = case2_beam.judge({"per_seed": [0.004, 0.009, 0.0101], "n_particles": [19_000] * 3})
+    saved2 = framework.load_result(2)["result"]["numbers"]
+    j = case2_beam.judge(dict(saved2, per_seed=[0.004, 0.009, 0.0101], n_particles=[19_000] * 3,
+                              series={}))
     assert j.target_met is False and "2 of 3" in j.at_paper_n
 
 
@@ -336,8 +338,10 @@ def test_case2_is_judged_on_the_larger_cells_once_five_seeds_are_measured():
     cells, or pressed ends), not the measure: with five such seeds the judge uses them, the
     2,000-cell beams beside; with fewer it keeps the 2,000-cell beams."""
     from validation import case2_beam
-    base = {"per_seed": [0.004, 0.009, 0.006, 0.009, 0.0138], "n_particles": [19_400] * 5}
-    beams = {str(s): dict(max_error_over_dT=e, n_particles=19_500)
+    saved = framework.load_result(2)["result"]["numbers"]
+    base = dict(saved, per_seed=[0.004, 0.009, 0.006, 0.009, 0.0138], n_particles=[19_400] * 5)
+    beam = saved["series"]["cell10k"]["1"]
+    beams = {str(s): dict(beam, max_error_over_dT=e, n_particles=19_500)
              for s, e in zip(range(1, 6), (0.007, 0.006, 0.008, 0.005, 0.009))}
     j = case2_beam.judge(dict(base, series={"cell10k": beams}))
     assert j.target_met is True and "5 of 5 < 1 %" in j.at_paper_n and "4 of 5" in j.at_paper_n

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tdem_post.records import from_dict, to_dict
 from thermal_kernel.atomic import open_atomic, savefig_atomic
 from tdem_post.analytic import rod_mean_temperature, rod_temperature
 from tdem_post.profiles import binned_profile
@@ -156,6 +157,64 @@ class _Joined:
         return self.ledger
 
 
+@dataclass(frozen=True, kw_only=True)
+class BeamRun:
+    """One beam of a series at the paper's N (the saved ``series``), measured by
+    :func:`beam_case` (its profiles left out): errors are fractions of ΔT, lengths in metres of
+    the packing's units, C_t dimensionless (None for a law without one)."""
+    packing: str
+    n_particles: int
+    law: str
+    ct_held_plane: float | None
+    length_rod_m: float                 # held plane -> adiabatic face
+    radius_over_mean_radius: float
+    length_domain_m: float
+    z_held_m: float
+    fourier: tuple[float, ...]
+    paper_times_s: tuple[float, ...]
+    dt_fourier: float
+    steps: int
+    max_error_over_dT: float            # over the bins and times
+    max_error_over_dT_per_time: tuple[float, ...]
+    particle_rms_over_dT_per_time: tuple[float, ...]
+    ledger_relative: float
+    calibration_seconds: float
+    run_seconds: float
+    pack_seconds: float | None          # None: not built here
+
+
+@dataclass(frozen=True, kw_only=True)
+class BeamResult:
+    """Case 2's saved ``numbers``: the beams of the 2,000-sphere cells at the paper's N (one
+    value per seed), the N ladder, the time step's error and the further series (per series,
+    per seed). Errors are fractions of ΔT."""
+    max_error_over_dT: float                        # over seeds, bins and times
+    max_error_over_dT_per_time: tuple[float, ...]   # over seeds and bins
+    per_seed: tuple[float, ...]
+    n_particles: tuple[int, ...]
+    ct_held_plane: tuple[float, ...]
+    terreros_max_error_over_dT: float
+    # (N mean, error mean, min, max over the seeds, thermal seconds mean) per N of the ladder
+    convergence: tuple[tuple[float, ...], ...]
+    convergence_order: float
+    dt_error_over_dT: tuple[float, ...]             # against dt/4, per dt
+    fourier: tuple[float, ...]
+    paper_times_ms: tuple[float, ...]
+    series: dict[str, dict[str, BeamRun]]           # series -> seed (text) -> beam
+
+
+def read_numbers(numbers: dict) -> BeamResult:
+    """Case 2's saved numbers as its record (a missing or unknown field: RecordError)."""
+    return from_dict(BeamResult, numbers, "case 2: numbers")
+
+
+def _beam_run(r: dict, pack_s: float | None) -> BeamRun:
+    """The record of one beam measured by :func:`beam_case` (its profiles left out)."""
+    return BeamRun(**{k: v for k, v in r.items()
+                      if k not in ("profile_k", "exact_k", "edges_over_L")},
+                   pack_seconds=pack_s)
+
+
 # ---------------------------------------------------------------------------- the case
 def _plot(ctx, stem, draw, csv_header, csv_rows):
     import matplotlib
@@ -185,10 +244,10 @@ def _rel(path: Path) -> str:
 def judge(numbers: dict) -> Judgement:
     """Issue 23's columns: the paper's N is 19,465; the measure (000: "good agreement", Fig. 9)
     is read strictly as the max |error| / ΔT over the bins and output times, per seed."""
-    per_seed, ns = numbers.get("per_seed"), numbers.get("n_particles")
-    if not per_seed or not ns:
+    if not numbers:
         return Judgement("not measured", "", None)
-    series = numbers.get("series") or {}
+    m = read_numbers(numbers)
+    per_seed, ns, series = list(m.per_seed), m.n_particles, m.series
     tiled_txt = (f"2,000 cells: N {int(sum(ns) / len(ns)):,} × {len(per_seed)} seeds "
                  + " / ".join(f"{100 * e:.2f}" for e in per_seed)
                  + f" % ({sum(e < 0.01 for e in per_seed)} of {len(per_seed)} < 1 %)")
@@ -200,8 +259,8 @@ def judge(numbers: dict) -> Judgement:
     for k in ("walled", "cell10k"):
         beams = series.get(k) or {}
         if beams:
-            e = [w["max_error_over_dT"] for w in beams.values()]
-            n_w = [w["n_particles"] for w in beams.values()]
+            e = [w.max_error_over_dT for w in beams.values()]
+            n_w = [w.n_particles for w in beams.values()]
             parts.append(f"{SERIES[k]}: N {int(sum(n_w) / len(n_w)):,} × {len(e)} seeds "
                          + " / ".join(f"{100 * x:.2f}" for x in e)
                          + f" % ({sum(x < 0.01 for x in e)} of {len(e)} < 1 %)")
@@ -210,7 +269,7 @@ def judge(numbers: dict) -> Judgement:
     ok = sum(e < 0.01 for e in per_seed)
     at = "; ".join(parts + [tiled_txt]) + " (max |ΔT_bin| / ΔT over 6 times, per seed)"
     speed = ""
-    reached = [c for c in numbers.get("convergence", []) if c[3] < 0.01]
+    reached = [c for c in m.convergence if c[3] < 0.01]
     if reached:
         c = reached[0]
         speed = (f"every seed < 1 % from N {int(c[0]):,} (worst {100 * c[3]:.2f} %, thermal "
@@ -305,11 +364,10 @@ def run(ctx: Context) -> CaseResult:
                 path = series_path(series, s)
                 if path is None:
                     continue
-                r = beam_case(path)
-                r["pack_seconds"] = fw.pack_seconds(series_name(series, s))
+                r = _beam_run(beam_case(path), fw.pack_seconds(series_name(series, s)))
                 extra.setdefault(series, {})[s] = r
-                ctx.progress(f"{series} beam, seed {s}: N {r['n_particles']}, max |err| "
-                             f"{100 * r['max_error_over_dT']:.3f} % of dT")
+                ctx.progress(f"{series} beam, seed {s}: N {r.n_particles}, max |err| "
+                             f"{100 * r.max_error_over_dT:.3f} % of dT")
         # the YADE relaxation of each seed's cell (shared with case 3) counts here
         pack_s += sum(fw.pack_seconds(P.cell_name(s)) or 0.0 for s in seeds)
     runs = {}
@@ -338,12 +396,12 @@ def _series_text(extra: dict) -> str:
     out = []
     for series, beams in extra.items():
         rows = "\n".join(
-            f"| {s} | {w['n_particles']:,} | {w['ct_held_plane']:.4f} | "
-            f"{100 * w['max_error_over_dT']:.2f} | "
-            + " / ".join(f"{100 * e:.2f}" for e in w["max_error_over_dT_per_time"])
-            + f" | {w.get('radius_over_mean_radius', float('nan')):.1f} |"
+            f"| {s} | {w.n_particles:,} | {w.ct_held_plane:.4f} | "
+            f"{100 * w.max_error_over_dT:.2f} | "
+            + " / ".join(f"{100 * e:.2f}" for e in w.max_error_over_dT_per_time)
+            + f" | {w.radius_over_mean_radius:.1f} |"
             for s, w in sorted(beams.items()))
-        ok = sum(w["max_error_over_dT"] < 0.01 for w in beams.values())
+        ok = sum(w.max_error_over_dT < 0.01 for w in beams.values())
         out.append(f"""
 **At the paper's N, {SERIES[series]}.** {ok} of {len(beams)} seeds below 1 % of ΔT at every
 output time (max over the bins and the {len(FOURIER)} times; haddad, C_t calibrated on the same
@@ -562,17 +620,15 @@ a radius of the cut face are held at 798 K, a layer of finite thickness the cont
 have) and the sphere-scale heterogeneity of the conductance, which the calibration removes only on
 average. The beam is thin ({radius_r:.1f} mean diameters across), so each bin holds few spheres.
 """
-    numbers = {
-        "max_error_over_dT": worst, "max_error_over_dT_per_time": per_time.max(axis=0).tolist(),
-        "per_seed": [r["max_error_over_dT"] for r in main], "n_particles": n_actual,
-        "ct_held_plane": cts, "terreros_max_error_over_dT": terr_worst,
-        "convergence": conv.tolist(), "convergence_order": order,
-        "dt_error_over_dT": dt_rows[:, 3].tolist(), "fourier": list(FOURIER),
-        "paper_times_ms": times_ms,
-        "series": {series: {str(s): {k: v for k, v in w.items()
-                                     if k not in ("profile_k", "exact_k", "edges_over_L")}
-                            for s, w in beams.items()} for series, beams in extra.items()},
-    }
+    numbers = to_dict(BeamResult(
+        max_error_over_dT=worst, max_error_over_dT_per_time=tuple(per_time.max(axis=0).tolist()),
+        per_seed=tuple(r["max_error_over_dT"] for r in main), n_particles=tuple(n_actual),
+        ct_held_plane=tuple(cts), terreros_max_error_over_dT=terr_worst,
+        convergence=tuple(tuple(c) for c in conv.tolist()), convergence_order=order,
+        dt_error_over_dT=tuple(dt_rows[:, 3].tolist()), fourier=FOURIER,
+        paper_times_ms=tuple(times_ms),
+        series={series: {str(s): w for s, w in beams.items()}
+                for series, beams in extra.items()}))
     thermal_s = sum(r["run_seconds"] + r["calibration_seconds"] for r in runs.values())
     return CaseResult(
         our_n=f"{int(np.mean(n_actual)):,} × {len(seeds)} seeds (ladder "
