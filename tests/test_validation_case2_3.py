@@ -103,3 +103,22 @@ def test_case2_numbers_are_a_record():
         case2_beam.judge(bad)
     with pytest.raises(RecordError, match="per_seeds: unknown field"):
         case2_beam.read_numbers(dict(numbers, per_seeds=[0.01]))
+
+
+def test_case3_numbers_are_a_record():
+    """Case 3 saves its numbers as a SheetResult (a SheetRow per N, a PointError per
+    check-point): the saved numbers read back and write back to the same JSON text; a point
+    without its worst-seed error is refused in one line, by the judge too."""
+    import json
+
+    from tdem_post.records import RecordError, to_dict
+    numbers = fw.load_result(3)["result"]["numbers"]
+    m = case3_sheet.read_numbers(numbers)
+    assert json.dumps(to_dict(m)) == json.dumps(numbers)
+    assert m.table[-1].at("B") is m.table[-1].B and m.table[-1].B.rise_k > 0
+    bad = json.loads(json.dumps(numbers))
+    del bad["table"][1]["C"]["err_max"]
+    with pytest.raises(RecordError, match=r"table\[1\]: C: err_max: missing"):
+        case3_sheet.judge(bad)
+    with pytest.raises(RecordError, match="continuum_orders: unknown field"):
+        case3_sheet.read_numbers(dict(numbers, continuum_orders=2.0))

@@ -22,11 +22,13 @@ comparison is not blurred by the probe's size.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from tdem_post import continuum as fv
+from tdem_post.records import from_dict, to_dict
 from thermal_kernel.calibrate import flux_test
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
@@ -195,24 +197,74 @@ def compare(dem: dict, times, ref_fields, point_index) -> dict:
 
 
 # ---------------------------------------------------------------------------- the case
+@dataclass(frozen=True, kw_only=True)
+class PointError:
+    """The DEM against the continuum at one check-point, over the seeds of one N: errors and
+    dispersion are fractions of the point's peak rise, the rise in K."""
+    err_mean_of_seeds: float        # mean over the seeds of each seed's max |error|
+    err_max: float                  # the worst seed's
+    err_of_seed_mean: float         # of the seeds' mean history
+    dispersion: float               # the seeds' standard deviation, time mean
+    rise_k: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class SheetRow:
+    """One N of the case (means over its seeds): the three check-points of 000 Table 5, the
+    source's energy against the exact one, the thermal seconds of a seed."""
+    n: float                        # mean number of spheres
+    A: PointError
+    B: PointError
+    C: PointError
+    source_energy_ratio: float
+    source_energy_ratio_range: tuple[float, ...]        # (min, max) over the seeds
+    seconds: float                  # calibration + run, mean over the seeds
+
+    def at(self, point: str) -> PointError:
+        return getattr(self, point)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SheetResult:
+    """Case 3's saved ``numbers``: a row per N, the convergence rows (N, the error at A, B, C,
+    their dispersion, seconds) and order, the continuum's own convergence (fractions of the
+    rise at A, B, C; seconds per grid), the DEM's time-step error, the rises (K) and C_t."""
+    table: tuple[SheetRow, ...]
+    convergence: tuple[tuple[float, ...], ...]
+    order: float
+    continuum_richardson_over_rise: tuple[float, ...]
+    continuum_order: float
+    continuum_seconds: tuple[float, ...]
+    continuum_grid_vs_finest: tuple[tuple[float, ...], ...]
+    dem_dt_error: dict[str, float]
+    rise_k: tuple[float, ...]
+    ct: tuple[float, ...]
+    worst_error_largest_n: float
+
+
+def read_numbers(numbers: dict) -> SheetResult:
+    """Case 3's saved numbers as its record (a missing or unknown field: RecordError)."""
+    return from_dict(SheetResult, numbers, "case 3: numbers")
+
+
 
 def judge(numbers: dict) -> Judgement:
     """Issue 23's columns: 000 compares with FEM by figure only (Fig. 12–14), so the stricter
     reading is used: the worst seed's error at A, B, C (% of the peak rise) at the paper's
     largest N (20,000), the mean over seeds beside it. No numeric target."""
-    table = numbers.get("table", [])
-    if not table:
+    if not numbers.get("table"):
         return Judgement("not measured", "", None)
-    top = max(table, key=lambda r: r["n"])
-    pts = [k for k in ("A", "B", "C") if k in top]
-    at = (f"N {int(top['n']):,}: worst seed " + " / ".join(
-        f"{k} {100 * top[k]['err_max']:.2f}" for k in pts) + " % of the peak rise (mean of 5 "
-          "seeds " + " / ".join(f"{100 * top[k]['err_mean_of_seeds']:.2f}" for k in pts) + " %)")
-    conv = numbers.get("convergence", [])
-    speed = (f"error ∝ N^{numbers['order']:.2f}; thermal {conv[-1][-1]:.0f} s a seed at "
-             f"{int(conv[-1][0]):,}" if conv and "order" in numbers else "")
+    m = read_numbers(numbers)
+    top = max(m.table, key=lambda r: r.n)
+    pts = list(POINTS)
+    at = (f"N {int(top.n):,}: worst seed " + " / ".join(
+        f"{k} {100 * top.at(k).err_max:.2f}" for k in pts) + " % of the peak rise (mean of 5 "
+          "seeds " + " / ".join(f"{100 * top.at(k).err_mean_of_seeds:.2f}" for k in pts) + " %)")
+    conv = m.convergence
+    speed = (f"error ∝ N^{m.order:.2f}; thermal {conv[-1][-1]:.0f} s a seed at "
+             f"{int(conv[-1][0]):,}" if conv else "")
     verdict = ("no number in the paper to meet (FEM by figure); the worst seed within "
-               f"{100 * max(top[k]['err_max'] for k in pts):.1f} % of the peak rise at the "
+               f"{100 * max(top.at(k).err_max for k in pts):.1f} % of the peak rise at the "
                "paper's largest N, against a continuum converged to 0.01 %")
     return Judgement(at_paper_n=at, speed_vs_error=speed, target_met=None, verdict=verdict)
 
@@ -266,8 +318,9 @@ def _rows_by_n(sizes, seeds, dems, cmp, names):
     """Per N (means over the seeds): each point's errors, dispersion and rise, the source's
     energy against the exact, the seconds; (the rows, the convergence rows)."""
     table, conv = [], []
+    exact = source_energy_exact()
     for n in sizes:
-        row = {"n": float(np.mean([dems[(n, s)]["n_particles"] for s in seeds]))}
+        points = {}
         for p in names:
             errs = [cmp[(n, s)][p]["max_error_over_rise"] for s in seeds]
             temps = np.array([dems[(n, s)]["probe_t"][p] for s in seeds])   # (seeds, K)
@@ -275,19 +328,19 @@ def _rows_by_n(sizes, seeds, dems, cmp, names):
             rise = float(np.mean([cmp[(n, s)][p]["rise"] for s in seeds]))
             mean_err = float(np.max(np.abs(temps.mean(axis=0) - refs.mean(axis=0))) / rise)
             disp = float(np.mean(temps.std(axis=0, ddof=1)) / rise) if len(seeds) > 1 else 0.0
-            row[p] = {"err_mean_of_seeds": float(np.mean(errs)), "err_max": float(np.max(errs)),
-                      "err_of_seed_mean": mean_err, "dispersion": disp, "rise_k": rise}
-        row["source_energy_ratio"] = float(np.mean([dems[(n, s)]["source_energy_j"]
-                                                    for s in seeds]) / source_energy_exact())
-        row["source_energy_ratio_range"] = [float(min(dems[(n, s)]["source_energy_j"]
-                                                      for s in seeds) / source_energy_exact()),
-                                            float(max(dems[(n, s)]["source_energy_j"]
-                                                      for s in seeds) / source_energy_exact())]
-        row["seconds"] = float(np.mean([dems[(n, s)]["run_seconds"]
-                                        + dems[(n, s)]["calibration_seconds"] for s in seeds]))
+            points[p] = PointError(err_mean_of_seeds=float(np.mean(errs)),
+                                   err_max=float(np.max(errs)), err_of_seed_mean=mean_err,
+                                   dispersion=disp, rise_k=rise)
+        energy = [dems[(n, s)]["source_energy_j"] for s in seeds]
+        row = SheetRow(
+            n=float(np.mean([dems[(n, s)]["n_particles"] for s in seeds])), **points,
+            source_energy_ratio=float(np.mean(energy)) / exact,
+            source_energy_ratio_range=(float(min(energy) / exact), float(max(energy) / exact)),
+            seconds=float(np.mean([dems[(n, s)]["run_seconds"]
+                                   + dems[(n, s)]["calibration_seconds"] for s in seeds])))
         table.append(row)
-        conv.append((row["n"], *[row[p]["err_mean_of_seeds"] for p in names],
-                     *[row[p]["dispersion"] for p in names], row["seconds"]))
+        conv.append((row.n, *[row.at(p).err_mean_of_seeds for p in names],
+                     *[row.at(p).dispersion for p in names], row.seconds))
     return table, conv
 
 
@@ -385,21 +438,21 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
     f_conv = _figure_convergence(ctx, conv, order, const, names)
     f_speed = _figure_speed(ctx, conv, worst, cont_s, fields, est, rise_pt, grids)
 
-    src_txt = "; ".join(f"{row['n']:,.0f} spheres {row['source_energy_ratio']:.4f} (seeds "
-                        f"{row['source_energy_ratio_range'][0]:.4f}–"
-                        f"{row['source_energy_ratio_range'][1]:.4f})" for row in table)
+    src_txt = "; ".join(f"{row.n:,.0f} spheres {row.source_energy_ratio:.4f} (seeds "
+                        f"{row.source_energy_ratio_range[0]:.4f}–"
+                        f"{row.source_energy_ratio_range[1]:.4f})" for row in table)
     nx_f, dt_f = grids[-1]
     tab = ["| N (mean) | " + " | ".join(f"{p}: error (mean / max of seeds) | "
                                         f"{p}: error of the seed mean | {p}: dispersion"
                                         for p in names) + " | thermal s |",
            "|---" * (2 + 3 * len(names)) + "|"]
     for row in table:
-        tab.append(f"| {row['n']:,.0f} | " + " | ".join(
-            f"{100 * row[p]['err_mean_of_seeds']:.2f} / {100 * row[p]['err_max']:.2f} % | "
-            f"{100 * row[p]['err_of_seed_mean']:.2f} % | {100 * row[p]['dispersion']:.2f} %"
-            for p in names) + f" | {row['seconds']:.1f} |")
+        tab.append(f"| {row.n:,.0f} | " + " | ".join(
+            f"{100 * row.at(p).err_mean_of_seeds:.2f} / {100 * row.at(p).err_max:.2f} % | "
+            f"{100 * row.at(p).err_of_seed_mean:.2f} % | {100 * row.at(p).dispersion:.2f} %"
+            for p in names) + f" | {row.seconds:.1f} |")
     last = table[-1]
-    worst_big = max(last[p]["err_mean_of_seeds"] for p in names)
+    worst_big = max(last.at(p).err_mean_of_seeds for p in names)
     cts = [d["ct"] for d in dems.values()]
     section = f"""\
 Setup (000 sec. 5.2, Tables 3–5): sheet 50 × 30 × 2 mm (x in [0, 50], y in [−15, 15] mm),
@@ -460,10 +513,10 @@ at 1,000 spheres this sampling of the source is itself an error of a few %, whic
 times as the offset of the whole history (A and B, Fig. above).
 
 The peak rises are large (the 10 kW source heats the whole adiabatic sheet by ~12,000 K by the
-end), so in kelvin the errors at {last['n']:,.0f} spheres are A \
-{last['A']['err_mean_of_seeds'] * last['A']['rise_k']:.0f} K,
-B {last['B']['err_mean_of_seeds'] * last['B']['rise_k']:.0f} K, C \
-{last['C']['err_mean_of_seeds'] * last['C']['rise_k']:.0f} K (means of the seeds); B, on the \
+end), so in kelvin the errors at {last.n:,.0f} spheres are A \
+{last.A.err_mean_of_seeds * last.A.rise_k:.0f} K,
+B {last.B.err_mean_of_seeds * last.B.rise_k:.0f} K, C \
+{last.C.err_mean_of_seeds * last.C.rise_k:.0f} K (means of the seeds); B, on the \
 source's path,
 is the hardest point (the disc passes over it, and its neighbourhood is sampled by the spheres the
 disc switches on and off).
@@ -484,20 +537,20 @@ at the sphere scale), and a check-point's temperature is that of one or two sphe
 with N; at 20,000 the sphere size (mean radius ~0.28 mm) is still comparable to the paper's FEM
 cell (0.5 mm).
 """
-    numbers = {"table": table, "convergence": conv.tolist(), "order": order,
-               "continuum_richardson_over_rise": rich_pt.tolist(),
-               "continuum_order": float(est.order), "continuum_seconds": cont_s,
-               "continuum_grid_vs_finest": grid_diff, "dem_dt_error": dt_err,
-               "rise_k": rise_pt.tolist(), "ct": cts,
-               "worst_error_largest_n": worst_big}
+    numbers = to_dict(SheetResult(
+        table=tuple(table), convergence=tuple(tuple(c) for c in conv.tolist()), order=order,
+        continuum_richardson_over_rise=tuple(rich_pt.tolist()),
+        continuum_order=float(est.order), continuum_seconds=tuple(cont_s),
+        continuum_grid_vs_finest=tuple(tuple(g) for g in grid_diff), dem_dt_error=dt_err,
+        rise_k=tuple(rise_pt.tolist()), ct=tuple(cts), worst_error_largest_n=worst_big))
     thermal_s = sum(d["run_seconds"] + d["calibration_seconds"] for d in dems.values())
     return CaseResult(
-        our_n=" / ".join(f"{row['n']:,.0f}" for row in table) + f" × {len(seeds)} seeds",
-        our_error=f"at {table[-1]['n']:,.0f}: A {100 * last['A']['err_mean_of_seeds']:.1f} %, "
-                  f"B {100 * last['B']['err_mean_of_seeds']:.1f} %, C "
-                  f"{100 * last['C']['err_mean_of_seeds']:.1f} % of the peak rise (vs our "
+        our_n=" / ".join(f"{row.n:,.0f}" for row in table) + f" × {len(seeds)} seeds",
+        our_error=f"at {table[-1].n:,.0f}: A {100 * last.A.err_mean_of_seeds:.1f} %, "
+                  f"B {100 * last.B.err_mean_of_seeds:.1f} %, C "
+                  f"{100 * last.C.err_mean_of_seeds:.1f} % of the peak rise (vs our "
                   f"continuum, converged to {100 * rich_pt.max():.2f} %); dispersion "
-                  + " / ".join(f"{100 * last[p]['dispersion']:.1f} %" for p in names),
+                  + " / ".join(f"{100 * last.at(p).dispersion:.1f} %" for p in names),
         wall_time=f"{pack_s:.0f} s (carving; the cells are case 2's) + {thermal_s:.0f} s "
                   f"(continuum {sum(cont_s):.0f} s)",
         verdict=f"error falls as N^{order:.2f}; continuum reference converged",
