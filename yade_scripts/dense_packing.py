@@ -652,7 +652,7 @@ def grow_cloud(p, box, cloud_ids, collider, walls, body, inward, compliance_m, e
     compliance_m, the shell's column at the soft stage). The soft stage then presses them."""
     p_target = p["confining_pressure_pa"]
     size_now = shell.CLOUD_SHRINK      # (press_shell shrank them when it built the scene)
-    t0 = time.time()
+    t0, last = time.time(), 0.0
     while size_now < 1.0:
         factor = min(1.0 + (1e-2 if size_now < 0.9 else 2e-3), 1.0 / size_now)
         for b in cloud_ids:
@@ -666,6 +666,11 @@ def grow_cloud(p, box, cloud_ids, collider, walls, body, inward, compliance_m, e
         for w in range(len(walls)):
             v = inward[body[w]] * (out[w] / (every * O.dt))
             O.bodies[body[w]].state.vel = Vector3(*(float(x) for x in v))
+        now = time.time() - t0
+        if now - last > 3.0:
+            last = now
+            log(f"shell: the cloud at {size_now:.3f} of its radii, step {O.iter}, wall "
+                f"stress/target {ratio.min():.3f} ... {ratio.max():.3f}, {now:.0f} s")
     for b in body.values():
         O.bodies[b].state.vel = Vector3(0, 0, 0)
     log(f"shell: the cloud grown back to its radii at step {O.iter}, wall stress/target "
