@@ -449,6 +449,30 @@ def test_case1_and_case11_numbers_are_records():
     assert m.max_rel_error == max(r.rel_error for r in m.rows) < 1e-12
 
 
+def test_quoted_facts_come_from_their_records(monkeypatch):
+    """Issue 26: the cell's YADE seconds (cases 4, 5, 6) come from the packing benchmark's
+    record of it and the cell's size (case 4) from the packings the rows were measured on (the
+    rows' cell_size_m), not typed into the code; without the record the words say so."""
+    from pathlib import Path
+
+    from validation import case4_slab, case6_calibrate
+    sources = "".join(p.read_text() for p in Path(framework.ROOT, "validation").glob("*.py"))
+    assert "551" not in sources and "CELL_MM" not in sources
+    cpu = json.loads(framework.CELL_1E5_RECORD.read_text())["cpu_seconds"]
+    assert framework.cell_cpu_seconds() == cpu
+    saved = framework.load_result(4)["result"]
+    rows = {r.name: r for r in case4_slab.read_rows(saved["numbers"])}
+    cell = rows["tiled_1e5"].cell_size_m
+    assert cell == rows["tiled_1e6"].cell_size_m and 0.03 < cell < 0.06
+    assert f"cell\n({1e3 * cell:.0f} mm, " in saved["section_md"]
+    assert f"after {cpu:.0f} s of YADE for the cell" in saved["section_md"]
+    assert saved["wall_time"].startswith(f"{cpu:.0f} s CPU + ")
+    assert f"({cpu:.0f} s CPU idle" in framework.load_result(6)["result"]["wall_time"]
+    monkeypatch.setattr(framework, "CELL_1E5_RECORD", Path("/nonexistent/record.json"))
+    assert framework.cell_cpu_seconds() is None
+    assert case6_calibrate._cell_cost() == "the YADE time of each 10,000-sphere cell"
+
+
 def test_case6_rows_are_records():
     """Case 6's saved rows read back as CalibRow records (variants and axes as nested records)
     and write back to the same data; a variant missing its gap is refused in one line."""

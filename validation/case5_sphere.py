@@ -53,7 +53,7 @@ from thermal_kernel.solvers.explicit import run_explicit
 from thermal_kernel.solvers.implicit import run_implicit
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
     register_packing
-from validation.framework import Judgement, cached, fit_order, scene_toml
+from validation.framework import Judgement, cached, cell_cost_text, fit_order, scene_toml
 
 CASE = CaseInfo(number=5, title="sphere with held surface, eq. 18-19",
                 paper="002 sec. 2.3, eq. 18-19, Fig. 7-8", paper_n="1e5, 1e6",
@@ -836,7 +836,7 @@ other cells (seeds), not done here. {big_limit}
                       if paper_1e5 else "")
                    + (f"; 1e6: centre {big.centre_error_c:+.2f} °C" if big else "")),
         wall_time=(f"{_pack_s(main.sphere):.0f} s + {main.run_seconds:.0f} s "
-                   f"(explicit, {main.steps:,} steps; the cell: 551 s CPU once)"),
+                   f"(explicit, {main.steps:,} steps; the cell: {cell_cost_text()} CPU once)"),
         verdict=("goal ≤ 1 °C at 1e5 " + ("met" if met else "not met")
                  + " with our calibrated C_t; the paper's C_t does not transfer to our packing"),
         section_md=section,

@@ -139,6 +139,27 @@ PACKINGS: dict[str, tuple[str, dict]] = {
 }
 
 
+# What the 10,000-sphere cell of the tiled boxes (runs/dense_box_1e5.toml, seed 1) cost: the
+# packing benchmark's record of the tiled 1e5 box built from scratch (bench/bench_packings.py:
+# the CPU of `tdem pack`'s process tree, YADE's relaxation of the cell and the copying).
+CELL_1E5_RECORD = ROOT / "bench" / "results" / "packings_cases" / "tiled_100000_s1_c10000.json"
+
+
+def cell_cpu_seconds() -> float | None:
+    """CPU seconds the 1e5 cell took to relax (and copy), from the packing benchmark's record
+    (:data:`CELL_1E5_RECORD`), None when the record is not here: cases 4, 5 and 6 quote it."""
+    try:
+        return float(json.loads(CELL_1E5_RECORD.read_text())["cpu_seconds"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def cell_cost_text(fmt: str = "{:.0f} s", missing: str = "the cell's YADE time") -> str:
+    """:func:`cell_cpu_seconds` in ``fmt`` (``missing`` when there is no record)."""
+    cpu = cell_cpu_seconds()
+    return missing if cpu is None else fmt.format(cpu)
+
+
 def register_packing(name: str, scene: str, overrides: dict) -> None:
     """A case adds the packings only it needs (e.g. a beam, a sheet) under its own names."""
     PACKINGS.setdefault(name, (scene, overrides))
