@@ -557,3 +557,25 @@ def test_case10_runs_are_records():
     bad["rows"][0]["err_ref_pct"] = 1.0
     with pytest.raises(RecordError, match=r"rows\[0\]: err_ref_pct: unknown field"):
         case10_dispersion.read_runs([bad])
+
+
+def test_same_outputs_snapshots_and_diffs_validation(tmp_path, capsys):
+    """tools/same_outputs.py's validation instance: two snapshots of the same tree are the same
+    outputs; a figure's CSV that changes, or a result a case's records would read differently,
+    is a difference (exit 1)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        "same_outputs", framework.ROOT / "tools" / "same_outputs.py")
+    so = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(so)
+    so.snap(tmp_path / "a", ["validation"])
+    so.snap(tmp_path / "b", ["validation"])
+    assert so.diff(tmp_path / "a", tmp_path / "b") == 0
+    snap = tmp_path / "b" / "validation"
+    assert {"case4.json", "records_case1.json", "judge_case2.json", "validation.md",
+            "validation_assembled.md"} <= {p.name for p in snap.iterdir()}
+    assert json.loads((snap / "case1.json").read_text())["finished"] == "X"
+    csv = sorted((snap / "img").glob("*.csv"))[0]
+    csv.write_text(csv.read_text() + "1\n")
+    assert so.diff(tmp_path / "a", tmp_path / "b") == 1
+    assert f"img/{csv.name}: differs" in capsys.readouterr().out
