@@ -31,8 +31,9 @@ Validation (docs/validation.md, ``tdem validate``):
   what they rewrite;
 - ``validation_quick[=N,N,...]``: the quick instance of each case named (1, 2, 11 by default;
   3 needs its 1,000-sphere sheet under validation/out, built by YADE once) run again with a
-  deterministic clock (``time.perf_counter`` a counter): its result (judged) and the CSVs of
-  its figures (under validation/out/caseN_quick).
+  deterministic clock (``time.perf_counter`` a counter): its result (judged) and its figures
+  with their CSVs (under validation/out/caseN_quick; the PNG bytes too: matplotlib writes the
+  same bytes for the same figure here).
 """
 from __future__ import annotations
 
@@ -188,7 +189,8 @@ def _validation_quick(dest: Path, numbers) -> None:
         try:
             mod = cases[n]
             ctx = fw.Context(number=n, quick=True)
-            for old in ctx.out.glob("validation_*.csv"):
+            for old in list(ctx.out.glob("validation_*.csv")) + \
+                    list(ctx.out.glob("validation_*.png")):
                 old.unlink()
             result = mod.run(ctx)
             if not result.at_paper_n and hasattr(mod, "judge"):
@@ -197,7 +199,8 @@ def _validation_quick(dest: Path, numbers) -> None:
             time.perf_counter = real
         (dest / f"case{n}_quick.json").write_text(json.dumps(
             dataclasses.asdict(result), indent=1, default=float))
-        for path in sorted(ctx.out.glob("validation_*.csv")):
+        for path in sorted(ctx.out.glob("validation_*.csv")) + \
+                sorted(ctx.out.glob("validation_*.png")):
             shutil.copy(path, dest / path.name)
 
 
