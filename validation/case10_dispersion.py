@@ -37,7 +37,7 @@ from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 from validation import framework
 from validation import inclusions as I
-from validation.framework import CaseInfo, CaseResult, Context
+from validation.framework import CaseInfo, CaseResult, Context, new_figure, save_figure
 
 CASE = CaseInfo(number=10, title="Random dispersion vs an FFT reference / Maxwell / HS bounds",
                 paper="002 sec. 5.1, Fig. 17", paper_n="8e6",
@@ -483,11 +483,7 @@ def _plots(ctx, runs, reals):
 
 def _figure_fraction(ctx, runs, reals) -> None:
     """k_eff / k_m against f beside the bounds and the FFT reference, and the error."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from thermal_kernel.atomic import savefig_atomic
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
+    fig, (ax, bx) = new_figure(1, 2, figsize=(11, 4.3))
     f_line = np.linspace(0, 0.55, 200)
     low, high = hashin_shtrikman(1.0, CONTRAST, f_line)
     ax.fill_between(f_line, low, high, color="0.88", label="Hashin-Shtrikman bounds")
@@ -522,10 +518,8 @@ def _figure_fraction(ctx, runs, reals) -> None:
     bx.set_xlabel("f")
     bx.set_ylabel("tdem / FFT reference - 1, %")
     bx.legend(fontsize=7)
-    fig.tight_layout()
     path = ctx.figure("fraction")
-    savefig_atomic(fig, path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     I.write_csv(path, ("n", "f", "k_over_km", "fft_reference", "fft_uncertainty",
                        "fft_periodic", "maxwell", "bruggeman", "hs_lower", "hs_upper",
                        "rel_error_vs_fft"), csv)
@@ -533,12 +527,8 @@ def _figure_fraction(ctx, runs, reals) -> None:
 
 def _figure_convergence(ctx, runs, reals) -> float:
     """The max error against N and against the time per solve; its fitted order."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from thermal_kernel.atomic import savefig_atomic
     fs = sorted(reals)
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
+    fig, (ax, bx) = new_figure(1, 2, figsize=(11, 4.3))
     rs = sorted(runs, key=lambda r: r.n)
     n = np.array([r.n for r in rs], float)
     e = np.array([max(abs(x.err_ref) for x in r.rows) for r in rs])
@@ -557,10 +547,8 @@ def _figure_convergence(ctx, runs, reals) -> float:
         bx.annotate(f"{r.n:,}", (tt, 100 * ee), fontsize=7)
     bx.set_xlabel("wall time per steady solve, s (1 thread, shared machine)")
     bx.set_ylabel("max |error|, %")
-    fig.tight_layout()
     path = ctx.figure("convergence")
-    savefig_atomic(fig, path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     I.write_csv(path, ("n", "max_abs_rel_error", "seconds_per_solve",
                        *[f"err_f{reals[f]['f']:.3f}" for f in fs]),
                 [(r.n, ee, tt, *[x.err_ref for x in r.rows])
@@ -570,12 +558,8 @@ def _figure_convergence(ctx, runs, reals) -> float:
 
 def _figure_fft(ctx, reals) -> None:
     """The FFT reference's own convergence in the voxel size."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from thermal_kernel.atomic import savefig_atomic
     fs = sorted(reals)
-    fig, ax = plt.subplots(figsize=(6.2, 4.3))
+    fig, ax = new_figure(figsize=(6.2, 4.3))
     csv = []
     for j, f in enumerate(fs):
         rl = reals[f]
@@ -596,10 +580,8 @@ def _figure_fft(ctx, reals) -> None:
     ax.set_ylabel("|k_h / k_ref - 1|, %")
     ax.set_title("FFT reference: the cube with faces, laminate voxels", fontsize=9)
     ax.legend(fontsize=7)
-    fig.tight_layout()
     path = ctx.figure("fft")
-    savefig_atomic(fig, path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     I.write_csv(path, ("f", "boundary", "n", "k_over_km", "cg_iterations", "seconds",
                        "reference", "reference_uncertainty"), csv)
 

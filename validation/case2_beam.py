@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from tdem_post.records import from_dict, to_dict
-from thermal_kernel.atomic import open_atomic, savefig_atomic
+from thermal_kernel.atomic import open_atomic
 from tdem_post.analytic import rod_mean_temperature, rod_temperature
 from tdem_post.profiles import binned_profile
 from thermal_kernel.calibrate import flux_test
@@ -42,7 +42,7 @@ from thermal_kernel.solvers.implicit import run_implicit
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement, fit_order
+from .framework import Judgement, fit_order, new_figure, save_figure
 
 CASE = CaseInfo(number=2, title="beam heated at one end", paper="000 sec. 5.1, Table 2, eq. 8",
                 paper_n="19,465", paper_error='"good agreement" (Fig. 9)',
@@ -217,15 +217,10 @@ def _beam_run(r: dict, pack_s: float | None) -> BeamRun:
 
 # ---------------------------------------------------------------------------- the case
 def _plot(ctx, stem, draw, csv_header, csv_rows):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     path = ctx.figure(stem)
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    fig, ax = new_figure(figsize=(6.4, 4.2))
     draw(ax)
-    fig.tight_layout()
-    savefig_atomic(fig, path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     with open_atomic(path.with_suffix(".csv"), "w") as f:
         f.write(csv_header + "\n")
         for r in csv_rows:

@@ -29,12 +29,12 @@ from pathlib import Path
 import numpy as np
 
 from tdem_post.records import column, from_dict, to_dict
-from thermal_kernel.atomic import savefig_atomic, write_text_atomic
+from thermal_kernel.atomic import write_text_atomic
 
 from .framework import (ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today, write_csv)
-from .framework import Action, Judgement, cell_cost_text, fit_order, judged, rebuild_saved, \
-    scene_toml
+from .framework import Action, Judgement, cell_cost_text, fit_order, judged, new_figure, \
+    rebuild_saved, save_figure, scene_toml
 
 CASE = CaseInfo(number=4, title="cube slab, eq. 17", paper="002 sec. 2.2", paper_n="1e5",
                 paper_error="max rel. error 0.7 %",
@@ -223,16 +223,13 @@ def _row(key: str, summary: dict, profile: list) -> SlabRow:
 
 
 def _figures(ctx: Context, rows: list[dict]) -> dict:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     out = {}
     best = next((r for r in rows if r.name == "tiled_1e5" and r.profile),
                 next((r for r in reversed(rows) if r.profile), None))
     if best is not None:
         prof = np.array(best.profile)
         png = ctx.figure("profiles")
-        fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+        fig, (a, b) = new_figure(1, 2, figsize=(10, 4))
         for fo in sorted(set(prof[:, 0])):
             sel = prof[prof[:, 0] == fo]
             a.plot(sel[:, 2], sel[:, 4], "-", color="0.5")
@@ -247,16 +244,14 @@ def _figures(ctx: Context, rows: list[dict]) -> dict:
         b.set_xlabel("x / L")
         b.set_ylabel("(T_DEM − T_exact) / T_exact(°C)  (%)")
         b.legend()
-        fig.tight_layout()
-        savefig_atomic(fig, png, dpi=120)
-        plt.close(fig)
+        save_figure(fig, png, dpi=120)
         write_csv(png.with_suffix(".csv"),
                   ["fourier", "time_s", "x_over_L", "T_dem_C", "T_exact_C", "error_K"],
                   [tuple(float(v) for v in r) for r in best.profile])
         out["profiles"] = (png.name, best)
 
     png = ctx.figure("convergence")
-    fig, ax = plt.subplots(figsize=(5.5, 4))
+    fig, ax = new_figure(figsize=(5.5, 4))
     orders = {}
     for family in (WALLED, TILED):
         fam = sorted((r for r in rows if r.family == family), key=lambda r: r.n_particles)
@@ -276,9 +271,7 @@ def _figures(ctx: Context, rows: list[dict]) -> dict:
     ax.set_xlabel("N (spheres)")
     ax.set_ylabel("max relative error (%)")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    savefig_atomic(fig, png, dpi=120)
-    plt.close(fig)
+    save_figure(fig, png, dpi=120)
     write_csv(png.with_suffix(".csv"),
               ["family", "name", "n_particles", "ct_held", "ct_domain", "max_err_over_T_celsius",
                "max_err_over_dT", "steps", "run_seconds", "measured"],

@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from thermal_kernel.atomic import open_atomic, savefig_atomic
+from thermal_kernel.atomic import open_atomic
 from tdem_post.analytic import (sphere_centre_temperature, sphere_shell_mean_temperature,
                                 sphere_temperature)
 from tdem_post.records import column, from_dict, to_dict
@@ -53,7 +53,8 @@ from thermal_kernel.solvers.explicit import run_explicit
 from thermal_kernel.solvers.implicit import run_implicit
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
     register_packing
-from validation.framework import Judgement, cached, cell_cost_text, fit_order, scene_toml
+from validation.framework import Judgement, cached, cell_cost_text, fit_order, new_figure, \
+    save_figure, scene_toml
 
 CASE = CaseInfo(number=5, title="sphere with held surface, eq. 18-19",
                 paper="002 sec. 2.3, eq. 18-19, Fig. 7-8", paper_n="1e5, 1e6",
@@ -420,12 +421,9 @@ def _report(ctx, rows, calib, speed, n_speed, fields) -> CaseResult:
 
 def _figure_centre(ctx, rows) -> None:
     """Figure 1: the centre temperature against time (002 Fig. 7), and its CSV."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     png = ctx.figure("centre")
-    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    fig, ax = new_figure(1, 2, figsize=(10, 4))
     tt = np.linspace(0.05, PAPER_T_END, 200)
     ax[0].plot(tt, [sphere_centre_temperature(t, PAPER_R, ALPHA, TS_C, T0_C) for t in tt],
                "k-", lw=1, label="eq. 19 (corrected)")
@@ -453,19 +451,14 @@ def _figure_centre(ctx, rows) -> None:
     ax[1].set_xlabel("t (s)")
     ax[1].set_ylabel("centre T_DEM - T_exact (C)")
     ax[1].legend(fontsize=6)
-    fig.tight_layout()
-    savefig_atomic(fig, png, dpi=110)
-    plt.close(fig)
+    save_figure(fig, png)
 
 
 def _figure_profile(ctx, rows, main, main_n, field) -> None:
     """Figure 2: the profile at t = 10 s (002 Fig. 8), the shells of the main N's runs."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     png = ctx.figure("profile")
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = new_figure(figsize=(6, 4))
     if field is not None:
         rr, td, te = field
         pick = np.random.default_rng(1).permutation(len(rr))[:3000]
@@ -490,22 +483,17 @@ def _figure_profile(ctx, rows, main, main_n, field) -> None:
     ax.set_ylabel("T at t = 10 s (C)")
     ax.set_title(f"{main.n_particles:,} spheres", fontsize=9)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    savefig_atomic(fig, png, dpi=110)
-    plt.close(fig)
+    save_figure(fig, png)
 
 
 def _figure_convergence(ctx, rows, ours) -> dict:
     """Figure 3: the errors against N (our bulk C_t); the fitted orders (N >= 1e4)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     png = ctx.figure("convergence")
     ns = [r.n_particles for r in ours]
     big = [i for i, n in enumerate(ns) if n >= 10_000] or list(range(len(ns)))
     orders = {}
-    fig, ax = plt.subplots(figsize=(6, 4.5))
+    fig, ax = new_figure(figsize=(6, 4.5))
     for key, lab, mk in (("centre_error_c", "|centre error|", "o"),
                          ("max_abs_error_c", "max |error| (paper's measure)", "s"),
                          ("rms_error_c", "RMS error", "^")):
@@ -523,9 +511,7 @@ def _figure_convergence(ctx, rows, ours) -> dict:
     ax.set_ylabel("error at t = 10 s (C)")
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    savefig_atomic(fig, png, dpi=110)
-    plt.close(fig)
+    save_figure(fig, png)
     with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["n_particles", "ct_label", "ct", "r_held_m", "r_carve_m", "centre_error_C",
@@ -542,13 +528,10 @@ def _figure_convergence(ctx, rows, ours) -> dict:
 
 def _figure_speed(ctx, ours, speed) -> None:
     """Figure 4: speed against error, forward Euler over N and Rannacher CN over steps."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     ns = [r.n_particles for r in ours]
     png = ctx.figure("speed_error")
-    fig, ax = plt.subplots(figsize=(6, 4.5))
+    fig, ax = new_figure(figsize=(6, 4.5))
     ax.loglog([abs(r.centre_error_c) for r in ours], [r.run_seconds for r in ours], "o-",
               label="explicit (the paper's scheme), N = " + ", ".join(f"{n:.0e}" for n in ns))
     for r in ours:
@@ -563,9 +546,7 @@ def _figure_speed(ctx, ours, speed) -> None:
     ax.set_ylabel("thermal wall time, 1 thread (s)")
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    savefig_atomic(fig, png, dpi=110)
-    plt.close(fig)
+    save_figure(fig, png)
     with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["solver", "n_particles", "steps", "run_seconds", "centre_error_C",

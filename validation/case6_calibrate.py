@@ -30,9 +30,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tdem_post.records import column, from_dict, to_dict
-from thermal_kernel.atomic import savefig_atomic, write_text_atomic
+from thermal_kernel.atomic import write_text_atomic
 
-from .framework import Action, cell_cpu_seconds, rebuild_saved
+from .framework import Action, cell_cpu_seconds, new_figure, rebuild_saved, save_figure
 from .framework import (OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
                         optional_packing, previous_numbers, register_packing,
                         today, write_csv)
@@ -351,11 +351,8 @@ def judge(numbers: dict) -> Judgement:
 
 
 def _figure(ctx: Context, rows: list[dict], stats: dict) -> tuple[str, str]:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     png = ctx.figure("ct")
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    fig, ax = new_figure(figsize=(6.4, 4.2))
     ax.axhspan(0.75, 0.84, color="0.88", label="Haddad Fig. 3: 0.75–0.84")
     styles = {"dump": ("C0", "o"), "z75": ("C3", "s"), "z75_geometric": ("C2", "^"),
               "z75_harmonic": ("C4", "v")}
@@ -378,9 +375,7 @@ def _figure(ctx: Context, rows: list[dict], stats: dict) -> tuple[str, str]:
     ax.set_xlabel("N (spheres)")
     ax.set_ylabel("C_t (mean over the axes, domain length)")
     ax.legend(fontsize=5.5, loc="center right", bbox_to_anchor=(1.0, 0.39))
-    fig.tight_layout()
-    savefig_atomic(fig, png, dpi=120)
-    plt.close(fig)
+    save_figure(fig, png, dpi=120)
     write_csv(png.with_suffix(".csv"), CSV_FIELDS,
               [(r.name, r.n_particles, r.shape, r.seed, v, axis,
                 a.ct_domain, a.ct_held, a.length_domain_m, a.length_held_m,

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from thermal_kernel.atomic import open_atomic, savefig_atomic
+from thermal_kernel.atomic import open_atomic
 from tdem_post.records import column, from_dict, to_dict
 from tdem_post.flux import (coefficient_of_variation, contact_moments, halo_flux, halo_radii,
                             reference_radius)
@@ -41,7 +41,7 @@ from thermal_kernel.scene import load_scene
 from thermal_kernel.solvers.steady import solve_steady
 from validation.case4_slab import scene_text as slab_scene_text
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
-    cached, register_packing
+    cached, new_figure, register_packing, save_figure
 
 CASE = CaseInfo(number=7, title="Halo CoV vs halo/DE radius ratio",
                 paper="002 sec. 3, eq. 20-23, Fig. 10-11", paper_n="1e5, 5e5",
@@ -334,12 +334,9 @@ def _report(ctx, recs) -> CaseResult:
 
 def _figure_cov(ctx, recs) -> dict:
     """Figure 1: the CoV against the ratio (002 Fig. 10), both halo radii; the fitted slopes."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     png = ctx.figure("cov")
-    fig, ax = plt.subplots(figsize=(7, 4.8))
+    fig, ax = new_figure(figsize=(7, 4.8))
     slopes = {}
     for k, rec in enumerate(recs):
         for kind, style in (("common", "o-"), ("own", "^--")):
@@ -363,9 +360,7 @@ def _figure_cov(ctx, recs) -> dict:
     ax.set_ylabel("CoV of |q| over the particles (%)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    savefig_atomic(fig, png, dpi=110)
-    plt.close(fig)
+    save_figure(fig, png)
     with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["n_particles", "halo_radius", "ratio", "n_inside", "n_eval",
@@ -389,12 +384,9 @@ def _figure_cov(ctx, recs) -> dict:
 
 def _figure_minmax(ctx, main) -> None:
     """Figure 2: mean / min / max |q| (002 Fig. 11) at the main N, common radius."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     png = ctx.figure("minmax")
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = new_figure(figsize=(6, 4))
     rr = main.rows
     x = [max(r.ratio, 1.0) for r in rr]
     ax.semilogx(x, [r.mean_abs for r in rr], "o-", label="mean |q|")
@@ -406,9 +398,7 @@ def _figure_minmax(ctx, main) -> None:
     ax.set_ylabel("flux / (Q / A)")
     ax.set_title(f"{main.n_particles:,} spheres", fontsize=9)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    savefig_atomic(fig, png, dpi=110)
-    plt.close(fig)
+    save_figure(fig, png)
     with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["n_particles", "halo_radius", "ratio", "mean_abs_over_QA",
@@ -420,12 +410,9 @@ def _figure_minmax(ctx, main) -> None:
 
 def _figure_speed(ctx, recs, main) -> None:
     """Figure 3: speed against error, seconds per evaluated particle against the CoV."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     png = ctx.figure("speed_error")
-    fig, ax = plt.subplots(figsize=(6, 4.5))
+    fig, ax = new_figure(figsize=(6, 4.5))
     with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["n_particles", "halo_radius", "ratio", "cov_abs_pct",
@@ -448,9 +435,7 @@ def _figure_speed(ctx, recs, main) -> None:
     ax.set_title("labels: halo / DE ratio (common radius)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    savefig_atomic(fig, png, dpi=110)
-    plt.close(fig)
+    save_figure(fig, png)
 
 
 def _ratio_for(rec, level, kind="common"):

@@ -30,7 +30,7 @@ from tdem_post.analytic import hashin_shtrikman, maxwell, rayleigh_cubic_array
 from tdem_post.records import column, from_dict, to_dict
 from validation import framework
 from validation import inclusions as I
-from validation.framework import CaseInfo, CaseResult, Context
+from validation.framework import CaseInfo, CaseResult, Context, new_figure, save_figure
 from validation.framework import Judgement
 
 CASE = CaseInfo(number=8, title="Single spherical inclusion vs Maxwell, contrast 0.01-100",
@@ -165,12 +165,8 @@ STYLES = {"faces": ("o", "C3", "faces held (paper's setup), vs Maxwell"),
 def _figure_contrast(ctx, runs) -> None:
     """k/k_m against the contrast at the largest N of each series, over Maxwell (002 Fig. 14),
     and the error."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from thermal_kernel.atomic import savefig_atomic
     key = ERROR_KEY
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
+    fig, (ax, bx) = new_figure(1, 2, figsize=(11, 4.3))
     c_line = np.logspace(-2, 2, 200)
     low, high = hashin_shtrikman(1.0, c_line, F)
     ax.fill_between(c_line, low, high, color="0.88", label="Hashin-Shtrikman bounds")
@@ -204,10 +200,8 @@ def _figure_contrast(ctx, runs) -> None:
     bx.set_xlabel("contrast c = k_i / k_m")
     bx.set_ylabel("relative error, %")
     bx.legend(fontsize=7)
-    fig.tight_layout()
     path = ctx.figure("contrast")
-    savefig_atomic(fig, path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     I.write_csv(path, ("series", "n", "contrast", "k_over_km", "maxwell", "rayleigh",
                        "rel_error"), csv)
 
@@ -215,12 +209,8 @@ def _figure_contrast(ctx, runs) -> None:
 def _figure_convergence(ctx, runs) -> dict:
     """The max |error| over the contrasts against N (log-log, fitted order) and against the
     time per solve; the fitted orders."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from thermal_kernel.atomic import savefig_atomic
     key = ERROR_KEY
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.3))
+    fig, (ax, bx) = new_figure(1, 2, figsize=(11, 4.3))
     csv, orders = [], {}
     for s in ("faces", "faces_z75", "periodic_harmonic", "periodic_cut"):
         runs_s = sorted((r for r in runs if r.series == s), key=lambda r: r.n)
@@ -247,10 +237,8 @@ def _figure_convergence(ctx, runs) -> dict:
     bx.set_xlabel("wall time per steady solve, s (1 thread, shared machine)")
     bx.set_ylabel("max over c of |error|, %")
     bx.legend(fontsize=7)
-    fig.tight_layout()
     path = ctx.figure("convergence")
-    savefig_atomic(fig, path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     I.write_csv(path, ("series", "n", "max_abs_rel_error", "seconds_per_solve",
                        *[f"err_c{c:g}" for c in CONTRASTS]), csv)
     return orders

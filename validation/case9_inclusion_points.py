@@ -47,7 +47,7 @@ from tdem_post.records import from_dict, to_dict
 from tdem_post.flux import contact_moments, halo_flux
 from validation import framework
 from validation import inclusions as I
-from validation.framework import CaseInfo, CaseResult, Context
+from validation.framework import CaseInfo, CaseResult, Context, new_figure, save_figure
 
 CASE = CaseInfo(number=9, title="Single inclusion, c = 5: T and Halo flux at A, B, C",
                 paper="002 sec. 4.2, Table 2", paper_n="150,000 / 500,000",
@@ -454,11 +454,7 @@ def run(ctx: Context) -> CaseResult:
 
 
 def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from thermal_kernel.atomic import savefig_atomic
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, (ax, bx) = new_figure(1, 2, figsize=(12, 4.5))
     names = list(POINTS)
     x = np.arange(3)
     rs = sorted(runs, key=lambda r: r.n)
@@ -499,10 +495,8 @@ def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
     bx.legend(fontsize=6, ncol=2)
     fig.suptitle("single inclusion, c = 5: A (0.5, 0.5, 0.5) L, B (0.08, 0.5, 0.5) L, "
                  "C (0.5, 0.92, 0.5) L", fontsize=9)
-    fig.tight_layout()
     path = ctx.figure("points")
-    savefig_atomic(fig, path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     I.write_csv(path, ("source", "n", "flux_reading", "T_A_C", "T_B_C", "T_C_C", "q_A", "q_B",
                        "q_C"), csv)
 

@@ -412,6 +412,26 @@ def scene_toml(packing, law: str, **tables) -> str:
     return "\n".join(lines) + "\n"
 
 
+def new_figure(*args, **kwargs):
+    """``plt.subplots(*args, **kwargs)`` on matplotlib's Agg backend (no display): (fig, axes).
+    Every case's figure starts here and ends in :func:`save_figure`."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt.subplots(*args, **kwargs)
+
+
+def save_figure(fig, path: Path, dpi: int = 110) -> Path:
+    """``fig`` laid out (tight), written to ``path`` atomically and closed."""
+    import matplotlib.pyplot as plt
+
+    from thermal_kernel.atomic import savefig_atomic
+    fig.tight_layout()
+    savefig_atomic(fig, path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
 def fit_order(n, err) -> tuple[float, float]:
     """Convergence order: (p, C) of |err| = C N^p by least squares in log-log, over the points
     with N > 0 and a finite |err| > 0 (NaN, NaN with fewer than two). The one fit of every
