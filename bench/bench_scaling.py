@@ -218,7 +218,7 @@ def main():
         _emit(worker_petsc(int(float(a.n)), a.solvers, a.pc), a.out)
         return
 
-    from thermal_kernel.solvers.mpi_launch import mpi_env, mpi_python
+    from thermal_kernel.solvers.mpi_launch import MPIRUN_LOCAL, mpi_env, mpi_python
     tmp = ROOT / "bench/out/scaling"
     tmp.mkdir(parents=True, exist_ok=True)
     load = [open("/proc/loadavg").read().split()[:3]]
@@ -238,7 +238,7 @@ def main():
                                      "--threads", str(threads), "--out", str(out)])
                 else:
                     out = tmp / f"petsc_{n}_{solver}_{pc}_{ranks}.npy"
-                    row = _run(["mpirun", "-n", str(ranks), "--oversubscribe", "-x",
+                    row = _run(["mpirun", "-n", str(ranks), *MPIRUN_LOCAL, "-x",
                                 "OMP_NUM_THREADS", "-x", "NUMBA_NUM_THREADS", str(mpi_python()),
                                 str(Path(__file__).resolve()), "--worker", "petsc", "--n",
                                 str(n), "--solvers", solver, "--pc",
@@ -428,7 +428,11 @@ def document(data) -> str:
       "and 2 ranks, which wait for each other at every halo exchange and every CG "
       "reduction, lose most (a rank descheduled for a time slice stalls the other). The "
       "CPU column is the work; the cost model is fitted on it. The probe of issue 25, on a "
-      "quieter machine, measured 1.82x for the 1e5 steady solve on 2 ranks (GAMG).\n")
+      "quieter machine, measured 1.82x for the 1e5 steady solve on 2 ranks (GAMG). The ranks "
+      "run with `mpirun --bind-to none --mca mpi_yield_when_idle 1` (`MPIRUN_LOCAL` of "
+      "`mpi_launch.py`, also what `tdem run --ranks` uses): under a load of ~4.5 a 3e5 "
+      "steady solve on 2 ranks took 4.7 s with it against 8.6 s with Open MPI's default "
+      "(polling, bound to a core); 1 rank 2.6-3.6 s.\n")
     w("Network: bench_explicit's packing-like one (N random centres in a cube, mean "
       "coordination 6, random H and C, seeded), two held faces. wall: the steps (explicit, "
       f"{EXPLICIT_STEPS} steps at 0.9 of the bound), setup + {IMPLICIT_STEPS} backward-Euler "

@@ -19,6 +19,12 @@ from pathlib import Path
 from ..errors import UserError
 
 ROOT = Path(__file__).resolve().parents[2]
+# mpirun's options for a run on this machine (``tdem run --ranks``; a cluster run is the user's
+# own mpirun line, docs/scaling.md). More ranks than cores are allowed (tests run 3 on 2), and
+# a waiting rank yields its core instead of polling, unbound: on the shared 2-core machine
+# (load ~4.5 from other jobs) a 3e5 steady solve on 2 ranks took 4.7 s against 8.6 s with
+# Open MPI's polling, core-bound default (1 rank: 2.6-3.6 s; bench/bench_scaling.py workers).
+MPIRUN_LOCAL = ["--oversubscribe", "--bind-to", "none", "--mca", "mpi_yield_when_idle", "1"]
 MPI_VENV_PYTHON = ROOT / ".venv-mpi" / "bin" / "python"
 
 
@@ -60,7 +66,7 @@ def mpi_env() -> dict:
 
 def command(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg",
             run_args=None, status=None) -> list[str]:
-    cmd = ["mpirun", "-n", str(int(ranks)), "--oversubscribe", "-x", "OMP_NUM_THREADS",
+    cmd = ["mpirun", "-n", str(int(ranks)), *MPIRUN_LOCAL, "-x", "OMP_NUM_THREADS",
            "-x", "NUMBA_NUM_THREADS", str(mpi_python()), "-m", "thermal_kernel.mpi_run",
            str(scene)]
     if packing:
