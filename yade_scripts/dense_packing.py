@@ -701,17 +701,19 @@ def shell_state(p, state):
     position, radius, free, band = position[whole], radius[whole], free[whole], band[whole]
     if p["shell_cloud_diameters"] > 0:
         # the outer layer put back as a loose cloud in a grown box, the walls on its faces
+        layer_phi = shell.layer_solid_fraction(
+            float(np.sum(4.0 / 3.0 * np.pi * radius ** 3)) / float(np.prod(box.size)),
+            p["shell_cloud_diameters"])
         try:
             position, clouded, grown = shell.cloud_layer(
                 box, position, radius, p["shell_cloud_diameters"] * 2.0 * float(radius.mean()),
-                p["seed"] + 7, shrink=shell.CLOUD_SHRINK)
+                p["seed"] + 7, layer_phi, shrink=shell.CLOUD_SHRINK)
         except ValueError as e:
             fail(str(e), code=3)
         log(f"shell: {int(clouded.sum())} spheres of the outer "
             f"{p['shell_cloud_diameters']:g} mean diameters put back as a cloud, radii x "
-            f"{shell.CLOUD_SHRINK} (they fill their layer at "
-            f"{shell.CLOUD_LAYER_SOLID_FRACTION} at their own radii); walls start "
-            f"{(grown[0] - box.size[0]) / 2:.4g} m outside the carved faces")
+            f"{shell.CLOUD_SHRINK} (they fill their layer at {layer_phi:.4f} at their own "
+            f"radii); walls start {(grown[0] - box.size[0]) / 2:.4g} m outside the carved faces")
         box = shell.pressed_box(np.zeros(3), grown)
     else:
         clouded = np.zeros(len(radius), dtype=bool)

@@ -108,20 +108,28 @@ def walls_start(box, position, radius):
 
 
 # The outer layer re-inserted as a cloud (shell_cloud_diameters > 0): the walls start where the
-# layer holds its spheres at CLOUD_LAYER_SOLID_FRACTION at their own radii (0.58: the direct
-# box's spheres whose centre lies within 1.5 mean diameters of a wall fill that layer at
-# 0.578-0.581, two seeds at 1e4), and the spheres are put back shrunk by CLOUD_SHRINK (a loose
-# cloud at 0.58 x 0.75^3 = 0.245, the direct path's cloud is at 0.25) and grown back against the
-# walls in YADE (press_shell), as the direct path grows its cloud against fixed walls. Pressing
-# walls onto the layer instead puts the largest spheres on the wall and pushes the small ones
-# away from it (17 % fewer centres within 0.25-0.5 mean diameters of the wall, 6.6 % fewer wall
-# contacts, docs/packings.md).
-CLOUD_LAYER_SOLID_FRACTION = 0.58
+# layer holds its spheres at its solid fraction in the direct box, and the spheres are put back
+# shrunk by CLOUD_SHRINK (a loose cloud, ~0.26; the direct path's cloud is at 0.25) and grown back
+# against the walls in YADE (press_shell), as the direct path grows its cloud against fixed
+# walls. Pressing walls onto the layer instead puts the largest spheres on the wall and pushes the
+# small ones away from it (17 % fewer centres within 0.25-0.5 mean diameters of the wall, 6.6 %
+# fewer wall contacts, docs/packings.md).
+# The layer's solid fraction in the direct box: the bulk's, less a deficit at the wall of
+# WALL_DEFICIT_D mean diameters of solid per area (the direct 1e4 boxes, 3 seeds: the centres
+# within 1.5 d̄ of a wall fill that layer at 0.578, within 3 d̄ at 0.617, bulk 0.654: 0.115 and
+# 0.111 d̄), so a layer t mean diameters thick is at phi_bulk - WALL_DEFICIT_D / t.
+WALL_DEFICIT_D = 0.112
+
+
+def layer_solid_fraction(bulk_solid_fraction, layer_diameters):
+    """The solid fraction of the outer layer_diameters of a walled box (WALL_DEFICIT_D)."""
+    return bulk_solid_fraction - WALL_DEFICIT_D / layer_diameters
+
+
 CLOUD_SHRINK = 0.75
 # candidates in the layer per sphere before the placement gives up
 CLOUD_TRIES = 20_000
-def cloud_layer(box, position, radius, layer_m, seed, solid_fraction=CLOUD_LAYER_SOLID_FRACTION,
-                shrink=1.0):
+def cloud_layer(box, position, radius, layer_m, seed, solid_fraction, shrink=1.0):
     """The outer layer of a carved box as a cloud: the spheres whose centre lies within layer_m
     of the surface (every sphere cut by it among them) leave their place; the box grows by a
     margin on each side so that the layer (its thickness now layer_m + margin) holds them at
