@@ -154,3 +154,16 @@ def test_case9_runs_are_records():
     del bad["err_q_fe"]
     with pytest.raises(RecordError, match=r"runs\[0\]: err_q_fe: missing"):
         case9.read_runs([bad])
+
+
+def test_case8_quotes_rayleigh_against_maxwell_computed():
+    """Case 8's section says how far Rayleigh's array is from Maxwell's value by computing it
+    (the bound over its contrasts rounded up, the extremes signed), and the saved section
+    says the same."""
+    from tdem_post.analytic import maxwell, rayleigh_cubic_array
+    from validation import case8_inclusion as c8
+    from validation import framework
+    d = [rayleigh_cubic_array(1, c, c8.F) / maxwell(1, c, c8.F) - 1 for c in c8.CONTRASTS]
+    text = c8._rayleigh_vs_maxwell()
+    assert max(abs(x) for x in d) <= float(text.split()[1]) / 100 < max(abs(x) for x in d) + 1e-4
+    assert text in framework.load_result(8)["result"]["section_md"]
