@@ -29,7 +29,6 @@ from pathlib import Path
 import numpy as np
 
 from tdem_post.records import from_dict, to_dict
-from thermal_kernel.atomic import open_atomic
 from tdem_post.analytic import rod_mean_temperature, rod_temperature
 from tdem_post.profiles import binned_profile
 from thermal_kernel.calibrate import flux_test
@@ -42,7 +41,7 @@ from thermal_kernel.solvers.implicit import run_implicit
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement, fit_order, new_figure, save_figure
+from .framework import Judgement, doc_link as _rel, fit_order, plot_with_csv as _plot
 
 CASE = CaseInfo(number=2, title="beam heated at one end", paper="000 sec. 5.1, Table 2, eq. 8",
                 paper_n="19,465", paper_error='"good agreement" (Fig. 9)',
@@ -216,25 +215,6 @@ def _beam_run(r: dict, pack_s: float | None) -> BeamRun:
 
 
 # ---------------------------------------------------------------------------- the case
-def _plot(ctx, stem, draw, csv_header, csv_rows):
-    path = ctx.figure(stem)
-    fig, ax = new_figure(figsize=(6.4, 4.2))
-    draw(ax)
-    save_figure(fig, path)
-    with open_atomic(path.with_suffix(".csv"), "w") as f:
-        f.write(csv_header + "\n")
-        for r in csv_rows:
-            f.write(",".join(f"{v:.8g}" if isinstance(v, float) else str(v) for v in r) + "\n")
-    return path
-
-
-def _rel(path: Path) -> str:
-    try:
-        return str(path.relative_to(fw.ROOT / "docs"))
-    except ValueError:
-        return str(path)
-
-
 
 def judge(numbers: dict) -> Judgement:
     """Issue 23's columns: the paper's N is 19,465; the measure (000: "good agreement", Fig. 9)

@@ -39,7 +39,7 @@ from thermal_kernel.solvers.implicit import run_implicit
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement
+from .framework import Judgement, doc_link as _rel, plot_with_csv as _plot
 
 CASE = CaseInfo(number=3, title="sheet heated by a moving source",
                 paper="000 sec. 5.2, Tables 3–5, Fig. 11–14", paper_n="1,000–20,000 × 5",
@@ -347,7 +347,6 @@ def _rows_by_n(sizes, seeds, dems, cmp, names):
 def _figure_history(ctx, times, ref, sizes, seeds, dems, names):
     """Figure 1: T(t) at A, B, C (000 Fig. 12-14), the continuum and the DEM's seed means per
     N; its file."""
-    from .case2_beam import _plot
     rows = []
     for k, t in enumerate(times):
         r = [float(t)] + [float(ref[i, k]) for i in range(3)]
@@ -373,7 +372,6 @@ def _figure_history(ctx, times, ref, sizes, seeds, dems, names):
 
 def _figure_convergence(ctx, conv, order, const, names):
     """Figure 2: error and dispersion against N (000 Fig. 11); its file."""
-    from .case2_beam import _plot
     def draw_conv(ax):
         for i, p in enumerate(names):
             line, = ax.loglog(conv[:, 0], 100 * conv[:, 1 + i], "o-", label=f"{p}: error")
@@ -395,7 +393,6 @@ def _figure_convergence(ctx, conv, order, const, names):
 def _figure_speed(ctx, conv, worst, cont_s, fields, est, rise_pt, grids):
     """Figure 3: speed against error, the DEM per N and the continuum per grid against its
     Richardson limit; its file."""
-    from .case2_beam import _plot
     cont_err = [float(max(np.max(np.abs(f[i] - est.extrapolated[i])) / rise_pt[i]
                           for i in range(3))) for f in fields]
 
@@ -417,7 +414,6 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
             grids, pack_s, total_s) -> CaseResult:
     """The rows per N (:func:`_rows_by_n`), the three figures, the section and the summary's
     columns. Most of its length is the section's text."""
-    from .case2_beam import _rel
     from .framework import fit_order
     names = list(POINTS)
     # continuum convergence at the check-points themselves (rows 0..2)

@@ -432,6 +432,30 @@ def save_figure(fig, path: Path, dpi: int = 110) -> Path:
     return path
 
 
+def plot_with_csv(ctx: Context, stem: str, draw, csv_header: str, csv_rows) -> Path:
+    """One-axes figure ``ctx.figure(stem)`` drawn by ``draw(ax)``, and beside it its numbers:
+    ``csv_header`` (comma-separated names) and ``csv_rows`` (floats to 8 digits)."""
+    from thermal_kernel.atomic import open_atomic
+    path = ctx.figure(stem)
+    fig, ax = new_figure(figsize=(6.4, 4.2))
+    draw(ax)
+    save_figure(fig, path)
+    with open_atomic(path.with_suffix(".csv"), "w") as f:
+        f.write(csv_header + "\n")
+        for r in csv_rows:
+            f.write(",".join(f"{v:.8g}" if isinstance(v, float) else str(v) for v in r) + "\n")
+    return path
+
+
+def doc_link(path: Path) -> str:
+    """A figure's path as docs/validation.md links it (relative to docs/; a quick run's figure
+    outside docs/ as it is)."""
+    try:
+        return str(Path(path).relative_to(ROOT / "docs"))
+    except ValueError:
+        return str(path)
+
+
 def fit_order(n, err) -> tuple[float, float]:
     """Convergence order: (p, C) of |err| = C N^p by least squares in log-log, over the points
     with N > 0 and a finite |err| > 0 (NaN, NaN with fewer than two). The one fit of every
