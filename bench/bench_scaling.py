@@ -255,6 +255,7 @@ def main():
     Path(a.json).parent.mkdir(parents=True, exist_ok=True)
     synthetic_cuts = synthetic_cut_table(max(int(float(v)) for v in a.n.split(",")))
     data = {"rows": rows, "cuts": cuts, "synthetic_cuts": synthetic_cuts, "load": load,
+            "mpirun_options": " ".join(MPIRUN_LOCAL),
             "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "uptime": subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()}
     Path(a.json).write_text(json.dumps(data, indent=1))
@@ -463,7 +464,8 @@ def document(data) -> str:
     if largest:
         big_load = " / ".join(" ".join(x) for x in largest["load"])
         w(f"The largest steady solve measured here ({largest['date']}; `{LARGEST_CMD}`, not "
-          f"part of `make bench-scaling`: ~10 min; load {big_load}):\n")
+          f"part of `make bench-scaling`: ~10 min; load {big_load}; mpirun "
+          f"{largest.get('mpirun_options') or 'with Open MPI defaults (polling, bound)'}):\n")
         w("| N | ranks | pc | wall s | CPU s (busiest rank) | iterations | peak RSS rank 0 GB | "
           "peak RSS other ranks GB |")
         w("|---|---|---|---|---|---|---|---|")
