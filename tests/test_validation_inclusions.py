@@ -167,3 +167,16 @@ def test_case8_quotes_rayleigh_against_maxwell_computed():
     text = c8._rayleigh_vs_maxwell()
     assert max(abs(x) for x in d) <= float(text.split()[1]) / 100 < max(abs(x) for x in d) + 1e-4
     assert text in framework.load_result(8)["result"]["section_md"]
+
+
+def test_case9_quotes_case7s_cov_from_its_record():
+    """Case 9's words on the halo's scatter quote case 7's CoV at ratio 11 from case 7's saved
+    result (common and own halo radius), as its saved section says."""
+    from validation import case7_halo, case9_inclusion_points as c9
+    from validation import framework
+    cov = case7_halo.cov_at(framework.load_result(7)["result"]["numbers"])
+    assert set(cov) == {"common", "own"} and 0 < min(cov.values()) < max(cov.values()) < 0.05
+    text = c9._case7_cov()
+    assert text == f"≈ {100 * min(cov.values()):.1f}–{100 * max(cov.values()):.1f} %"
+    assert f"case 7's CoV ({text} at ratio 11" in framework.load_result(9)["result"]["section_md"]
+    assert case7_halo.cov_at({"records": []}) == {}

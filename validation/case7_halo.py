@@ -322,6 +322,15 @@ def interior_excess(numbers: dict, ratio: float = 4.0) -> dict[int, float]:
             for r in read_records(numbers.get("records", []))}
 
 
+def cov_at(numbers: dict, ratio: float = 11.0) -> dict[str, float]:
+    """From case 7's saved numbers: the CoV of |q| over the particles at the Halo ``ratio`` on
+    the 1e5 cube in its uniform field, {"common": ..., "own": ...} by halo radius ({} without a
+    1e5 record). Other cases quote it from here, not by hand."""
+    recs = read_records(numbers.get("records", []))
+    main = next((r for r in recs if r.n_nominal == 100_000), None)
+    return {} if main is None else {k: _at(main, ratio, "cov_abs", k) for k in ("common", "own")}
+
+
 def _report(ctx, recs) -> CaseResult:
     """The three figures (with their CSVs) and the result, from the packings' records."""
     recs = read_records(recs)
