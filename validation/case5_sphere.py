@@ -29,7 +29,6 @@ max and RMS of |T_p - T_exact(r_p)| (the paper's Fig. 8c measure is the max), an
 """
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
 import os
@@ -40,7 +39,6 @@ from pathlib import Path
 
 import numpy as np
 
-from thermal_kernel.atomic import open_atomic
 from tdem_post.analytic import (sphere_centre_temperature, sphere_shell_mean_temperature,
                                 sphere_temperature)
 from tdem_post.records import column, from_dict, to_dict
@@ -53,8 +51,8 @@ from thermal_kernel.solvers.explicit import run_explicit
 from thermal_kernel.solvers.implicit import run_implicit
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
     register_packing
-from validation.framework import Judgement, cached, cell_cost_text, fit_order, new_figure, \
-    save_figure, scene_toml
+from validation.framework import Judgement, cached, cell_cost_text, csv_writer, fit_order, \
+    new_figure, save_figure, scene_toml
 
 CASE = CaseInfo(number=5, title="sphere with held surface, eq. 18-19",
                 paper="002 sec. 2.3, eq. 18-19, Fig. 7-8", paper_n="1e5, 1e6",
@@ -427,10 +425,9 @@ def _figure_centre(ctx, rows) -> None:
     tt = np.linspace(0.05, PAPER_T_END, 200)
     ax[0].plot(tt, [sphere_centre_temperature(t, PAPER_R, ALPHA, TS_C, T0_C) for t in tt],
                "k-", lw=1, label="eq. 19 (corrected)")
-    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["n_particles", "ct_label", "ct", "paper_time_s", "T_centre_dem_C",
-                    "T_centre_exact_C", "error_C"])
+    with csv_writer(png.with_suffix(".csv"), [
+            "n_particles", "ct_label", "ct", "paper_time_s", "T_centre_dem_C", "T_centre_exact_C",
+            "error_C"]) as w:
         for r in rows:
             if (r.n_nominal < 100_000 and not ctx.quick) or r.centre_dem_c is None:
                 continue            # the implicit 1e6 runs keep the final field only
@@ -466,10 +463,9 @@ def _figure_profile(ctx, rows, main, main_n, field) -> None:
     rs = np.linspace(0, 1, 200)
     ax.plot(rs, sphere_temperature(rs * PAPER_R, PAPER_T_END, PAPER_R, ALPHA, TS_C, T0_C), "k-",
             lw=1, label="eq. 18 (corrected)")
-    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["n_particles", "ct_label", "r_over_R_shell_mid", "T_dem_C", "T_exact_C",
-                    "particles"])
+    with csv_writer(png.with_suffix(".csv"), [
+            "n_particles", "ct_label", "r_over_R_shell_mid", "T_dem_C", "T_exact_C",
+            "particles"]) as w:
         for r in rows:
             if r.n_nominal != main_n:
                 continue
@@ -512,11 +508,10 @@ def _figure_convergence(ctx, rows, ours) -> dict:
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
     save_figure(fig, png)
-    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["n_particles", "ct_label", "ct", "r_held_m", "r_carve_m", "centre_error_C",
-                    "centre_error_carve_radius_C", "max_abs_error_C", "rms_error_C",
-                    "mean_error_C", "steps", "run_seconds", "pack_seconds"])
+    with csv_writer(png.with_suffix(".csv"), [
+            "n_particles", "ct_label", "ct", "r_held_m", "r_carve_m", "centre_error_C",
+            "centre_error_carve_radius_C", "max_abs_error_C", "rms_error_C", "mean_error_C",
+            "steps", "run_seconds", "pack_seconds"]) as w:
         for r in rows:
             w.writerow([r.n_particles, r.label, f"{r.ct:.6g}", f"{r.r_held_m:.6g}",
                         f"{r.r_carve_m:.6g}", f"{r.centre_error_c:.5f}",
@@ -547,10 +542,9 @@ def _figure_speed(ctx, ours, speed) -> None:
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
     save_figure(fig, png)
-    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["solver", "n_particles", "steps", "run_seconds", "centre_error_C",
-                    "max_abs_error_C", "rms_error_C"])
+    with csv_writer(png.with_suffix(".csv"), [
+            "solver", "n_particles", "steps", "run_seconds", "centre_error_C", "max_abs_error_C",
+            "rms_error_C"]) as w:
         for r in ours + speed:
             w.writerow([r.method, r.n_particles, r.steps, f"{r.run_seconds:.3f}",
                         f"{r.centre_error_c:.5f}", f"{r.max_abs_error_c:.5f}",

@@ -21,7 +21,6 @@ is calibrated), so Fig. 11's "mean close to the analytical value" is mean |q| / 
 """
 from __future__ import annotations
 
-import csv
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +28,6 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from thermal_kernel.atomic import open_atomic
 from tdem_post.records import column, from_dict, to_dict
 from tdem_post.flux import (coefficient_of_variation, contact_moments, halo_flux, halo_radii,
                             reference_radius)
@@ -41,7 +39,7 @@ from thermal_kernel.scene import load_scene
 from thermal_kernel.solvers.steady import solve_steady
 from validation.case4_slab import scene_text as slab_scene_text
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
-    cached, new_figure, register_packing, save_figure
+    cached, csv_writer, new_figure, register_packing, save_figure
 
 CASE = CaseInfo(number=7, title="Halo CoV vs halo/DE radius ratio",
                 paper="002 sec. 3, eq. 20-23, Fig. 10-11", paper_n="1e5, 5e5",
@@ -370,12 +368,10 @@ def _figure_cov(ctx, recs) -> dict:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     save_figure(fig, png)
-    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["n_particles", "halo_radius", "ratio", "n_inside", "n_eval",
-                    "members_mean", "cov_abs_pct", "cov_abs_volume_weighted_pct", "cov_x_pct",
-                    "mean_abs_over_QA", "mean_x_over_QA", "min_abs_over_QA",
-                    "max_abs_over_QA", "halo_seconds"])
+    with csv_writer(png.with_suffix(".csv"), [
+            "n_particles", "halo_radius", "ratio", "n_inside", "n_eval", "members_mean",
+            "cov_abs_pct", "cov_abs_volume_weighted_pct", "cov_x_pct", "mean_abs_over_QA",
+            "mean_x_over_QA", "min_abs_over_QA", "max_abs_over_QA", "halo_seconds"]) as w:
         for rec in recs:
             for kind in KINDS:
                 for r in _rows(rec, kind):
@@ -408,10 +404,9 @@ def _figure_minmax(ctx, main) -> None:
     ax.set_title(f"{main.n_particles:,} spheres", fontsize=9)
     ax.legend(fontsize=7)
     save_figure(fig, png)
-    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["n_particles", "halo_radius", "ratio", "mean_abs_over_QA",
-                    "mean_x_over_QA", "min_abs_over_QA", "max_abs_over_QA"])
+    with csv_writer(png.with_suffix(".csv"), [
+            "n_particles", "halo_radius", "ratio", "mean_abs_over_QA", "mean_x_over_QA",
+            "min_abs_over_QA", "max_abs_over_QA"]) as w:
         for r in rr:
             w.writerow([main.n_particles, "common", r.ratio, f"{r.mean_abs:.5f}",
                         f"{r.mean_x:.5f}", f"{r.min_abs:.5f}", f"{r.max_abs:.5f}"])
@@ -422,10 +417,9 @@ def _figure_speed(ctx, recs, main) -> None:
 
     png = ctx.figure("speed_error")
     fig, ax = new_figure(figsize=(6, 4.5))
-    with open_atomic(png.with_suffix(".csv"), "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["n_particles", "halo_radius", "ratio", "cov_abs_pct",
-                    "microseconds_per_particle"])
+    with csv_writer(png.with_suffix(".csv"), [
+            "n_particles", "halo_radius", "ratio", "cov_abs_pct",
+            "microseconds_per_particle"]) as w:
         for k, rec in enumerate(recs):
             for kind, style in (("common", "o-"), ("own", "^--")):
                 rr = [r for r in _rows(rec, kind) if r.ratio >= 2]

@@ -18,6 +18,7 @@ is ``tdem validate N`` / ``make validate``. Results are saved as validation/resu
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
@@ -430,6 +431,20 @@ def save_figure(fig, path: Path, dpi: int = 110) -> Path:
     savefig_atomic(fig, path, dpi=dpi)
     plt.close(fig)
     return path
+
+
+@contextlib.contextmanager
+def csv_writer(path: Path, header):
+    """A ``csv.writer`` (the csv module's dialect) for the block, its ``header`` row first;
+    the rows go to ``path`` atomically when the block ends (a figure's numbers, written while
+    it is drawn)."""
+    import csv
+    import io
+    text = io.StringIO(newline="")
+    w = csv.writer(text)
+    w.writerow(header)
+    yield w
+    write_text_atomic(Path(path), text.getvalue())
 
 
 def plot_with_csv(ctx: Context, stem: str, draw, csv_header: str, csv_rows) -> Path:
