@@ -500,7 +500,8 @@ def document(data) -> str:
         m = model.get(solver)
         if m is None:
             continue
-        unit = "per particle per step" if solver == "explicit" else "per particle per solve"
+        unit = {"explicit": "per particle per step", "steady": "per particle per solve",
+                "implicit": f"per particle for the setup and {IMPLICIT_STEPS} steps"}[solver]
         w(f"- {solver}: {m['s_per_particle'] * 1e9:.3g} ns {unit}"
           + (f" ({m['its']} CG iterations)" if m["its"] else "")
           + f"; solver memory {m['solve_bytes_per_particle']:.0f} B per particle (divided by "
