@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import json
 import sys
 import time
@@ -76,12 +75,12 @@ def _run(args, rank, held):
     from .atomic import output_lock
     from .checkpoint import packing_sha256
     from .network import assemble
-    from .output import scene_text_difference, scene_to_json, write_thermal
+    from .output import scene_to_json
     from .packing import read_packing
     from .problem import build_problem
-    from .run import _check_finite, _check_step_count, _print_summary
+    from .run import _check_finite, _check_step_count, _print_summary, write_run_output
     from .scene import SceneError, load_scene
-    from .solvers import UnstableTimeStepError, check_physics
+    from .solvers import UnstableTimeStepError
     from .solvers import petsc_backend as backend
 
     t_start = time.perf_counter()
@@ -145,53 +144,17 @@ def _run(args, rank, held):
     packing_hash = built["packing_hash"]
     if result.method != "steady":
         _check_finite(scene, result)
-    check = check_physics(net, T0, result)
-    flags = tuple(result.flags) + tuple(f for f in check.flags if f not in result.flags)
-    result = dataclasses.replace(result, flags=flags)
     run_args = json.loads(args.run_args)
-    # The in-process run's attributes (thermal_kernel/run.py, _run_scene), key for key: a test
-    # (tests/test_petsc_backend.py) fails when the two sets differ.
-    attrs = {
-        "law": scene.law, "method": result.method, "dt": float(result.dt),
-        "dt_max": float(result.dt_max), "dt_paper": float(result.dt_paper),
-        "steps": int(result.steps), "wall_seconds": float(result.wall_seconds),
-        "assemble_seconds": float(assemble_seconds),
-        "contact_updates_per_second": float(result.contact_updates_per_second),
-        "flags": ",".join(result.flags), "scene": scene.text, "scene_path": str(scene.path),
-        "packing": str(packing.path), "n_particles": packing.n_particles,
-        "n_conducting_contacts": int(net.n_active_contacts),
-        "n_floating_clusters": net.clusters.n_floating, "n_rattlers": net.clusters.n_rattlers,
-        "law_params": json.dumps(info["law_params"], sort_keys=True),
-        "neighbours": json.dumps(None if info["neighbours"] is None else
-                                 info["neighbours"].summary(), sort_keys=True, default=float),
-        "scene_json": scene_json,
-        "scene_text_agrees": int(scene_text_difference(
-            scene.text, str(scene.path), scene_json, scene.law, scene.output.parent) is None),
-        "run_args": json.dumps(dict(run_args, threads=None, checkpoint_every=0, resume=False,
+    run_args_json = json.dumps(dict(run_args, threads=None, checkpoint_every=0, resume=False,
                                     packing=str(args.packing) if args.packing else None),
-                               sort_keys=True, default=str),
-        "packing_sha256": packing_hash,
-        "max_principle_checked": int(check.max_principle_checked),
-        "max_principle_bounds_k": np.array(check.bounds_k, dtype=np.float64),
-        "max_principle_excess_relative": float(check.overshoot_relative),
-        "ledger_residual_relative": float(check.ledger_relative),
-        "check_messages": "\n".join(check.messages),
-        # the backend's own (issue 25)
-        "backend": "petsc", "ranks": int(dist.size), "cut_contacts": int(dist.cut),
-        "linear_solver": str(result.info.get("linear_solver", "none")),
-        "run_seconds": float(time.perf_counter() - t_start),
-    }
-    boundary_energy, source_energy = result.boundary_energy_j, result.source_energy_j
-    if result.method == "steady":
-        attrs["energies"] = ("none: a steady solve has no time (boundary_energy and "
-                             "source_energy have no rows; boundary_heat_flow holds the balance)")
-        boundary_energy = np.zeros((0, len(result.boundary_names)))
-        source_energy = np.zeros(0)
-    out = write_thermal(scene.output, times=result.times, temperatures=result.temperature_k,
-                        boundary_heat_flow_w=result.boundary_heat_flow_w,
-                        boundary_energy_j=boundary_energy, source_energy_j=source_energy,
-                        capacity_j_k=net.capacity_j_k, initial_temperature_k=T0,
-                        boundary_names=result.boundary_names, attrs=attrs)
+                               sort_keys=True, default=str)
+    # the in-process run's attributes and checks (thermal_kernel/run.py), and the backend's own
+    out, result, check = write_run_output(
+        scene, result, net, T0, packing, info, scene_json, packing_hash, assemble_seconds,
+        run_args_json, extra_attrs={
+            "backend": "petsc", "ranks": int(dist.size), "cut_contacts": int(dist.cut),
+            "linear_solver": str(result.info.get("linear_solver", "none")),
+            "run_seconds": float(time.perf_counter() - t_start)})
     if not args.quiet:
         its = result.info.get("cg_iterations", [])
         if its:

@@ -194,6 +194,62 @@ def _check_step_count(scene, dt, what):
                          "max_steps)")
 
 
+def write_run_output(scene, result, net, T0, packing, info, scene_json, packing_hash,
+                     assemble_seconds, run_args_json, extra_attrs=None):
+    """Every run's physics checks (thermal_kernel.solvers.check_physics) added to the result's
+    flags, and thermal.h5 written with the run's attributes: the one home of both for the
+    in-process run and the PETSc backend's rank 0 (thermal_kernel/mpi_run.py, which adds its
+    own attributes in extra_attrs). Returns (output path, result with the flags, check)."""
+    check = check_physics(net, T0, result)
+    flags = tuple(result.flags) + tuple(f for f in check.flags if f not in result.flags)
+    result = dataclasses.replace(result, flags=flags)
+    attrs = {
+        "law": scene.law, "method": result.method, "dt": float(result.dt),
+        "dt_max": float(result.dt_max), "dt_paper": float(result.dt_paper),
+        "steps": int(result.steps), "wall_seconds": float(result.wall_seconds),
+        "assemble_seconds": float(assemble_seconds),
+        "contact_updates_per_second": float(result.contact_updates_per_second),
+        "flags": ",".join(result.flags), "scene": scene.text, "scene_path": str(scene.path),
+        "packing": str(packing.path), "n_particles": packing.n_particles,
+        "n_conducting_contacts": int(net.n_active_contacts),
+        "n_floating_clusters": net.clusters.n_floating, "n_rattlers": net.clusters.n_rattlers,
+        "law_params": json.dumps(info["law_params"], sort_keys=True),
+        # the scene's [neighbours] criterion as applied to this packing (issue 23): the gap
+        # used and the bulk Z it gives ("null": every dumped row conducts)
+        "neighbours": json.dumps(None if info["neighbours"] is None else
+                                 info["neighbours"].summary(), sort_keys=True, default=float),
+        "scene_json": scene_json,
+        # 1: the scene ran as its text says (read_thermal then checks the two still agree);
+        # 0: changed through the API after it was read (the resolved scene is what ran)
+        "scene_text_agrees": int(scene_text_difference(
+            scene.text, str(scene.path), scene_json, scene.law, scene.output.parent) is None),
+        "run_args": run_args_json,
+        "packing_sha256": packing_hash,
+        # every run's physics checks (thermal_kernel.solvers.check_physics)
+        "max_principle_checked": int(check.max_principle_checked),
+        "max_principle_bounds_k": np.array(check.bounds_k, dtype=np.float64),
+        "max_principle_excess_relative": float(check.overshoot_relative),
+        "ledger_residual_relative": float(check.ledger_relative),
+        "check_messages": "\n".join(check.messages),
+        **(extra_attrs or {}),
+    }
+    boundary_energy, source_energy = result.boundary_energy_j, result.source_energy_j
+    if result.method == "steady":
+        # a steady solve has no time, hence no energy crossed: no rows (never a NaN); its
+        # balance is boundary_heat_flow (and the attribute ledger_residual_relative)
+        attrs["energies"] = ("none: a steady solve has no time (boundary_energy and "
+                             "source_energy have no rows; boundary_heat_flow holds the balance)")
+        boundary_energy = np.zeros((0, len(result.boundary_names)))
+        source_energy = np.zeros(0)
+    out = write_thermal(scene.output, times=result.times, temperatures=result.temperature_k,
+                        boundary_heat_flow_w=result.boundary_heat_flow_w,
+                        boundary_energy_j=boundary_energy,
+                        source_energy_j=source_energy,
+                        capacity_j_k=net.capacity_j_k, initial_temperature_k=T0,
+                        boundary_names=result.boundary_names, attrs=attrs)
+    return out, result, check
+
+
 def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume, run_args):
     scene_json = scene_to_json(scene)       # before the solve: a run is never lost to it
     packing = read_packing(packing_path or scene.packing)
@@ -241,55 +297,12 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
         finally:
             if bar is not None:
                 bar.close()
-    check = check_physics(net, T0, result)
-    flags = tuple(result.flags) + tuple(f for f in check.flags if f not in result.flags)
-    result = dataclasses.replace(result, flags=flags)
-    attrs = {
-        "law": scene.law, "method": result.method, "dt": float(result.dt),
-        "dt_max": float(result.dt_max), "dt_paper": float(result.dt_paper),
-        "steps": int(result.steps), "wall_seconds": float(result.wall_seconds),
-        "assemble_seconds": float(assemble_seconds),
-        "contact_updates_per_second": float(result.contact_updates_per_second),
-        "flags": ",".join(result.flags), "scene": scene.text, "scene_path": str(scene.path),
-        "packing": str(packing.path), "n_particles": packing.n_particles,
-        "n_conducting_contacts": int(net.n_active_contacts),
-        "n_floating_clusters": net.clusters.n_floating, "n_rattlers": net.clusters.n_rattlers,
-        "law_params": json.dumps(info["law_params"], sort_keys=True),
-        # the scene's [neighbours] criterion as applied to this packing (issue 23): the gap
-        # used and the bulk Z it gives ("null": every dumped row conducts)
-        "neighbours": json.dumps(None if info["neighbours"] is None else
-                                 info["neighbours"].summary(), sort_keys=True, default=float),
-        "scene_json": scene_json,
-        # 1: the scene ran as its text says (read_thermal then checks the two still agree);
-        # 0: changed through the API after it was read (the resolved scene is what ran)
-        "scene_text_agrees": int(scene_text_difference(
-            scene.text, str(scene.path), scene_json, scene.law, scene.output.parent) is None),
-        "run_args": json.dumps(dict(run_args or {}, threads=threads,
+    run_args_json = json.dumps(dict(run_args or {}, threads=threads,
                                     checkpoint_every=checkpoint_every, resume=resume,
                                     packing=str(packing_path) if packing_path else None),
-                               sort_keys=True, default=str),
-        "packing_sha256": packing_hash,
-        # every run's physics checks (thermal_kernel.solvers.check_physics)
-        "max_principle_checked": int(check.max_principle_checked),
-        "max_principle_bounds_k": np.array(check.bounds_k, dtype=np.float64),
-        "max_principle_excess_relative": float(check.overshoot_relative),
-        "ledger_residual_relative": float(check.ledger_relative),
-        "check_messages": "\n".join(check.messages),
-    }
-    boundary_energy, source_energy = result.boundary_energy_j, result.source_energy_j
-    if result.method == "steady":
-        # a steady solve has no time, hence no energy crossed: no rows (never a NaN); its
-        # balance is boundary_heat_flow (and the attribute ledger_residual_relative)
-        attrs["energies"] = ("none: a steady solve has no time (boundary_energy and "
-                             "source_energy have no rows; boundary_heat_flow holds the balance)")
-        boundary_energy = np.zeros((0, len(result.boundary_names)))
-        source_energy = np.zeros(0)
-    out = write_thermal(scene.output, times=result.times, temperatures=result.temperature_k,
-                        boundary_heat_flow_w=result.boundary_heat_flow_w,
-                        boundary_energy_j=boundary_energy,
-                        source_energy_j=source_energy,
-                        capacity_j_k=net.capacity_j_k, initial_temperature_k=T0,
-                        boundary_names=result.boundary_names, attrs=attrs)
+                               sort_keys=True, default=str)
+    out, result, check = write_run_output(scene, result, net, T0, packing, info, scene_json,
+                                          packing_hash, assemble_seconds, run_args_json)
     if ckpt is not None and ckpt.exists():
         ckpt.unlink()            # the output is complete: the checkpoint has served
     if not quiet:

@@ -47,6 +47,7 @@ from .explicit import check_dt
 from .implicit import (_TRB_A1, _TRB_D, _TRB_W01, _TRB_W2, RANNACHER_STEPS, SCHEMES,
                        scheme_name)
 from .partition import block_starts, cut_contacts, owner_of_particle, particle_order
+from .steady import untied_temperatures
 
 PRECONDITIONERS = ("gamg", "hypre")
 # hypre BoomerAMG's defaults (Falgout coarsening, classical interpolation) built a hierarchy that
@@ -651,7 +652,7 @@ def solve_steady(dist: DistributedNetwork, T0=None, *, tol=1e-12, pc="gamg",
     solved = ~net.held & net.clusters.tied_particle
     T = np.where(net.held, held_t, 0.0)
     T[solved] = x_all[solved]
-    no_steady = _untied(net, T, T0, b, t_ref, flags)
+    no_steady = untied_temperatures(net, T, T0, b, t_ref, flags)
     wall = time.perf_counter() - wall0
     flow = net.boundary_heat_flow(T, sw)
     total_in = float(flow.sum()) + (float(sw.sum()) if sw is not None and
@@ -675,49 +676,6 @@ def solve_steady(dist: DistributedNetwork, T0=None, *, tol=1e-12, pc="gamg",
                   rattlers=net.clusters.n_rattlers, no_steady_state=no_steady,
                   clusters=net.clusters.summary(), **dist.info()),
         state=None)
-
-
-def _untied(net, T, T0, b, t_ref, flags) -> list:
-    """Floating clusters and rattlers, as :mod:`.steady` does them (its rule, restated here
-    because the in-process function builds and solves the whole tied system first): each
-    keeps the capacity-weighted mean of T0 (T_ref without T0, flagged), plus the zero-net part
-    of a power injected into it; a net power is flagged (no steady state)."""
-    from scipy.sparse.linalg import spsolve
-    n = net.n
-    label = net.clusters.label
-    in_untied = ~net.clusters.tied_particle
-    no_steady = []
-    if not np.any(in_untied):
-        return no_steady
-    if T0 is None:
-        flags.append("floating_without_T0")
-        base = np.full(n, t_ref)
-    else:
-        base = T0
-    c = net.capacity_j_k
-    sel = np.flatnonzero(in_untied)
-    lab = label[sel]
-    csum = np.bincount(lab, weights=c[sel], minlength=net.clusters.n_components)
-    ctsum = np.bincount(lab, weights=c[sel] * base[sel], minlength=net.clusters.n_components)
-    T[sel] = ctsum[lab] / csum[lab]
-    lap = net.laplacian
-    for comp in np.unique(lab[b[sel] != 0]):
-        members = sel[lab == comp]
-        members = members[~net.held[members]]
-        net_power = float(b[members].sum())
-        if abs(net_power) > 1e-9 * float(np.abs(b[members]).sum()):
-            no_steady.append((int(comp), net_power))
-            continue
-        if members.size < 2:
-            continue
-        sub = lap[members][:, members].tocsr()
-        x = np.zeros(members.size)
-        x[1:] = spsolve(sub[1:, 1:].tocsc(), b[members][1:])
-        x -= np.dot(c[members], x) / c[members].sum()
-        T[members] += x
-    if no_steady:
-        flags.append("no_steady_state_in_floating_cluster")
-    return no_steady
 
 
 __all__ = ["DistributedNetwork", "on_root", "run_explicit", "run_implicit", "solve_steady",

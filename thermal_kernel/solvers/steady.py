@@ -69,9 +69,7 @@ def _solve_steady(problem, T0, *, method, tol, source_interval, maxiter) -> Ther
             sw = np.asarray(prob.source(*source_interval), dtype=np.float64)
             b += sw
 
-    label = net.clusters.label
-    untied = np.flatnonzero(~net.clusters.tied)         # floating clusters and rattlers
-    in_untied = ~net.clusters.tied_particle
+    in_untied = ~net.clusters.tied_particle       # floating clusters and rattlers
     u = np.flatnonzero(~net.held & ~in_untied)
 
     T = np.where(net.held, held_t, 0.0)
@@ -83,39 +81,7 @@ def _solve_steady(problem, T0, *, method, tol, source_interval, maxiter) -> Ther
     solver = SpdSolver(k_uu, method, tol, maxiter, direct_max=DIRECT_MAX)
     T[u] = t_ref + solver.solve(rhs)
 
-    # Floating clusters and rattlers: capacity-weighted mean of T0 (+ zero-net power part).
-    no_steady = []
-    if untied.size:
-        if T0 is None:
-            flags.append("floating_without_T0")
-            base = np.full(n, t_ref)
-        else:
-            base = T0
-        c = net.capacity_j_k
-        sel = np.flatnonzero(in_untied)
-        lab = label[sel]
-        csum = np.bincount(lab, weights=c[sel], minlength=net.clusters.n_components)
-        ctsum = np.bincount(lab, weights=c[sel] * base[sel], minlength=net.clusters.n_components)
-        T[sel] = ctsum[lab] / csum[lab]
-        powered = np.unique(lab[b[sel] != 0])
-        for comp in powered:
-            members = sel[lab == comp]
-            members = members[~net.held[members]]
-            net_power = float(b[members].sum())
-            scale = float(np.abs(b[members]).sum())
-            if abs(net_power) > 1e-9 * scale:
-                no_steady.append((int(comp), net_power))
-                continue
-            if members.size < 2:
-                continue
-            # Singular but compatible: pin the first member, then restore the cluster's mean.
-            sub = lap[members][:, members].tocsr()
-            x = np.zeros(members.size)
-            x[1:] = spsolve(sub[1:, 1:].tocsc(), b[members][1:])
-            x -= np.dot(c[members], x) / c[members].sum()
-            T[members] += x
-        if no_steady:
-            flags.append("no_steady_state_in_floating_cluster")
+    no_steady = untied_temperatures(net, T, T0, b, t_ref, flags)
     wall = time.perf_counter() - wall0
     flow = net.boundary_heat_flow(T, sw)
     total_in = float(flow.sum()) + (float(sw.sum()) if sw is not None and
@@ -140,3 +106,45 @@ def _solve_steady(problem, T0, *, method, tol, source_interval, maxiter) -> Ther
                   rattlers=net.clusters.n_rattlers, no_steady_state=no_steady,
                   clusters=net.clusters.summary()),
         state=None)
+
+
+def untied_temperatures(net, T, T0, b, t_ref, flags) -> list:
+    """Floating clusters and rattlers (no path to a held temperature): each keeps the
+    capacity-weighted mean of T0 (t_ref without T0, flagged floating_without_T0), plus the
+    zero-net part of a power b injected into it (singular but compatible: the first member
+    pinned, the cluster's mean restored); a net power has no steady state and is flagged. Sets
+    their entries of T in place (the in-process solve and the PETSc backend's rank 0); returns
+    [(cluster, net power W)] of those without a steady state."""
+    n = net.n
+    label = net.clusters.label
+    in_untied = ~net.clusters.tied_particle
+    no_steady = []
+    if not np.any(in_untied):
+        return no_steady
+    base = T0 if T0 is not None else np.full(n, t_ref)
+    if T0 is None:
+        flags.append("floating_without_T0")
+    c = net.capacity_j_k
+    sel = np.flatnonzero(in_untied)
+    lab = label[sel]
+    csum = np.bincount(lab, weights=c[sel], minlength=net.clusters.n_components)
+    ctsum = np.bincount(lab, weights=c[sel] * base[sel], minlength=net.clusters.n_components)
+    T[sel] = ctsum[lab] / csum[lab]
+    lap = net.laplacian
+    for comp in np.unique(lab[b[sel] != 0]):
+        members = sel[lab == comp]
+        members = members[~net.held[members]]
+        net_power = float(b[members].sum())
+        if abs(net_power) > 1e-9 * float(np.abs(b[members]).sum()):
+            no_steady.append((int(comp), net_power))
+            continue
+        if members.size < 2:
+            continue
+        sub = lap[members][:, members].tocsr()
+        x = np.zeros(members.size)
+        x[1:] = spsolve(sub[1:, 1:].tocsc(), b[members][1:])
+        x -= np.dot(c[members], x) / c[members].sum()
+        T[members] += x
+    if no_steady:
+        flags.append("no_steady_state_in_floating_cluster")
+    return no_steady
