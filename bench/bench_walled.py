@@ -9,7 +9,9 @@ steel, 1 bar, gap_tolerance 0.1):
           the reference; three seeds through one yade-batch table (``tdem pack --seeds``)
   shell   a relaxed 10,000-sphere periodic cell tiled and carved, then walls pressed onto a
           shell of 6 mean diameters along them (method = "shell", yade_scripts/shell.py;
-          variants: the carve's cut depth, the walls' speed in the soft stage)
+          variants: the carve's cut depth, the walls' speed in the soft stage, the outer 1.5 or
+          3 mean diameters grown again against the walls (shell_cloud_diameters), a 3-diameter
+          shell)
 
 Each packing is a ``tdem pack`` run of its own (whole-process wall time and CPU seconds of the
 process tree from /usr/bin/time, peak resident memory, DEM steps from the packing), and its

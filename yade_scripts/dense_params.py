@@ -76,10 +76,12 @@ PARAMS = {
                                  "0: centre inside, the walls start at the kept spheres' extent)"),
     "shell_cloud_diameters": dict(kind="float", default=0.0, minimum=0.0,
                                   help="shell: the spheres within this many mean diameters of "
-                                       "the carved faces are put back as a loose cloud (solid "
-                                       "fraction 0.3) in a box grown to hold it, and the walls "
-                                       "pressed from there (0: the walls start on the carved "
-                                       "faces)"),
+                                       "the carved faces are put back at random, shrunk, in a "
+                                       "box grown to hold them at the direct box's solid "
+                                       "fraction for that depth, and grown back against the "
+                                       "walls before the stages (0: the walls are pressed onto "
+                                       "the carved faces; 3: the direct box's wall layer, "
+                                       "docs/packings.md)"),
     "cell_particles": dict(kind="int", default=10000, minimum=20,
                            help="tiled, shell: spheres in the periodic cell that is copied"),
     "cell_packing": dict(kind="str", default="",
