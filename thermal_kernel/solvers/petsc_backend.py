@@ -47,7 +47,7 @@ from .explicit import check_dt
 from .implicit import (_TRB_A1, _TRB_D, _TRB_W01, _TRB_W2, RANNACHER_STEPS, SCHEMES,
                        scheme_name)
 from .partition import block_starts, cut_contacts, owner_of_particle, particle_order
-from .steady import untied_temperatures
+from .steady import steady_inputs, untied_temperatures
 
 PRECONDITIONERS = ("gamg", "hypre")
 # hypre BoomerAMG's defaults (Falgout coarsening, classical interpolation) built a hierarchy that
@@ -600,29 +600,7 @@ def solve_steady(dist: DistributedNetwork, T0=None, *, tol=1e-12, pc="gamg",
     start = {}
 
     def prelude():
-        net = dist.net
-        prob = net.problem
-        flags = list(net.flags)
-        held_t = net.held_temperature_k
-        prescribed = np.concatenate([held_t[net.fixed_particle],
-                                     net.exchange_row_temperature_k[net.exchange_row_g_w_k > 0]])
-        t_ref = float(prescribed.mean()) if prescribed.size else 0.0
-        t0 = T0
-        if t0 is not None:
-            t0 = np.array(t0, dtype=np.float64)
-            if t0.ndim == 0:
-                t0 = np.full(net.n, float(t0))
-            if t0.shape != (net.n,) or not np.all(np.isfinite(t0)):
-                raise ValueError(f"T0: expected ({net.n},) finite temperatures, got shape "
-                                 f"{t0.shape}")
-        b = net.constant_rhs_w.copy()
-        sw = None
-        if prob.source is not None:
-            if source_interval is None:
-                flags.append("source_ignored")
-            else:
-                sw = np.asarray(prob.source(*source_interval), dtype=np.float64)
-                b += sw
+        t_ref, t0, b, sw, flags = steady_inputs(dist.net, T0, source_interval)
         start.update(b=b, sw=sw, T0=t0)
         return dict(t_ref=t_ref, flags=flags)
 

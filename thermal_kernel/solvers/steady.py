@@ -47,27 +47,9 @@ def solve_steady(problem, T0=None, *, method="auto", tol=1e-12, source_interval=
 def _solve_steady(problem, T0, *, method, tol, source_interval, maxiter) -> ThermalResult:
     net = as_network(problem)
     prob = net.problem
-    n = net.n
-    flags = list(net.flags)
     wall0 = time.perf_counter()
     held_t = net.held_temperature_k
-    prescribed = np.concatenate([held_t[net.fixed_particle],
-                                 net.exchange_row_temperature_k[net.exchange_row_g_w_k > 0]])
-    t_ref = float(prescribed.mean()) if prescribed.size else 0.0
-    if T0 is not None:
-        T0 = np.array(T0, dtype=np.float64)
-        if T0.ndim == 0:
-            T0 = np.full(n, float(T0))
-        if T0.shape != (n,) or not np.all(np.isfinite(T0)):
-            raise ValueError(f"T0: expected ({n},) finite temperatures, got shape {T0.shape}")
-    b = net.constant_rhs_w.copy()
-    sw = None
-    if prob.source is not None:
-        if source_interval is None:
-            flags.append("source_ignored")
-        else:
-            sw = np.asarray(prob.source(*source_interval), dtype=np.float64)
-            b += sw
+    t_ref, T0, b, sw, flags = steady_inputs(net, T0, source_interval)
 
     in_untied = ~net.clusters.tied_particle       # floating clusters and rattlers
     u = np.flatnonzero(~net.held & ~in_untied)
@@ -148,3 +130,34 @@ def untied_temperatures(net, T, T0, b, t_ref, flags) -> list:
     if no_steady:
         flags.append("no_steady_state_in_floating_cluster")
     return no_steady
+
+
+def steady_inputs(net, T0, source_interval):
+    """What a steady solve starts from (the in-process solve and the PETSc backend's rank 0):
+    the reference temperature t_ref (the mean of the prescribed ones, which the solve shifts
+    by), T0 checked ((n,) finite, or a scalar broadcast; None stays None), the right-hand side
+    b (the boundary kinds' constant part, plus the source's mean power over source_interval;
+    a source without one is ignored and flagged) and the source's powers sw. Returns
+    (t_ref, T0, b, sw, flags), flags starting from the network's."""
+    n = net.n
+    flags = list(net.flags)
+    held_t = net.held_temperature_k
+    prescribed = np.concatenate([held_t[net.fixed_particle],
+                                 net.exchange_row_temperature_k[net.exchange_row_g_w_k > 0]])
+    t_ref = float(prescribed.mean()) if prescribed.size else 0.0
+    if T0 is not None:
+        T0 = np.array(T0, dtype=np.float64)
+        if T0.ndim == 0:
+            T0 = np.full(n, float(T0))
+        if T0.shape != (n,) or not np.all(np.isfinite(T0)):
+            raise ValueError(f"T0: expected ({n},) finite temperatures, got shape {T0.shape}")
+    b = net.constant_rhs_w.copy()
+    sw = None
+    source = net.problem.source
+    if source is not None:
+        if source_interval is None:
+            flags.append("source_ignored")
+        else:
+            sw = np.asarray(source(*source_interval), dtype=np.float64)
+            b += sw
+    return t_ref, T0, b, sw, flags
