@@ -464,7 +464,8 @@ def document(data) -> str:
     if largest:
         big_load = " / ".join(" ".join(x) for x in largest["load"])
         w(f"The largest steady solve measured here ({largest['date']}; `{LARGEST_CMD}`, not "
-          f"part of `make bench-scaling`: ~10 min; load {big_load}; mpirun "
+          f"part of `make bench-scaling`: ~2 min on an idle machine, ~10 min at a load of "
+          f"5-6; load {big_load}; mpirun "
           f"{largest.get('mpirun_options') or 'with Open MPI defaults (polling, bound)'}):\n")
         w("| N | ranks | pc | wall s | CPU s (busiest rank) | iterations | peak RSS rank 0 GB | "
           "peak RSS other ranks GB |")
