@@ -47,7 +47,7 @@ from .explicit import check_dt
 from .implicit import (_TRB_A1, _TRB_D, _TRB_W01, _TRB_W2, RANNACHER_STEPS, SCHEMES,
                        scheme_name)
 from .partition import block_starts, cut_contacts, owner_of_particle, particle_order
-from .steady import steady_inputs, untied_temperatures
+from .steady import steady_inputs, steady_result, untied_temperatures
 
 PRECONDITIONERS = ("gamg", "hypre")
 # hypre BoomerAMG's defaults (Falgout coarsening, classical interpolation) built a hierarchy that
@@ -622,7 +622,6 @@ def solve_steady(dist: DistributedNetwork, T0=None, *, tol=1e-12, pc="gamg",
     if dist.rank != 0:
         return None
     net = dist.net
-    prob = net.problem
     flags = list(p["flags"])
     T0 = start["T0"]
     b, sw = start["b"], start["sw"]
@@ -631,29 +630,9 @@ def solve_steady(dist: DistributedNetwork, T0=None, *, tol=1e-12, pc="gamg",
     T = np.where(net.held, held_t, 0.0)
     T[solved] = x_all[solved]
     no_steady = untied_temperatures(net, T, T0, b, t_ref, flags)
-    wall = time.perf_counter() - wall0
-    flow = net.boundary_heat_flow(T, sw)
-    total_in = float(flow.sum()) + (float(sw.sum()) if sw is not None and
-                                    prob.source_boundary < 0 else 0.0)
-    scale = float(np.abs(flow).sum()) or 1.0
-    nb = prob.n_boundaries
-    return ThermalResult(
-        method="steady", times=np.array([np.inf]), temperature_k=T[None, :],
-        boundary_heat_flow_w=flow[None, :], boundary_energy_j=np.full((1, nb), np.nan),
-        source_energy_j=np.full(1, np.nan),
-        stored_energy_j=np.array([np.dot(net.capacity_j_k, T - T0) if T0 is not None
-                                  else np.nan]),
-        boundary_names=prob.boundary_names, source_boundary=prob.source_boundary,
-        dt=np.inf, dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=0, wall_seconds=wall,
-        contact_updates_per_second=float("nan"), flags=tuple(flags),
-        info=dict(linear_solver=f"petsc-cg-{pc}", tol=tol, unknowns=n_unknowns, t_ref=t_ref,
-                  cg_iterations=iterations, heat_balance_w=total_in,
-                  heat_balance_relative=total_in / scale,
-                  floating_clusters=net.clusters.n_floating,
-                  floating_sizes=net.clusters.floating_sizes.tolist(),
-                  rattlers=net.clusters.n_rattlers, no_steady_state=no_steady,
-                  clusters=net.clusters.summary(), **dist.info()),
-        state=None)
+    return steady_result(net, T, T0, sw, flags, time.perf_counter() - wall0, no_steady,
+                         linear_solver=f"petsc-cg-{pc}", tol=tol, unknowns=n_unknowns,
+                         t_ref=t_ref, cg_iterations=iterations, **dist.info())
 
 
 __all__ = ["DistributedNetwork", "on_root", "run_explicit", "run_implicit", "solve_steady",

@@ -46,7 +46,6 @@ def solve_steady(problem, T0=None, *, method="auto", tol=1e-12, source_interval=
 
 def _solve_steady(problem, T0, *, method, tol, source_interval, maxiter) -> ThermalResult:
     net = as_network(problem)
-    prob = net.problem
     wall0 = time.perf_counter()
     held_t = net.held_temperature_k
     t_ref, T0, b, sw, flags = steady_inputs(net, T0, source_interval)
@@ -64,25 +63,31 @@ def _solve_steady(problem, T0, *, method, tol, source_interval, maxiter) -> Ther
     T[u] = t_ref + solver.solve(rhs)
 
     no_steady = untied_temperatures(net, T, T0, b, t_ref, flags)
-    wall = time.perf_counter() - wall0
+    return steady_result(net, T, T0, sw, flags, time.perf_counter() - wall0, no_steady,
+                         linear_solver=solver.method, tol=tol, unknowns=int(u.size),
+                         t_ref=t_ref, cg_iterations=solver.iterations)
+
+
+def steady_result(net, T, T0, sw, flags, wall_seconds, no_steady, **info) -> ThermalResult:
+    """The steady solve's ThermalResult (the in-process solve and the PETSc backend's rank 0):
+    the boundaries' heat flows of T, the heat balance (zero at steady state up to the solver's
+    tolerance), the clusters; ``info`` holds the solver's own entries."""
+    prob = net.problem
     flow = net.boundary_heat_flow(T, sw)
     total_in = float(flow.sum()) + (float(sw.sum()) if sw is not None and
                                     prob.source_boundary < 0 else 0.0)
     scale = float(np.abs(flow).sum()) or 1.0
     nb = prob.n_boundaries
-    times = np.array([np.inf])
     return ThermalResult(
-        method="steady", times=times, temperature_k=T[None, :],
+        method="steady", times=np.array([np.inf]), temperature_k=T[None, :],
         boundary_heat_flow_w=flow[None, :], boundary_energy_j=np.full((1, nb), np.nan),
         source_energy_j=np.full(1, np.nan),
         stored_energy_j=np.array([np.dot(net.capacity_j_k, T - T0) if T0 is not None
                                   else np.nan]),
         boundary_names=prob.boundary_names, source_boundary=prob.source_boundary,
-        dt=np.inf, dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=0, wall_seconds=wall,
-        contact_updates_per_second=float("nan"), flags=tuple(flags),
-        info=dict(linear_solver=solver.method, tol=tol, unknowns=int(u.size), t_ref=t_ref,
-                  cg_iterations=solver.iterations, heat_balance_w=total_in,
-                  heat_balance_relative=total_in / scale,
+        dt=np.inf, dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=0,
+        wall_seconds=wall_seconds, contact_updates_per_second=float("nan"), flags=tuple(flags),
+        info=dict(info, heat_balance_w=total_in, heat_balance_relative=total_in / scale,
                   floating_clusters=net.clusters.n_floating,
                   floating_sizes=net.clusters.floating_sizes.tolist(),
                   rattlers=net.clusters.n_rattlers, no_steady_state=no_steady,
