@@ -492,6 +492,13 @@ def wall_stresses(walls, body, inward, lo, hi):
     return out
 
 
+def move_walls(walls, body, inward, move_m, every):
+    """Each plane wall's velocity: move_m[w] (m, positive inward) over the next `every` steps."""
+    for w in range(len(walls)):
+        v = inward[body[w]] * (move_m[w] / (every * O.dt))
+        O.bodies[body[w]].state.vel = Vector3(*(float(x) for x in v))
+
+
 def hertz_overlap(p, young):
     """Typical overlap / radius of a Hertz contact at the confining pressure and modulus
     ``young``: (p / E*)^(2/3)."""
@@ -607,9 +614,7 @@ def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None):
             move = np.clip(move, -max_move, inward_cap)
             if settled:
                 move[:] = 0.0
-            for w in range(len(walls)):
-                v = inward[body[w]] * (move[w] / (every * O.dt))
-                O.bodies[body[w]].state.vel = Vector3(*(float(x) for x in v))
+            move_walls(walls, body, inward, move, every)
             now = time.time() - t0
             if now - last > 3.0:
                 last = now
@@ -663,9 +668,7 @@ def grow_cloud(p, box, cloud_ids, collider, walls, body, inward, compliance_m, e
         lo, hi = wall_extent(box, walls, body)
         ratio = wall_stresses(walls, body, inward, lo, hi) / p_target
         out = np.minimum(compliance_m * (np.maximum(ratio, 1e-12) ** (-2.0 / 3.0) - 1.0), 0.0)
-        for w in range(len(walls)):
-            v = inward[body[w]] * (out[w] / (every * O.dt))
-            O.bodies[body[w]].state.vel = Vector3(*(float(x) for x in v))
+        move_walls(walls, body, inward, out, every)
         now = time.time() - t0
         if now - last > 3.0:
             last = now
