@@ -61,6 +61,7 @@ CELL_DIRS = [ROOT / "runs" / "out" / "dense_box_1e5", ROOT / "validation" / "out
 # 1e6 are the issue's timed sizes (each copies the 10,000 cell of its seed when one exists)
 CASES = [
     ("direct_10000", "direct", 10_000, (1, 2, 3), False, {}),
+    ("direct_20000", "direct", 20_000, (1,), False, {}),
     ("shell_10000", "shell", 10_000, (1, 2, 3), False, {}),
     ("shell_wholecut_10000", "shell", 10_000, (2,), False, dict(shell_cut_depth=1.0)),
     ("shell_loaded_slow_10000", "shell", 10_000, (1, 2), False,
