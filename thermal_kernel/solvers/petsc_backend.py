@@ -418,13 +418,11 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
         t_prev = tk
         _record(dist, rec, k, tl, energy, src[0], tk)
     wall = time.perf_counter() - wall0
-    finite = dist.mpi.allreduce(bool(np.all(np.isfinite(tl))), op=_land())
-    energy_total = dist.total(energy)
-    T_end = dist.gather(tl)
-    if dist.rank != 0:
+    end = _end_of_run(dist, tl, energy, p["flags"])
+    if end is None:
         return None
+    T_end, energy_total, flags = end
     prob = net.problem
-    flags = list(p["flags"]) + ([] if finite else ["non_finite"])
     state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=p["step0"] + done,
                         boundary_energy_j=energy_total, source_energy_j=src[0],
                         reference_temperature_k=start["ref"], dt_s=dt, method="explicit")
@@ -439,6 +437,18 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
                   steps_per_interval=[n for n, _ in plan], dt_per_interval=[h for _, h in plan],
                   dt_max_particle=net.dt_max_particle, **dist.info()),
         state=state)
+
+
+def _end_of_run(dist, tl, energy, flags):
+    """The end of a time-stepping run on the ranks (explicit and implicit), collective: whether
+    every rank's temperatures are finite, the boundaries' energies summed and the temperatures
+    gathered. On rank 0 (T_end, energy_total, flags + non_finite if any was not), else None."""
+    finite = dist.mpi.allreduce(bool(np.all(np.isfinite(tl))), op=_land())
+    energy_total = dist.total(energy)
+    T_end = dist.gather(tl)
+    if dist.rank != 0:
+        return None
+    return T_end, energy_total, list(flags) + ([] if finite else ["non_finite"])
 
 
 # ----------------------------------------------------------------------------- implicit
@@ -558,13 +568,11 @@ def run_implicit(dist: DistributedNetwork, T0, times, *, dt, theta=1.0, scheme="
         t_prev = tk
         _record(dist, rec, k, tl, energy, src[0], tk)
     wall = time.perf_counter() - wall0
-    finite = dist.mpi.allreduce(bool(np.all(np.isfinite(tl))), op=_land())
-    energy_total = dist.total(energy)
-    T_end = dist.gather(tl)
-    if dist.rank != 0:
+    end = _end_of_run(dist, tl, energy, p["flags"])
+    if end is None:
         return None
+    T_end, energy_total, flags = end
     prob = net.problem
-    flags = list(p["flags"]) + ([] if finite else ["non_finite"])
     state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=step0 + done,
                         boundary_energy_j=energy_total, source_energy_j=src[0],
                         reference_temperature_k=start["ref"], dt_s=dt, method="implicit")
