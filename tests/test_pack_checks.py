@@ -50,6 +50,8 @@ DENSE = [
     ('method = "shell"\ncell_particles = 20\nn_particles = 21', "n_particles"),
     ('method = "shell"\nshape = "periodic"', "method"),
     ('method = "shell"\nshape = "sphere"\nn_particles = 50000', "method"),
+    # issue 24: the cloud must leave free shell behind it (not reach the frozen band)
+    ('method = "shell"\nn_particles = 50000\nshell_cloud_diameters = 5.5', "shell_cloud_diameters"),
     # facets sagging more than the smallest cloud sphere: one would start outside them
     ('shape = "sphere"\nsphere_facet_level = 1', "sphere_facet_level"),
 ]
