@@ -3,6 +3,7 @@ validation write, then diff two snapshots.
 
     python tools/same_outputs.py snap DIR [small] [seeds] [campaign_7500] [validation]
                                           [validation_quick[=1,2,11]]
+                                          [validation_full=5,7]
     python tools/same_outputs.py diff DIR_BEFORE DIR_AFTER            (exit 1 when they differ)
 
 ``snap`` writes into DIR, for each instance asked (the campaign's three by default):
@@ -34,6 +35,10 @@ Validation (docs/validation.md, ``tdem validate``):
   deterministic clock (``time.perf_counter`` a counter): its result (judged) and its figures
   with their CSVs (under validation/out/caseN_quick; the PNG bytes too: matplotlib writes the
   same bytes for the same figure here).
+- ``validation_full=N,N,...``: the full instance of each case named, run again the same way
+  but from the runs cached under validation/out/caseN (nothing measured when every run is
+  cached there and every packing built; otherwise it measures): its result (judged) and its
+  figures with their CSVs, the figures written into the snapshot instead of docs/img.
 """
 from __future__ import annotations
 
@@ -174,34 +179,39 @@ def _validation(dest: Path) -> None:
         shutil.copy(path, img / path.name)
 
 
-def _validation_quick(dest: Path, numbers) -> None:
-    """The quick instances of cases ``numbers`` run again with a counter for a clock."""
+def _validation_quick(dest: Path, numbers, quick: bool = True) -> None:
+    """The quick (or, ``quick`` False, full) instances of cases ``numbers`` run again with a
+    counter for a clock; a full instance's figures go to ``dest`` instead of docs/img."""
     import time
 
     from validation import framework as fw
     from validation import run as vrun
     dest.mkdir(parents=True)
     cases = vrun.discover()
-    real = time.perf_counter
+    real, img = time.perf_counter, fw.IMG
+    figures = dest / "figures"
     for n in numbers:
         tick = iter(range(10 ** 9))
         time.perf_counter = lambda tick=tick: float(next(tick))
+        fw.IMG = img if quick else figures
         try:
             mod = cases[n]
-            ctx = fw.Context(number=n, quick=True)
-            for old in list(ctx.out.glob("validation_*.csv")) + \
-                    list(ctx.out.glob("validation_*.png")):
+            ctx = fw.Context(number=n, quick=quick)
+            where = ctx.out if quick else figures
+            for old in list(where.glob(f"validation_case{n}_*.csv")) + \
+                    list(where.glob(f"validation_case{n}_*.png")):
                 old.unlink()
             result = mod.run(ctx)
             if not result.at_paper_n and hasattr(mod, "judge"):
                 result = fw.judged(result, mod.judge(result.numbers))
         finally:
-            time.perf_counter = real
-        (dest / f"case{n}_quick.json").write_text(json.dumps(
+            time.perf_counter, fw.IMG = real, img
+        (dest / f"case{n}_{'quick' if quick else 'full'}.json").write_text(json.dumps(
             dataclasses.asdict(result), indent=1, default=float))
-        for path in sorted(ctx.out.glob("validation_*.csv")) + \
-                sorted(ctx.out.glob("validation_*.png")):
-            shutil.copy(path, dest / path.name)
+        if quick:
+            for path in sorted(ctx.out.glob("validation_*.csv")) + \
+                    sorted(ctx.out.glob("validation_*.png")):
+                shutil.copy(path, dest / path.name)
 
 
 def snap(dest: Path, instances) -> None:
@@ -211,6 +221,9 @@ def snap(dest: Path, instances) -> None:
     for name in [i for i in instances if i.startswith("validation")]:
         if name == "validation":
             _validation(dest / name)
+        elif name.startswith("validation_full="):
+            _validation_quick(dest / "validation_full",
+                              [int(x) for x in name.partition("=")[2].split(",")], quick=False)
         else:
             picked = name.partition("=")[2]
             _validation_quick(dest / "validation_quick",
