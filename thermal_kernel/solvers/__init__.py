@@ -118,6 +118,16 @@ def interval_steps(t_from: float, t_to: float, dt: float) -> tuple[int, float]:
     return n, h
 
 
+def step_plan(times, t_start: float, dt: float) -> list[tuple[int, float]]:
+    """(n, h) of each output interval from ``t_start`` (:func:`interval_steps`): the steps every
+    transient solver (in-process and on ranks) takes."""
+    plan, t_prev = [], float(t_start)
+    for tk in times:
+        plan.append(interval_steps(t_prev, float(tk), dt))
+        t_prev = float(tk)
+    return plan
+
+
 def start_state(net: Network, T0, t_start, method: str):
     """(T, t, step, boundary_energy, source_energy, T_ref, dt or None) from an array or a
     SolverState. From an array, held particles are set to their temperature and the energy this

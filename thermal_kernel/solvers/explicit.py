@@ -32,7 +32,7 @@ from numba import njit, prange
 # The threading layer (OpenMP first: TBB's fork/join cost dominated a step, docs/solvers.md) is
 # chosen by the entry points, not here: thermal_kernel/threading_layer.py.
 from . import (Recorder, SolverState, ThermalResult, UnstableTimeStepError, as_network,
-               check_times, instantaneous_source, interval_steps, start_state)
+               check_times, instantaneous_source, start_state, step_plan)
 
 
 # ----------------------------------------------------------------------------- kernels
@@ -252,11 +252,7 @@ def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
     arr = _Arrays(net, use_rhs)
     sb = prob.source_boundary
     rec = Recorder(net, times, ref, keep_temperatures, on_output)
-    plan = []
-    t_prev = t
-    for tk in times:
-        plan.append(interval_steps(t_prev, float(tk), dt))
-        t_prev = float(tk)
+    plan = step_plan(times, t, dt)
     n_total = sum(n for n, _ in plan)
     # ~0.1 s of work per kernel call, also without a progress bar: Ctrl-C is seen between calls
     chunk = max(1, int(2e7 // (net.adjacency.nnz + net.n + 1)))

@@ -43,7 +43,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from . import (blas_threads, Recorder, SolverState, ThermalResult, as_network, check_times,
-               instantaneous_source, interval_steps, start_state)
+               instantaneous_source, start_state, step_plan)
 
 # Free particles up to which the implicit solver factorises (SuperLU) instead of AMG-CG.
 # Measured (docs/solvers.md, random packing-like networks, Z ~ 6): factorisation 1.4 s at 1e5,
@@ -128,11 +128,11 @@ def run_implicit(problem, T0, times, *, dt, theta=1.0, scheme="theta", startup_s
     factorised one reuse it (and that dt). ``method`` 'auto' | 'direct' | 'amg'; ``tol`` the
     AMG-CG relative residual; ``blas`` the OpenBLAS thread count during the run (1: see
     :class:`~thermal_kernel.solvers.blas_threads`)."""
+    theta, startup_steps = scheme_args(scheme, theta, startup_steps)
     with blas_threads(blas):
-        return _run_implicit(problem, T0, times, dt=dt, theta=theta, scheme=scheme,
-                             startup_steps=startup_steps, t_start=t_start,
-                             method=method, tol=tol, progress=progress,
-                             keep_temperatures=keep_temperatures, on_output=on_output)
+        op = LocalOperator(as_network(problem), method, tol, keep_temperatures, on_output)
+        return drive_implicit(op, T0, times, dt=dt, theta=theta, scheme=scheme,
+                              startup_steps=startup_steps, t_start=t_start, progress=progress)
 
 
 def scheme_name(scheme: str, theta: float) -> str:
@@ -141,8 +141,9 @@ def scheme_name(scheme: str, theta: float) -> str:
     return f"implicit({scheme})"
 
 
-def _run_implicit(problem, T0, times, *, dt, theta, scheme, startup_steps, t_start, method, tol,
-                  progress, keep_temperatures, on_output) -> ThermalResult:
+def scheme_args(scheme, theta, startup_steps):
+    """(theta, startup_steps) the scheme runs with, checked: 'rannacher' and 'tr-bdf2' run at
+    theta 0.5; the start-up steps default to 2 for 'rannacher', 0 otherwise (none for 'theta')."""
     if scheme not in SCHEMES:
         raise ValueError(f"scheme = {scheme!r}: use one of {', '.join(SCHEMES)}")
     if scheme == "theta" and not 0.0 <= theta <= 1.0:
@@ -154,22 +155,111 @@ def _run_implicit(problem, T0, times, *, dt, theta, scheme, startup_steps, t_sta
     startup_steps = int(startup_steps) if scheme != "theta" else 0
     if startup_steps < 0:
         raise ValueError(f"startup_steps = {startup_steps}: must be >= 0")
-    net = as_network(problem)
-    prob = net.problem
-    T, t, step0, energy, src_energy, ref, state_dt = start_state(net, T0, t_start, "implicit")
-    times = check_times(times, t)
+    return theta, startup_steps
+
+
+class LocalOperator:
+    """The in-process network for :func:`drive_implicit`: the unknowns are the free particles'
+    temperatures (one array), the matrices scipy's, each solved by :class:`SpdSolver`.
+
+    The interface (the PETSc backend's ``DistributedOperator`` is the other one): ``net`` (None
+    on a rank that does not hold it), ``is_root``, ``start``, ``setup``, ``unknowns``,
+    ``factor``, ``capacity``, ``free_only``, ``rhs``, ``source``, ``source_power``, ``ledger``,
+    ``record``, ``barrier``, ``finish``, ``recorder``, ``solver_info``."""
+    is_root = True
+
+    def __init__(self, net, method="auto", tol=1e-10, keep_temperatures=True, on_output=None):
+        self.net, self.method, self.tol = net, method, tol
+        self.keep, self.on_output = keep_temperatures, on_output
+
+    def start(self, T0, t_start, times):
+        """(times, t, step, source energy, flags) of the run from ``T0`` (array or state)."""
+        net = self.net
+        self.T, t, step0, self.energy0, src, ref, _ = start_state(net, T0, t_start, "implicit")
+        times = check_times(times, t)
+        self.ref = ref
+        self.recorder = Recorder(net, times, ref, self.keep, self.on_output)
+        return times, t, step0, src, list(net.flags)
+
+    def setup(self):
+        self.free, self.k_ff, self.r_d = _split(self.net)
+        self.b_f = self.net.constant_rhs_w[self.free]
+        self.capacity = self.net.capacity_j_k[self.free]
+
+    def unknowns(self):
+        """(x, energy): the free temperatures and the ledger to start from."""
+        return self.T[self.free], self.energy0
+
+    def factor(self, h, th):
+        return SpdSolver((sp.diags(self.capacity / h) + th * self.k_ff).tocsr(), self.method,
+                         self.tol)
+
+    @staticmethod
+    def free_only(v):
+        return v
+
+    def rhs(self, x, sw):
+        """F(T) = -K T_f - L_fd T_d + b_f + S_f."""
+        r = self.r_d + self.b_f - self.k_ff @ x
+        if sw is not None:
+            r += sw[self.free]
+        return r
+
+    def source(self, t0, t1):
+        src = self.net.problem.source
+        return None if src is None else np.asarray(src(t0, t1), dtype=np.float64)
+
+    @staticmethod
+    def source_power(sw):
+        return float(sw.sum())
+
+    def _whole(self, x):
+        T = self.T.copy()
+        T[self.free] = x
+        return T
+
+    def ledger(self, energy, h, x, sw):
+        """The heat through the boundaries over a step of ``h`` at the temperatures ``x``."""
+        energy += h * self.net.boundary_heat_flow(self._whole(x), sw)
+
+    def record(self, k, x, energy, src_energy, tk):
+        self.T[self.free] = x
+        self.recorder.record(k, self.T, energy, src_energy,
+                             instantaneous_source(self.net.problem, tk))
+
+    def barrier(self):
+        pass
+
+    def finish(self, x, energy, flags):
+        """(T at the end, the ledger, flags with non_finite if a temperature is not)."""
+        T = self._whole(x)
+        return T, energy.copy(), list(flags) + ([] if np.all(np.isfinite(T))
+                                                else ["non_finite"])
+
+    @staticmethod
+    def solver_info(solvers):
+        return dict(linear_solver=solvers[0].method if solvers else "none",
+                    cg_iterations=[i for s in solvers for i in getattr(s, "iterations", [])])
+
+
+def drive_implicit(op, T0, times, *, dt, theta, scheme, startup_steps, t_start=None,
+                   progress=None) -> ThermalResult | None:
+    """The theta / Rannacher / TR-BDF2 time loop over an operator ``op``: the in-process
+    :class:`LocalOperator` or the PETSc backend's distributed one (collective there). The plan
+    (each output interval in equal steps), the factorisations' cache, the schemes' stages, the
+    ledger's weights, the progress and the result are the same for both; ``op`` supplies the
+    linear algebra (see :class:`LocalOperator`). ``theta`` and ``startup_steps`` as
+    :func:`scheme_args` returns them. The result on the rank that holds the network (None on
+    the others)."""
     dt = float(dt)
     if not dt > 0:
         raise ValueError(f"dt = {dt}: the time step must be > 0")
-    flags = list(net.flags)
+    times, t, step0, src_energy, flags = op.start(T0, times=times, t_start=t_start)
     c0 = time.perf_counter()
-    free, k_ff, r_d = _split(net)
-    b_f = net.constant_rhs_w[free]
-    c_f = net.capacity_j_k[free]
-    sb = prob.source_boundary
+    op.setup()
     setup_seconds = time.perf_counter() - c0
     factor_seconds = 0.0
-    cache: dict[tuple, SpdSolver] = {}
+    cache: dict = {}
 
     def solver_for(h, th):
         """(h0, solver) for M = C/h0 + th K, h0 = h or a factorised step within 1e-9."""
@@ -178,30 +268,18 @@ def _run_implicit(problem, T0, times, *, dt, theta, scheme, startup_steps, t_sta
             if th0 == th and abs(h - h0) <= 1e-9 * h0:
                 return h0, s
         f0 = time.perf_counter()
-        m = (sp.diags(c_f / h) + th * k_ff).tocsr()
-        s = SpdSolver(m, method, tol)
+        s = op.factor(h, th)
         factor_seconds += time.perf_counter() - f0
         cache[(h, th)] = s
         return h, s
 
-    def rhs_at(Tf, sw):
-        r = r_d + b_f - k_ff @ Tf
-        if sw is not None:
-            r += sw[free]
-        return r
-
-    rec = Recorder(net, times, ref, keep_temperatures, on_output)
-    plan, t_prev = [], t
-    for tk in times:
-        plan.append(interval_steps(t_prev, float(tk), dt))
-        t_prev = float(tk)
+    plan = step_plan(times, t, dt)
     n_total = sum(n for n, _ in plan)
-    done = 0
-    wall0 = time.perf_counter()
-    step_seconds = 0.0
-    t_theta = np.empty_like(T)
+    x, energy = op.unknowns()
+    done, step_seconds = 0, 0.0
+    op.barrier()
+    wall0 = last_report = time.perf_counter()
     t_prev = t
-    last_report = wall0
     for k, (tk, (n, h)) in enumerate(zip(times, plan)):
         tk = float(tk)
         if n:
@@ -214,63 +292,61 @@ def _run_implicit(problem, T0, times, *, dt, theta, scheme, startup_steps, t_sta
             t0 = t_prev + s * h
             t1 = tk if s == n - 1 else t_prev + (s + 1) * h
             s0 = time.perf_counter()
-            sw = None
-            if prob.source is not None:
-                sw = np.asarray(prob.source(t0, t1), dtype=np.float64)
-                src_energy += h * float(sw.sum())
+            sw = op.source(t0, t1)
+            if sw is not None:
+                src_energy += h * op.source_power(sw)
             if step0 + done < startup_steps:
                 # Rannacher start-up: two backward-Euler half steps
                 hh, half = solver_for(0.5 * h, 1.0)
                 for _ in range(2):
-                    T[free] += half.solve(rhs_at(T[free], sw))
-                    energy += hh * net.boundary_heat_flow(T, sw)
+                    x = x + half.solve(op.rhs(x, sw))
+                    op.ledger(energy, hh, x, sw)
             elif scheme == "tr-bdf2":
                 d = _TRB_D * h
-                Tn = T[free].copy()
-                inc1 = solver.solve(2.0 * rhs_at(Tn, sw))        # trapezoidal stage
-                Tg = Tn + inc1
-                inc2 = solver.solve(rhs_at(Tg, sw) + (_TRB_A1 / d) * (c_f * inc1))  # BDF2
+                inc1 = solver.solve(2.0 * op.rhs(x, sw))                   # trapezoidal stage
+                xg = x + inc1
+                inc2 = solver.solve(op.rhs(xg, sw) + op.free_only(
+                    (_TRB_A1 / d) * (op.capacity * inc1)))                 # BDF2 stage
                 # Ledger: C (T_{n+1} - T_n) = h [w01 (f_n + f_gamma) + w2 f_{n+1}]
-                np.copyto(t_theta, T)
-                t_theta[free] = _TRB_W01 * (Tn + Tg) + _TRB_W2 * (Tg + inc2)
-                energy += h * net.boundary_heat_flow(t_theta, sw)
-                T[free] = Tg + inc2
+                op.ledger(energy, h, _TRB_W01 * (x + xg) + _TRB_W2 * (xg + inc2), sw)
+                x = xg + inc2
             else:
-                inc = solver.solve(rhs_at(T[free], sw))  # from zero: no better start known
+                inc = solver.solve(op.rhs(x, sw))   # from zero: no better start known
                 # Ledger with the theta-weighted temperatures: the fluxes this step used.
-                np.copyto(t_theta, T)
-                t_theta[free] += theta * inc
-                energy += h * net.boundary_heat_flow(t_theta, sw)
-                T[free] += inc
+                op.ledger(energy, h, x + theta * inc, sw)
+                x = x + inc
             step_seconds += time.perf_counter() - s0
             done += 1
-            if progress is not None and (time.perf_counter() - last_report > 0.1 or
-                                         done == n_total):
+            if progress is not None and op.is_root and (
+                    time.perf_counter() - last_report > 0.1 or done == n_total):
                 last_report = time.perf_counter()
                 progress(done, n_total, t1)
         t_prev = tk
-        rec.record(k, T, energy, src_energy, instantaneous_source(prob, tk))
+        op.record(k, x, energy, src_energy, tk)
     wall = time.perf_counter() - wall0
-    if not np.all(np.isfinite(T)):
-        flags.append("non_finite")
-    state = SolverState(temperature_k=T.copy(), time_s=float(times[-1]), step=step0 + done,
-                        boundary_energy_j=energy.copy(), source_energy_j=src_energy,
-                        reference_temperature_k=ref, dt_s=dt, method="implicit")
+    end = op.finish(x, energy, flags)
+    if end is None:
+        return None
+    T_end, energy_total, flags = end
+    net, rec = op.net, op.recorder
+    prob = net.problem
+    state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=step0 + done,
+                        boundary_energy_j=energy_total, source_energy_j=src_energy,
+                        reference_temperature_k=op.ref, dt_s=dt, method="implicit")
     solvers = list(cache.values())
-    loop = step_seconds
     return ThermalResult(
         method=scheme_name(scheme, theta), times=times, temperature_k=rec.T,
         boundary_heat_flow_w=rec.flow, boundary_energy_j=rec.energy,
         source_energy_j=rec.source, stored_energy_j=rec.stored,
-        boundary_names=prob.boundary_names, source_boundary=sb, dt=dt, dt_max=net.dt_max_s,
-        dt_paper=net.dt_paper_s, steps=done, wall_seconds=wall + setup_seconds,
-        contact_updates_per_second=(net.n_active_contacts * done / loop if loop > 0
-                                    else float("nan")),
+        boundary_names=prob.boundary_names, source_boundary=prob.source_boundary, dt=dt,
+        dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=done,
+        wall_seconds=wall + setup_seconds,
+        contact_updates_per_second=(net.n_active_contacts * done / step_seconds
+                                    if step_seconds > 0 else float("nan")),
         flags=tuple(flags),
         info=dict(theta=theta, scheme=scheme, startup_steps=startup_steps,
-                  linear_solver=solvers[0].method if solvers else "none",
                   factorisations=len(solvers), factor_seconds=factor_seconds,
-                  setup_seconds=setup_seconds, step_seconds=step_seconds, tol=tol,
-                  cg_iterations=[i for s in solvers for i in getattr(s, "iterations", [])],
-                  steps_per_interval=[n for n, _ in plan], clusters=net.clusters.summary()),
+                  setup_seconds=setup_seconds, step_seconds=step_seconds, tol=op.tol,
+                  steps_per_interval=[n for n, _ in plan], clusters=net.clusters.summary(),
+                  **op.solver_info(solvers)),
         state=state)

@@ -18,7 +18,10 @@ the vectors and are masked: their increment is 0.
 
 * explicit: T' = T + dt/C (b + S - A T) on free rows, one distributed mat-vec a step; dt and its
   bound are the in-process ones (``check_dt``, the exact positivity bound of the network).
-* implicit (theta, Rannacher, TR-BDF2): M = C/h + theta A with the held rows and columns
+* implicit (theta, Rannacher, TR-BDF2): the in-process time loop
+  (:func:`~.implicit.drive_implicit`: the plan, the schemes' stages, the ledger's weights, the
+  result) over :class:`DistributedOperator`, which supplies the linear algebra below.
+  M = C/h + theta A with the held rows and columns
   replaced by the identity (``MatZeroRowsColumns``: symmetric positive definite, the held
   columns eliminated as in-process); increments solved by CG preconditioned by GAMG (default)
   or hypre BoomerAMG, the residual measured unpreconditioned so ``tol`` is the true residual.
@@ -42,10 +45,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import (Recorder, SolverState, ThermalResult, check_times, instantaneous_source,
-               interval_steps, start_state)
+               start_state, step_plan)
 from .explicit import check_dt
-from .implicit import (_TRB_A1, _TRB_D, _TRB_W01, _TRB_W2, RANNACHER_STEPS, SCHEMES,
-                       scheme_name)
+from .implicit import drive_implicit, scheme_args
 from .partition import block_starts, cut_contacts, owner_of_particle, particle_order
 from .steady import steady_inputs, steady_result, untied_temperatures
 
@@ -347,14 +349,6 @@ def _record(dist, rec, k, t_local, energy_partial, src_energy, tk):
         rec.record(k, T, energy, src_energy, instantaneous_source(dist.net.problem, tk))
 
 
-def _plan(times, t, dt):
-    plan, t_prev = [], t
-    for tk in times:
-        plan.append(interval_steps(t_prev, float(tk), dt))
-        t_prev = float(tk)
-    return plan
-
-
 def _land():
     from mpi4py import MPI
     return MPI.LAND
@@ -390,7 +384,7 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
         else np.zeros(dist.nb)
     rec = Recorder(net, times, start["ref"]) if dist.rank == 0 else None
     src = [p["src"]]
-    plan = _plan(times, t, dt)
+    plan = step_plan(times, t, dt)
     n_total = sum(n for n, _ in plan)
     tl = dist.scatter(start.get("T"))
     inv_c_free = np.where(dist.free, 1.0 / dist.capacity, 0.0)   # held rows: no change
@@ -452,147 +446,117 @@ def _end_of_run(dist, tl, energy, flags):
 
 
 # ----------------------------------------------------------------------------- implicit
+class _Increment:
+    """One matrix's CG + preconditioner: ``solve(r)`` the increment, 0 on the held rows."""
+
+    def __init__(self, dist, ksp, iterations):
+        self.dist, self.ksp, self.iterations = dist, ksp, iterations
+
+    def solve(self, r):
+        return np.where(self.dist.free, self.dist.solve(self.ksp, r, self.iterations), 0.0)
+
+
+class DistributedOperator:
+    """This rank's rows for the one implicit time loop, :func:`~.implicit.drive_implicit`
+    (the in-process :class:`~.implicit.LocalOperator`'s interface): the unknowns are this
+    rank's temperatures (held rows kept at their temperature, their increment 0), the matrices
+    MPIAIJ, each solved by CG + ``pc``; the ledger's partial sums meet at the output times."""
+
+    def __init__(self, dist: DistributedNetwork, tol, pc):
+        self.dist, self.tol, self.pc = dist, tol, pc
+        self.net = dist.net
+        self.is_root = dist.rank == 0
+        self.iterations: list = []
+        self.capacity = dist.capacity
+        self.recorder = None
+
+    def start(self, T0, t_start, times):
+        dist, start = self.dist, {}
+
+        def prelude():
+            net = dist.net
+            T, t, step0, energy0, src, ref, _ = start_state(net, T0, t_start, "implicit")
+            start.update(T=T, ref=ref, energy0=energy0)
+            return dict(t=t, step0=step0, src=src, flags=list(net.flags),
+                        times=check_times(times, t))
+
+        p = dist.on_root(prelude)
+        self.T, self.ref = start.get("T"), start.get("ref")
+        self.energy0 = start["energy0"].copy() if self.is_root else np.zeros(dist.nb)
+        self.const_b = (np.asarray(self.net.constant_boundary_flow_w, dtype=np.float64)
+                        if self.is_root else np.zeros(dist.nb))
+        if self.is_root:
+            self.recorder = Recorder(self.net, p["times"], self.ref)
+        return p["times"], p["t"], p["step0"], p["src"], p["flags"]
+
+    def setup(self):
+        pass
+
+    def unknowns(self):
+        return self.dist.scatter(self.T), self.energy0
+
+    def factor(self, h, th):
+        dist = self.dist
+        return _Increment(dist, dist.ksp(dist.matrix(self.capacity / h, th, dist.free),
+                                         self.tol, self.pc), self.iterations)
+
+    def free_only(self, v):
+        return np.where(self.dist.free, v, 0.0)
+
+    def rhs(self, tl, sw):
+        """F(T) = b + S - A T on the free rows, 0 on the held ones (as -K T_f - L_fd T_d + b_f
+        + S_f in-process: A T on a free row is K_ff T_f + L_fd T_d)."""
+        r = self.dist.b - self.dist.matvec(tl)
+        if sw is not None:
+            r = r + sw[0]
+        return np.where(self.dist.free, r, 0.0)
+
+    def source(self, t0, t1):
+        """(this rank's powers, the whole array on rank 0), or None without a source."""
+        dist = self.dist
+        if not dist.has_source:
+            return None
+        sw = np.asarray(dist.net.problem.source(t0, t1), dtype=np.float64) \
+            if self.is_root else None
+        return dist.scatter(sw), sw
+
+    def source_power(self, sw):
+        return float(sw[1].sum()) if self.is_root else 0.0
+
+    def ledger(self, energy, h, tl, sw):
+        """This rank's part of the heat through the boundaries over ``h`` (the held rows at
+        their temperature); the source's on rank 0."""
+        dist = self.dist
+        tl = np.where(dist.free, tl, dist.held_t)
+        energy += h * (dist.partial_flows(tl, dist.matvec(tl)) + self.const_b)
+        if sw is not None:
+            _source_ledger(self.net, energy, sw[1], h)
+
+    def record(self, k, tl, energy, src_energy, tk):
+        _record(self.dist, self.recorder, k, tl, energy, src_energy, tk)
+
+    def barrier(self):
+        self.dist.comm.barrier()
+
+    def finish(self, tl, energy, flags):
+        return _end_of_run(self.dist, tl, energy, flags)
+
+    def solver_info(self, solvers):
+        return dict(linear_solver=f"petsc-cg-{self.pc}", cg_iterations=self.iterations,
+                    **self.dist.info())
+
+
 def run_implicit(dist: DistributedNetwork, T0, times, *, dt, theta=1.0, scheme="theta",
                  startup_steps=None, t_start=None, tol=1e-12, pc="gamg",
                  progress=None) -> ThermalResult | None:
-    """theta / Rannacher / TR-BDF2 on the ranks: the in-process
-    :func:`~.implicit.run_implicit`'s schemes, start-up and ledger, each increment solved by
-    PETSc's CG + ``pc`` to the relative residual ``tol``. Result on rank 0 (None elsewhere)."""
-    if scheme not in SCHEMES:
-        raise ValueError(f"scheme = {scheme!r}: use one of {', '.join(SCHEMES)}")
-    if scheme == "theta" and not 0.0 <= theta <= 1.0:
-        raise ValueError(f"theta = {theta}: must be in [0, 1]")
-    if scheme != "theta":
-        theta = 0.5
-    if startup_steps is None:
-        startup_steps = RANNACHER_STEPS if scheme == "rannacher" else 0
-    startup_steps = int(startup_steps) if scheme != "theta" else 0
-    dt = float(dt)
-    if not dt > 0:
-        raise ValueError(f"dt = {dt}: the time step must be > 0")
-    pc = dist.preconditioner(pc)
-    start = {}
-
-    def prelude():
-        net = dist.net
-        T, t, step0, energy0, src, ref, _ = start_state(net, T0, t_start, "implicit")
-        start.update(T=T, ref=ref, energy0=energy0)
-        return dict(t=t, step0=step0, src=src, flags=list(net.flags),
-                    times=check_times(times, t))
-
-    p = dist.on_root(prelude)
-    times, t, step0 = p["times"], p["t"], p["step0"]
-    net = dist.net
-    const_b = np.asarray(net.constant_boundary_flow_w, dtype=np.float64) if dist.rank == 0 \
-        else np.zeros(dist.nb)
-    energy = start["energy0"].copy() if dist.rank == 0 else np.zeros(dist.nb)
-    src = [p["src"]]
-    c0 = time.perf_counter()
-    cache: dict = {}
-    iterations: list = []
-    factor_seconds = 0.0
-    free, cap = dist.free, dist.capacity
-
-    def solver_for(h, th):
-        nonlocal factor_seconds
-        for (h0, th0), s in cache.items():
-            if th0 == th and abs(h - h0) <= 1e-9 * h0:
-                return h0, s
-        f0 = time.perf_counter()
-        s = dist.ksp(dist.matrix(cap / h, th, free), tol, pc)
-        factor_seconds += time.perf_counter() - f0
-        cache[(h, th)] = s
-        return h, s
-
-    def rhs_at(tl, sw_local):
-        """F(T) = b + S - A T on the free rows, 0 on the held ones (as -K T_f - L_fd T_d + b_f
-        + S_f in-process: A T on a free row is K_ff T_f + L_fd T_d)."""
-        r = dist.b - dist.matvec(tl)
-        if sw_local is not None:
-            r = r + sw_local
-        return np.where(free, r, 0.0)
-
-    def flows(tl):
-        return dist.partial_flows(tl, dist.matvec(tl)) + const_b
-
-    rec = Recorder(net, times, start["ref"]) if dist.rank == 0 else None
-    plan = _plan(times, t, dt)
-    n_total = sum(n for n, _ in plan)
-    setup_seconds = time.perf_counter() - c0
-    tl = dist.scatter(start.get("T"))
-    done, step_seconds = 0, 0.0
-    dist.comm.barrier()
-    wall0 = time.perf_counter()
-    t_prev = t
-    for k, (tk, (n, h)) in enumerate(zip(times, plan)):
-        tk = float(tk)
-        if n:
-            if scheme == "tr-bdf2":
-                d, solver = solver_for(_TRB_D * h, 1.0)
-                h = d / _TRB_D
-            else:
-                h, solver = solver_for(h, theta)
-        for s in range(n):
-            t0 = t_prev + s * h
-            t1 = tk if s == n - 1 else t_prev + (s + 1) * h
-            s0 = time.perf_counter()
-            # the source's energy once per step; its ledger share with each flux evaluation
-            # below (the step's, or each half step's)
-            sw_local, sw_root = _source_step(dist, t0, t1, h, src)
-            if step0 + done < startup_steps:
-                hh, half = solver_for(0.5 * h, 1.0)
-                for _ in range(2):
-                    tl = tl + dist.solve(half, rhs_at(tl, sw_local), iterations)
-                    energy += hh * flows(tl)
-                    _source_ledger(net, energy, sw_root, hh)
-            elif scheme == "tr-bdf2":
-                d = _TRB_D * h
-                tn = tl.copy()
-                inc1 = dist.solve(solver, 2.0 * rhs_at(tn, sw_local), iterations)
-                tg = tn + inc1
-                inc2 = dist.solve(solver, rhs_at(tg, sw_local) + np.where(
-                    free, (_TRB_A1 / d) * (cap * inc1), 0.0), iterations)
-                t_theta = np.where(free, _TRB_W01 * (tn + tg) + _TRB_W2 * (tg + inc2), tl)
-                energy += h * flows(t_theta)
-                _source_ledger(net, energy, sw_root, h)
-                tl = tg + inc2
-            else:
-                inc = dist.solve(solver, rhs_at(tl, sw_local), iterations)
-                energy += h * flows(tl + theta * inc)
-                _source_ledger(net, energy, sw_root, h)
-                tl = tl + inc
-            step_seconds += time.perf_counter() - s0
-            done += 1
-            if progress is not None and dist.rank == 0:
-                progress(done, n_total, t1)
-        t_prev = tk
-        _record(dist, rec, k, tl, energy, src[0], tk)
-    wall = time.perf_counter() - wall0
-    end = _end_of_run(dist, tl, energy, p["flags"])
-    if end is None:
-        return None
-    T_end, energy_total, flags = end
-    prob = net.problem
-    state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=step0 + done,
-                        boundary_energy_j=energy_total, source_energy_j=src[0],
-                        reference_temperature_k=start["ref"], dt_s=dt, method="implicit")
-    return ThermalResult(
-        method=scheme_name(scheme, theta), times=times, temperature_k=rec.T,
-        boundary_heat_flow_w=rec.flow, boundary_energy_j=rec.energy,
-        source_energy_j=rec.source, stored_energy_j=rec.stored,
-        boundary_names=prob.boundary_names, source_boundary=prob.source_boundary, dt=dt,
-        dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=done,
-        wall_seconds=wall + setup_seconds,
-        contact_updates_per_second=(net.n_active_contacts * done / step_seconds
-                                    if step_seconds > 0 else float("nan")),
-        flags=tuple(flags),
-        info=dict(theta=theta, scheme=scheme, startup_steps=startup_steps,
-                  linear_solver=f"petsc-cg-{pc}", factorisations=len(cache),
-                  factor_seconds=factor_seconds, setup_seconds=setup_seconds,
-                  step_seconds=step_seconds, tol=tol, cg_iterations=iterations,
-                  steps_per_interval=[n for n, _ in plan], clusters=net.clusters.summary(),
-                  **dist.info()),
-        state=state)
+    """theta / Rannacher / TR-BDF2 on the ranks: the in-process time loop
+    (:func:`~.implicit.drive_implicit`) over this rank's rows, each increment solved by
+    PETSc's CG + ``pc`` to the relative residual ``tol``. Result on rank 0 (None elsewhere).
+    Collective."""
+    theta, startup_steps = scheme_args(scheme, theta, startup_steps)
+    op = DistributedOperator(dist, tol, dist.preconditioner(pc))
+    return drive_implicit(op, T0, times, dt=dt, theta=theta, scheme=scheme,
+                          startup_steps=startup_steps, t_start=t_start, progress=progress)
 
 
 # ----------------------------------------------------------------------------- steady
