@@ -250,13 +250,15 @@ def test_case12_reads_the_seed_campaign():
     from tdem_post.campaign_record import CampaignRecord
     from tdem_post.records import record_from_json
     from validation.case12_campaign import COMMITTED, SEEDS_COMMITTED, SeedExponents
-    seeds = record_from_json(SeedExponents, SEEDS_COMMITTED).numbers()
+    s = record_from_json(SeedExponents, SEEDS_COMMITTED)
     page = _seeds_in_the_page((framework.ROOT / "docs" / "campaign.md").read_text())
-    assert seeds == page
-    (b, sd), (tb, _) = seeds["gamma_exponent"], seeds["tau_exponent"]
+    assert page == dict(gamma_exponent=(s.gamma_exponent_mean, s.gamma_exponent_sd),
+                        seeds=s.seeds, tau_exponent=(s.tau_exponent_mean, s.tau_exponent_sd),
+                        gamma_paper_ratio=list(s.gamma_paper_over_paper))
+    b, sd = s.gamma_exponent_mean, s.gamma_exponent_sd
     assert b - 2 * sd > 0 > record_from_json(CampaignRecord, COMMITTED).paper_gamma["b"]
-    assert tb < 0
-    assert len(seeds["gamma_paper_ratio"]) == 7
+    assert s.tau_exponent_mean < 0
+    assert len(s.gamma_paper_over_paper) == 7
 
 
 def test_the_seed_record_refuses_a_missing_field(tmp_path):
