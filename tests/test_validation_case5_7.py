@@ -71,31 +71,31 @@ def test_the_printed_eq_18_19_fail_the_limits_the_corrected_ones_meet():
 def test_case5_quick_sphere_within_its_documented_error():
     from validation import case5_sphere
     from validation.framework import Context
-    res = case5_sphere.run(Context(5, quick=True))
-    rows = {r["label"]: r for r in res.numbers["rows"]}
+    res = case5_sphere.read_numbers(case5_sphere.run(Context(5, quick=True)).numbers)
+    rows = {r.label: r for r in res.rows}
     ours = rows["ours, bulk"]
-    assert ours["n_particles"] == 2011
+    assert ours.n_particles == 2011
     # Haddad's bulk Z 7.5 (the case's [neighbours] target) leaves a few particles without a
     # conducting pair: they are counted apart and kept out of the measures (free particles only)
-    assert ours["n_held"] > 300 and ours["unconnected"] < 0.01 * ours["n_particles"]
-    assert ours["n_free"] + ours["n_held"] + ours["unconnected"] == ours["n_particles"]
+    assert ours.n_held > 300 and ours.unconnected < 0.01 * ours.n_particles
+    assert ours.n_free + ours.n_held + ours.unconnected == ours.n_particles
     # the held shell lies inside the carving radius, by less than a mean radius
-    assert 0 < ours["r_carve_m"] - ours["r_held_m"] < 1e-3
+    assert 0 < ours.r_carve_m - ours.r_held_m < 1e-3
     # measured through bulk Z 7.5 (C_t from the cube's interior, 0.7795): centre -1.27 C, max
     # 3.86 C, RMS 1.10 C; whole-cube C_t, held planes (0.8479): centre +3.00 C; domain length
     # (0.8040): +0.39 C. Bounds: those + ~25 %.
-    assert abs(ours["centre_error_c"]) < 1.6
-    assert ours["max_abs_error_c"] < 4.8
-    assert ours["rms_error_c"] < 1.4
-    assert abs(rows["ours, held planes"]["centre_error_c"]) < 3.8
+    assert abs(ours.centre_error_c) < 1.6
+    assert ours.max_abs_error_c < 4.8
+    assert ours.rms_error_c < 1.4
+    assert abs(rows["ours, held planes"].centre_error_c) < 3.8
     # a larger C_t heats the centre faster
-    assert rows["ours, held planes"]["centre_error_c"] > ours["centre_error_c"]
+    assert rows["ours, held planes"].centre_error_c > ours.centre_error_c
     # the centre warms monotonically towards the surface temperature
-    c = np.array(ours["centre_dem_c"])
+    c = np.array(ours.centre_dem_c)
     assert np.all(np.diff(c) > 0) and 20.0 < c[0] and c[-1] < 200.0
     # the implicit runs of the speed figure approach the explicit one (20 CN steps: -1.56 C
     # against -1.27 C; the time error at 20 steps is a few tenths of a degree here)
-    assert abs(res.numbers["speed"][-1]["centre_error_c"] - ours["centre_error_c"]) < 0.5
+    assert abs(res.speed[-1].centre_error_c - ours.centre_error_c) < 0.5
 
 
 @pytest.mark.yade      # `tdem pack` (YADE) tiles its packing into validation/out when missing
@@ -153,8 +153,10 @@ def test_case5_quotes_case7_from_its_record(monkeypatch):
         {100_031: 0.031, 499_972: 0.017})
     import types
     main = types.SimpleNamespace(r_carve_m=0.0501, r_held_m=0.0494)
-    calib = {10_000: dict(ct_bulk=1.0, ct_domain_mean=1.03, ct_held_mean=1.06),
-             1_000_000: dict(ct_bulk=1.0)}
+    calib = {10_000: case5_sphere.CubeCalibration(
+        ct_bulk=1.0, n_inner=1, n_particles=1, seconds=0.0, version=3, ct_domain_mean=1.03,
+        ct_held_mean=1.06), 1_000_000: case5_sphere.CubeCalibration(
+        ct_bulk=1.0, n_inner=1, n_particles=1, seconds=0.0, version=3)}
     monkeypatch.setattr(framework, "load_result", lambda n: seven if n == 7 else None)
     facts = case5_sphere._cross_case_facts(main, calib)
     assert facts["case7"] == ": the interior carries 3.1 % more than Q/A at 1e5, 1.7 % at 5e5"
@@ -165,21 +167,26 @@ def test_case5_quotes_case7_from_its_record(monkeypatch):
     assert case5_sphere._cross_case_facts(main, calib)["case7"] == ""
 
 
-def test_case5_runs_are_records():
-    """Case 5's saved runs read back as SphereRun records and write back to the same data (the
-    shell profiles stay in the cache); a run missing its centre error is refused in one line."""
+def test_case5_numbers_are_records():
+    """Case 5's saved numbers read back as one SphereResult (its runs SphereRun records, the
+    cubes CubeCalibration, the paper's conventions a record) and write back to the same JSON;
+    a run missing its centre error, or an unknown field, is refused in one line (by the judge
+    too)."""
     import json
 
-    from tdem_post.records import RecordError
+    from tdem_post.records import RecordError, to_dict
     from validation import case5_sphere, framework
     numbers = framework.load_result(5)["result"]["numbers"]
-    rows = case5_sphere.read_runs(numbers["rows"])
-    assert case5_sphere._saved(rows) == numbers["rows"]
-    assert case5_sphere._saved(case5_sphere.read_runs(numbers["speed"])) == numbers["speed"]
-    bad = json.loads(json.dumps(numbers["rows"][0]))
-    del bad["centre_error_c"]
+    m = case5_sphere.read_numbers(numbers)
+    assert json.dumps(to_dict(m)) == json.dumps(numbers)
+    assert m.paper_conventions.n_particles == m.n_particles and m.rows[0].shells is None
+    assert m.calibration["100000"].ct_bulk == m.ct_ours
+    bad = json.loads(json.dumps(numbers))
+    del bad["rows"][0]["centre_error_c"]
     with pytest.raises(RecordError, match=r"rows\[0\]: centre_error_c: missing"):
-        case5_sphere.read_runs([bad])
+        case5_sphere.judge(bad)
+    with pytest.raises(RecordError, match="orders: unknown field"):
+        case5_sphere.read_numbers(dict(numbers, orders={}))
 
 
 def test_case7_records_round_trip():

@@ -146,9 +146,57 @@ def read_runs(runs: list, where: str = "case 5: rows") -> list[SphereRun]:
                       f"{where}[{k}]") for k, r in enumerate(runs)]
 
 
-def _saved(runs: list[SphereRun]) -> list[dict]:
-    """The runs as the saved result holds them (the shell profiles left in the cache)."""
-    return [to_dict(dataclasses.replace(r, shells=None)) for r in runs]
+@dataclass(frozen=True, kw_only=True)
+class CubeCalibration:
+    """C_t of the cube carved from the same cell as a ball (:func:`interior_ct`, and up to 1e5
+    :func:`calibrate_box`'s whole-cube flux tests per axis, both length conventions; cached
+    under validation/out/case5): dimensionless C_t, the seconds of the last of the two."""
+    ct_bulk: float
+    n_inner: int
+    n_particles: int
+    seconds: float
+    version: int
+    axes: str | None = field(default=None, metadata=_OPT)
+    ct_domain: tuple[float, ...] | None = field(default=None, metadata=_OPT)
+    ct_held: tuple[float, ...] | None = field(default=None, metadata=_OPT)
+    balance: tuple[float, ...] | None = field(default=None, metadata=_OPT)
+    ct_domain_mean: float | None = field(default=None, metadata=_OPT)
+    ct_held_mean: float | None = field(default=None, metadata=_OPT)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PaperConventions:
+    """The 1e5 ball with the paper's conventions (C_t of the whole-cube test with the domain
+    length, the analytical sphere of the carving radius): errors at t = 10 s in °C."""
+    n_particles: int
+    ct: float
+    max_abs_error_c: float
+    argmax_r_over_R: float
+    centre_error_c: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class SphereResult:
+    """Case 5's saved ``numbers``: the main ball (1e5, our bulk C_t) and its errors at t = 10 s
+    (°C), the paper's conventions, the log-log slopes of the errors against N (N >= 1e4), every
+    run, the cubes' calibrations by N (as text) and the implicit runs against steps."""
+    n_particles: int
+    ct_ours: float
+    centre_error_c: float
+    max_abs_error_c: float
+    rms_error_c: float
+    paper_conventions: PaperConventions | None
+    order_centre_error: float
+    order_max_abs_error: float
+    order_rms_error: float
+    rows: tuple[SphereRun, ...]
+    calibration: dict[str, CubeCalibration]
+    speed: tuple[SphereRun, ...]
+
+
+def read_numbers(numbers: dict) -> SphereResult:
+    """Case 5's saved numbers as its record (a missing or unknown field: RecordError)."""
+    return from_dict(SphereResult, numbers, "case 5: numbers")
 
 
 def scene_text(packing: str, ct: float, surface: str | None = "surface") -> str:
@@ -307,24 +355,23 @@ def judge(numbers: dict) -> Judgement:
     sphere at t = 10 s (1.93 °C, at the centre). Judged on the max over particles with the
     paper's conventions (C_t from the whole-cube flux test with the domain length, the sphere's
     domain radius) when measured; else on the max with tdem's own calibration, said so."""
-    paper = numbers.get("paper_conventions")
-    if paper:
-        at = (f"N {paper['n_particles']:,}, paper's conventions (C_t {paper['ct']:.3f} of the "
-              f"whole-cube test, domain radius): max {paper['max_abs_error_c']:.2f} °C, centre "
-              f"{paper['centre_error_c']:+.2f} °C")
-        if "max_abs_error_c" in numbers:
-            at += (f"; tdem's own reading (the cube's interior C_t {numbers['ct_ours']:.3f}, the "
-                   f"held-shell radius R_h): max {numbers['max_abs_error_c']:.2f} °C, centre "
-                   f"{numbers['centre_error_c']:+.2f} °C")
-        met = paper["max_abs_error_c"] <= 1.0
-    elif "max_abs_error_c" in numbers:
-        at = (f"N {numbers['n_particles']:,}: max {numbers['max_abs_error_c']:.2f} °C, centre "
-              f"{numbers['centre_error_c']:+.2f} °C (tdem's held-plane C_t "
-              f"{numbers['ct_ours']:.3f}; the paper's conventions not yet measured)")
-        met = numbers["max_abs_error_c"] <= 1.0
-    else:
+    if not numbers:
         return Judgement("not measured", "", None)
-    rows = sorted(read_runs(numbers.get("rows", [])), key=lambda r: r.n_particles)
+    m = read_numbers(numbers)
+    paper = m.paper_conventions
+    if paper:
+        at = (f"N {paper.n_particles:,}, paper's conventions (C_t {paper.ct:.3f} of the "
+              f"whole-cube test, domain radius): max {paper.max_abs_error_c:.2f} °C, centre "
+              f"{paper.centre_error_c:+.2f} °C; tdem's own reading (the cube's interior C_t "
+              f"{m.ct_ours:.3f}, the held-shell radius R_h): max {m.max_abs_error_c:.2f} °C, "
+              f"centre {m.centre_error_c:+.2f} °C")
+        met = paper.max_abs_error_c <= 1.0
+    else:
+        at = (f"N {m.n_particles:,}: max {m.max_abs_error_c:.2f} °C, centre "
+              f"{m.centre_error_c:+.2f} °C (tdem's held-plane C_t "
+              f"{m.ct_ours:.3f}; the paper's conventions not yet measured)")
+        met = m.max_abs_error_c <= 1.0
+    rows = sorted(m.rows, key=lambda r: r.n_particles)
     reached = [r for r in rows if r.max_abs_error_c <= 1.93]
     speed = (f"the paper's 1.93 °C first at N {reached[0].n_particles:,} (thermal "
              f"{reached[0].run_seconds:.0f} s)" if reached else "")
@@ -337,7 +384,7 @@ def judge(numbers: dict) -> Judgement:
              if dom else "")
     verdict = ("met" if met else "not met") + (
         " with the paper's conventions" + ("" if met else (
-            f" (max {paper['max_abs_error_c']:.2f} °C, below the paper's own 1.93 °C but above "
+            f" (max {paper.max_abs_error_c:.2f} °C, below the paper's own 1.93 °C but above "
             f"1 °C): the error is a boundary offset of a fraction of a sphere{swing} first order "
             "in r̄/R, so it falls as N^-1/3")) if paper else
         " with tdem's own calibration (max over particles, not the centre alone); the paper's "
@@ -388,13 +435,15 @@ def run(ctx: Context) -> CaseResult:
     # speed against error: Rannacher CN at the paper's 1e5 (quick: the small sphere)
     n_speed = 100_000 if not ctx.quick else next(iter(sizes))
     sphere_name = sizes[n_speed][0]
-    ct_ours = calib[n_speed]["ct_bulk"]
+    ct_ours = calib[n_speed]["ct_bulk"]       # (the cached dicts, records after the runs)
     for steps in (5, 10, 20, 40, 80) if not ctx.quick else (5, 20):
         ctx.progress(f"N {n_speed}: Rannacher CN, {steps} steps")
         rec = _cached(out / f"cn_{sphere_name}_{steps}.json",
                       lambda steps=steps: sphere_run(ctx.packing(sphere_name), ct_ours,
                                                      method="rannacher", steps=steps))
         speed.append(rec)
+    calib = {n: from_dict(CubeCalibration, c, f"case 5: calibration {n}")
+             for n, c in calib.items()}
     return _report(ctx, read_runs(rows), calib, read_runs(speed, "case 5: speed"), n_speed,
                    fields)
 
@@ -601,8 +650,8 @@ def _cross_case_facts(main, calib) -> dict:
     record (nothing when case 7 has none)."""
     from validation import framework
     from validation.case7_halo import interior_excess
-    whole = [c[k] / c["ct_bulk"] - 1 for c in calib.values()
-             for k in ("ct_domain_mean", "ct_held_mean") if k in c]
+    whole = [v / c.ct_bulk - 1 for c in calib.values()
+             for v in (c.ct_domain_mean, c.ct_held_mean) if v is not None]
     record7 = framework.load_result(7)
     excess = interior_excess(record7["result"]["numbers"]) if record7 else {}
     case7 = ("" if not excess else ": the interior carries " + ", ".join(
@@ -644,17 +693,14 @@ def _paper_texts(by: dict, main: dict) -> dict:
     # the paper's conventions (002 sec. 2.1-2.3): C_t of the whole-cube flux test with the
     # domain length (002 eq. 8), the analytical sphere of the domain's radius (R_carve)
     pc = by.get((100_000, "ours, domain length"))
-    paper_conv = None
-    if pc:
-        paper_conv = {"n_particles": pc.n_particles, "ct": pc.ct,
-                      "max_abs_error_c": pc.max_abs_error_carve_radius_c,
-                      "argmax_r_over_R": pc.argmax_carve_r_over_R,
-                      "centre_error_c": pc.centre_error_carve_radius_c}
+    paper_conv = None if pc is None else PaperConventions(
+        n_particles=pc.n_particles, ct=pc.ct, max_abs_error_c=pc.max_abs_error_carve_radius_c,
+        argmax_r_over_R=pc.argmax_carve_r_over_R, centre_error_c=pc.centre_error_carve_radius_c)
     paper_conv_txt = (
-        f"**With the paper's conventions** (C_t {paper_conv['ct']:.4f} from the whole-cube flux "
+        f"**With the paper's conventions** (C_t {paper_conv.ct:.4f} from the whole-cube flux "
         "test with the domain length, 002 eq. 8; the analytical sphere of the domain radius "
-        f"R_carve): max |T − T_exact| **{paper_conv['max_abs_error_c']:.2f} °C** (at r/R = "
-        f"{paper_conv['argmax_r_over_R']:.2f}), centre {paper_conv['centre_error_c']:+.2f} °C — "
+        f"R_carve): max |T − T_exact| **{paper_conv.max_abs_error_c:.2f} °C** (at r/R = "
+        f"{paper_conv.argmax_r_over_R:.2f}), centre {paper_conv.centre_error_c:+.2f} °C — "
         "the column the summary judges (target ≤ 1 °C; the paper 1.93 °C)."
         if paper_conv else "The paper's conventions (whole-cube C_t with the domain length, "
         "domain radius) were not run at 1e5 here.")
@@ -691,9 +737,9 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
     n_fmt = ", ".join(f"{r.n_particles:,}" for r in rows if r.label == PRIMARY)
     table = "\n".join(_fmt_row(r) for r in rows)
     cal_rows = "\n".join(
-        f"| {c['n_particles']:,} | {c['ct_bulk']:.4f} | "
-        + (f"{c['ct_domain_mean']:.4f} | {c['ct_held_mean']:.4f} | "
-           f"{' / '.join(f'{v:.4f}' for v in c['ct_held'])} |" if "ct_held" in c
+        f"| {c.n_particles:,} | {c.ct_bulk:.4f} | "
+        + (f"{c.ct_domain_mean:.4f} | {c.ct_held_mean:.4f} | "
+           f"{' / '.join(f'{v:.4f}' for v in c.ct_held)} |" if c.ct_held is not None
            else "— | — | — |") for c in calib.values())
     speed_rows = "\n".join(
         f"| {r.steps} | {r.run_seconds:.2f} | {r.centre_error_c:+.3f} | "
@@ -701,6 +747,14 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
     t = _paper_texts(by, main)
     paper_txt, paper_conv, paper_conv_txt = t["paper_txt"], t["paper_conv"], t["paper_conv_txt"]
     big_txt, big_limit = t["big_txt"], t["big_limit"]
+    m = SphereResult(
+        n_particles=main.n_particles, ct_ours=main.ct, centre_error_c=main.centre_error_c,
+        max_abs_error_c=main.max_abs_error_c, rms_error_c=main.rms_error_c,
+        paper_conventions=paper_conv, order_centre_error=orders["centre_error_c"],
+        order_max_abs_error=orders["max_abs_error_c"], order_rms_error=orders["rms_error_c"],
+        rows=tuple(dataclasses.replace(r, shells=None) for r in rows),
+        calibration={str(k): v for k, v in calib.items()},
+        speed=tuple(dataclasses.replace(r, shells=None) for r in speed))
     section = f"""
 Setup (002 sec. 2.3): a ball of aluminium (ρ 2700 kg/m³, λ 185 W/m/K, c 900 J/kg/K) at
 T_0 = 20 °C whose surface is held at T_s = 200 °C from t = 0; law haddad; forward Euler (the
@@ -772,8 +826,8 @@ about 6 ΔR/R of the centre's excess temperature at this Fourier number.
 ![profile at t = 10 s](img/validation_case5_profile.png)
 
 **Convergence with N** (our bulk C_t): slopes fitted over N ≥ 1e4, log-log —
-centre error {orders['centre_error_c']:.2f}, max error {orders['max_abs_error_c']:.2f}, RMS
-{orders['rms_error_c']:.2f}: all fall about as N^(-1/3), i.e. as the particle size over R. The
+centre error {m.order_centre_error:.2f}, max error {m.order_max_abs_error:.2f}, RMS
+{m.order_rms_error:.2f}: all fall about as N^(-1/3), i.e. as the particle size over R. The
 leading error is the held layer: the ball behaves as a continuum sphere slightly larger than the
 held shell (the centre error changes sign between R_h and R_carve, ~{facts['gap_mm']:.1f} mm = \
 {facts['gap_mm']:.1f} mean radii
@@ -815,11 +869,5 @@ other cells (seeds), not done here. {big_limit}
         verdict=("goal ≤ 1 °C at 1e5 " + ("met" if met else "not met")
                  + " with our calibrated C_t; the paper's C_t does not transfer to our packing"),
         section_md=section,
-        numbers={"centre_error_c": main.centre_error_c, "paper_conventions": paper_conv,
-                 "max_abs_error_c": main.max_abs_error_c,
-                 "rms_error_c": main.rms_error_c, "ct_ours": main.ct,
-                 "n_particles": main.n_particles, "orders": orders,
-                 "rows": _saved(rows),
-                 "calibration": {str(k): v for k, v in calib.items()},
-                 "speed": _saved(speed)},
+        numbers=to_dict(m),
         command="")
