@@ -102,16 +102,15 @@ def test_case5_quick_sphere_within_its_documented_error():
 def test_case7_quick_halo_cov_within_its_documented_bounds():
     from validation import case7_halo
     from validation.framework import Context
-    res = case7_halo.run(Context(7, quick=True))
-    rec = res.numbers["records"][0]
-    assert rec["n_particles"] == 2017 and rec["balance"] < 1e-9
-    cov = {r["ratio"]: r["cov_abs"] for r in rec["rows"]}            # halo ratio x mean radius
-    own = {r["ratio"]: r["cov_abs"] for r in rec["rows_own"]}        # halo ratio x R_p
+    rec = case7_halo.read_numbers(case7_halo.run(Context(7, quick=True)).numbers).records[0]
+    assert rec.n_particles == 2017 and rec.balance < 1e-9
+    cov = {r.ratio: r.cov_abs for r in rec.rows}            # halo ratio x mean radius
+    own = {r.ratio: r.cov_abs for r in rec.rows_own}        # halo ratio x R_p
     # measured on the 2,017-sphere cube through Haddad's bulk Z 7.5 (the scenes' neighbour
     # criterion), common radius: 44.2 % raw, 19.6 % at 2, 7.4 % at 3, 4.7 % at 4, 2.6 % at 6;
     # own radius: 37.2 % at 2, 17.4 % at 3, 6.9 % at 4, 4.3 % at 6 (ratios above 6 leave fewer
     # than 200 particles with the halo inside)
-    assert rec["neighbours"]["bulk_z"] == pytest.approx(7.5, abs=0.05)
+    assert rec.neighbours["bulk_z"] == pytest.approx(7.5, abs=0.05)
     assert 0.30 < cov[0.0] < 0.50
     assert cov[4.0] < 0.055 and cov[6.0] < 0.032
     assert own[4.0] < 0.08 and own[6.0] < 0.052
@@ -125,15 +124,15 @@ def test_case7_quick_halo_cov_within_its_documented_bounds():
     # the raw CoV per unit solid volume is well below the per-particle one (eq. 20's 1/V_p:
     # 33.5 % against 44.2 %); through every dumped pair (bulk Z 8.9) both are lower (26.6 /
     # 39.2 %): fewer links raise the scatter
-    z75, every = rec["z_rows"]
-    assert z75["cov_volume"] < 0.85 * z75["cov_number"]
-    assert every["z_bulk"] > 8.5 and every["cov_number"] < z75["cov_number"]
-    assert every["cov_volume"] < z75["cov_volume"]
+    z75, every = rec.z_rows
+    assert z75.cov_volume < 0.85 * z75.cov_number
+    assert every.z_bulk > 8.5 and every.cov_number < z75.cov_number
+    assert every.cov_volume < z75.cov_volume
     # the Halo average keeps the mean flux near the macroscopic one (measured 1.065-1.086 on
     # this small cube from a 400-sphere cell: the inner particles carry ~8 % more than Q/A)
-    for r in rec["rows"] + rec["rows_own"]:
-        if r["ratio"] >= 4:
-            assert 0.95 < r["mean_x"] < 1.15
+    for r in rec.rows + rec.rows_own:
+        if r.ratio >= 4:
+            assert 0.95 < r.mean_x < 1.15
 
 
 def test_case5_quotes_case7_from_its_record(monkeypatch):
@@ -190,17 +189,27 @@ def test_case5_numbers_are_records():
 
 
 def test_case7_records_round_trip():
-    """Case 7's saved cubes read back as HaloRecord records (a HaloRow per ratio and radius)
-    and write back to the same data; a row without its CoV is refused in one line."""
+    """Case 7's saved numbers read back as one HaloResult (its cubes HaloRecord records, a
+    HaloRow per ratio and radius, the raw scatter and the neighbour criteria records too) and
+    write back to the same JSON; a row without its CoV, or an unknown field, is refused in one
+    line."""
     import json
 
     from tdem_post.records import RecordError, to_dict
     from validation import case7_halo, framework
     numbers = framework.load_result(7)["result"]["numbers"]
-    recs = case7_halo.read_records(numbers["records"])
-    assert json.dumps([to_dict(r) for r in recs]) == json.dumps(numbers["records"])
-    assert case7_halo._at(recs[0], 4.0) == numbers["cov_ratio4"]
-    bad = json.loads(json.dumps(numbers["records"][0]))
-    del bad["rows"][3]["cov_abs"]
+    m = case7_halo.read_numbers(numbers)
+    assert json.dumps(to_dict(m)) == json.dumps(numbers)
+    assert case7_halo._at(m.records[0], 4.0) == m.cov_ratio4
+    assert m.records[0].raw.cov_number == m.cov_raw
+    assert m.records[0].z_rows[0].halo4 == m.cov_ratio4
+    bad = json.loads(json.dumps(numbers))
+    del bad["records"][0]["rows"][3]["cov_abs"]
     with pytest.raises(RecordError, match=r"records\[0\]: rows\[3\]: cov_abs: missing"):
-        case7_halo.read_records([bad])
+        case7_halo.read_numbers(bad)
+    bad = json.loads(json.dumps(numbers))
+    bad["records"][1]["z_rows"][0]["bulk_z"] = bad["records"][1]["z_rows"][0].pop("z_bulk")
+    with pytest.raises(RecordError, match=r"records\[1\]: z_rows\[0\]: z_bulk: missing.*'bulk_z'"):
+        case7_halo.cov_at(bad)
+    with pytest.raises(RecordError, match="cov_ratio_4: unknown field"):
+        case7_halo.read_numbers(dict(numbers, cov_ratio_4=0.05))

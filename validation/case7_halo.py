@@ -270,6 +270,36 @@ class HaloRow:
 
 
 @dataclass(frozen=True, kw_only=True)
+class RawScatter:
+    """eq. 20's flux (no halo) over the free particles at least one radius inside the cube: the
+    CoV of |q| per particle and volume-weighted, per particle over the smaller and the larger
+    half of the radii, and the mean |q| / (Q/A)."""
+    n_inside: int
+    cov_number: float
+    cov_volume: float
+    cov_number_small_half: float
+    cov_number_large_half: float
+    mean_abs: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class ZRow:
+    """One neighbour criterion (its relative gap and bulk Z): the Halo CoV of |q| at ratios 4
+    and 11 (common radius) through it, then the raw scatter's fields (:class:`RawScatter`)."""
+    criterion: str
+    gap: float
+    z_bulk: float
+    halo4: float
+    halo11: float
+    n_inside: int
+    cov_number: float
+    cov_volume: float
+    cov_number_small_half: float
+    cov_number_large_half: float
+    mean_abs: float
+
+
+@dataclass(frozen=True, kw_only=True)
 class HaloRecord:
     """One cube of the case (:func:`halo_cov`, cached under validation/out/case7): its steady
     slab, the rows of the two halo radii, the raw flux's scatter (``raw``), the scatter
@@ -286,8 +316,8 @@ class HaloRecord:
     r3_mean_over_r_mean3: float
     rows: tuple[HaloRow, ...]
     rows_own: tuple[HaloRow, ...]
-    raw: dict
-    z_rows: tuple[dict, ...]
+    raw: RawScatter
+    z_rows: tuple[ZRow, ...]
     neighbours: dict | None
     version: int
     name: str | None = field(default=None, metadata=column(optional=True))
@@ -299,6 +329,34 @@ def read_records(recs: list) -> list[HaloRecord]:
     line."""
     return [r if isinstance(r, HaloRecord) else from_dict(HaloRecord, r, f"case 7: records[{k}]")
             for k, r in enumerate(recs)]
+
+
+@dataclass(frozen=True, kw_only=True)
+class HaloResult:
+    """Case 7's saved ``numbers`` (CoV dimensionless): at the main N (1e5) the raw CoV of |q|
+    (per particle, volume-weighted) and the Halo CoV at ratios 4 and 11 (common and own
+    radius); by N (as text) the halo ratios where the CoV crosses 5 % and 2 %; the slopes of
+    log CoV against log ratio by "N_kind"; issue 23's judged values by "N_ratio"; every cube's
+    record."""
+    n_particles: int
+    cov_raw: float
+    cov_raw_volume_weighted: float
+    cov_ratio4: float
+    cov_ratio11: float
+    cov_ratio4_own: float
+    cov_ratio11_own: float
+    ratio_at_5pct: dict[str, float]
+    ratio_at_2pct: dict[str, float]
+    ratio_at_5pct_own: dict[str, float]
+    ratio_at_2pct_own: dict[str, float]
+    slopes: dict[str, float]
+    target: dict[str, float]
+    records: tuple[HaloRecord, ...]
+
+
+def read_numbers(numbers: dict) -> HaloResult:
+    """Case 7's saved numbers as its record (a missing or unknown field: RecordError)."""
+    return from_dict(HaloResult, numbers, "case 7: numbers")
 
 
 def _rows(rec, kind="common"):
@@ -317,14 +375,14 @@ def interior_excess(numbers: dict, ratio: float = 4.0) -> dict[int, float]:
     radius), how much more than the average flux the cube's interior carries (the layers along
     its adiabatic cut faces conduct less). Other cases quote it from here, not by hand."""
     return {int(r.n_particles): _at(r, ratio, "mean_x") - 1.0
-            for r in read_records(numbers.get("records", []))}
+            for r in read_numbers(numbers).records} if numbers else {}
 
 
 def cov_at(numbers: dict, ratio: float = 11.0) -> dict[str, float]:
     """From case 7's saved numbers: the CoV of |q| over the particles at the Halo ``ratio`` on
     the 1e5 cube in its uniform field, {"common": ..., "own": ...} by halo radius ({} without a
     1e5 record). Other cases quote it from here, not by hand."""
-    recs = read_records(numbers.get("records", []))
+    recs = read_numbers(numbers).records if numbers else ()
     main = next((r for r in recs if r.n_nominal == 100_000), None)
     return {} if main is None else {k: _at(main, ratio, "cov_abs", k) for k in ("common", "own")}
 
@@ -357,8 +415,8 @@ def _figure_cov(ctx, recs) -> dict:
             if fit.sum() >= 2:
                 slopes[f"{rec.n_particles}_{kind}"] = float(
                     np.polyfit(np.log(x[fit]), np.log(y[fit]), 1)[0])
-        ax.loglog([1.0], [100 * rec.raw["cov_number"]], "o", color=f"C{k}")
-        ax.loglog([1.0], [100 * rec.raw["cov_volume"]], "s", mfc="none", color=f"C{k}")
+        ax.loglog([1.0], [100 * rec.raw.cov_number], "o", color=f"C{k}")
+        ax.loglog([1.0], [100 * rec.raw.cov_volume], "s", mfc="none", color=f"C{k}")
     ax.loglog([p[0] for p in PAPER], [p[1] for p in PAPER], "r*", ms=12,
               label="002 (values in its text; raw at ratio 1)")
     ax.axhline(5, color="0.6", lw=0.6)
@@ -478,14 +536,14 @@ def _tables(recs, slopes) -> tuple:
         lines.append(f"| {ratio:g}{note} | " + " | ".join(cells) + " |")
     table = "\n".join([header, sep] + lines)
     raw_lines = "\n".join(
-        f"| {rec.n_particles:,} | {_pct(rec.raw['cov_number'], 1)} | "
-        f"{_pct(rec.raw['cov_volume'], 1)} | {_pct(rec.raw['cov_number_small_half'], 1)}"
-        f" | {_pct(rec.raw['cov_number_large_half'], 1)} | {rec.raw['n_inside']:,} |"
+        f"| {rec.n_particles:,} | {_pct(rec.raw.cov_number, 1)} | "
+        f"{_pct(rec.raw.cov_volume, 1)} | {_pct(rec.raw.cov_number_small_half, 1)}"
+        f" | {_pct(rec.raw.cov_number_large_half, 1)} | {rec.raw.n_inside:,} |"
         for rec in recs)
     z_lines = "\n".join(
-        f"| {rec.n_particles:,} | {z['criterion']} | {z['gap']:.4f} | {z['z_bulk']:.2f} | "
-        f"{_pct(z['cov_number'], 1)} | {_pct(z['cov_volume'], 1)} | {_pct(z['halo4'])} | "
-        f"{_pct(z['halo11'])} |"
+        f"| {rec.n_particles:,} | {z.criterion} | {z.gap:.4f} | {z.z_bulk:.2f} | "
+        f"{_pct(z.cov_number, 1)} | {_pct(z.cov_volume, 1)} | {_pct(z.halo4)} | "
+        f"{_pct(z.halo11)} |"
         for rec in recs for z in rec.z_rows)
     r5 = {rec.n_particles: _ratio_for(rec, 0.05) for rec in recs}
     r2 = {rec.n_particles: _ratio_for(rec, 0.02) for rec in recs}
@@ -540,7 +598,7 @@ def _summary(recs, main, slopes, quick=False) -> CaseResult:
     ns = [r.n_particles for r in recs]
     table, raw_lines, z_lines, ratio_lines, (r5, r2, r5o, r2o) = _tables(recs, slopes)
     n_main = main.n_particles
-    raw_n, raw_v = main.raw["cov_number"], main.raw["cov_volume"]
+    raw_n, raw_v = main.raw.cov_number, main.raw.cov_volume
     c4, c11 = _at(main, 4.0), _at(main, 11.0)
     o4, o11 = _at(main, 4.0, kind="own"), _at(main, 11.0, kind="own")
     mean_x4 = _at(main, 4.0, "mean_x")
@@ -552,19 +610,19 @@ def _summary(recs, main, slopes, quick=False) -> CaseResult:
     z = main.z_rows
     z75, zall = (z[0], z[1]) if len(z) > 1 else (None, None)
     z_text = ("" if z75 is None else
-              f"Through 002's coordination (bulk Z {z75['z_bulk']:.2f}, relative gap ≤ "
-              f"{z75['gap']:.3f}) the raw CoV at {n_main:,} is {_pct(z75['cov_number'], 1)} per "
-              f"particle and {_pct(z75['cov_volume'], 1)} volume-weighted; through every dumped "
-              f"pair (bulk Z {zall['z_bulk']:.2f}) {_pct(zall['cov_number'], 1)} and "
-              f"{_pct(zall['cov_volume'], 1)}: "
+              f"Through 002's coordination (bulk Z {z75.z_bulk:.2f}, relative gap ≤ "
+              f"{z75.gap:.3f}) the raw CoV at {n_main:,} is {_pct(z75.cov_number, 1)} per "
+              f"particle and {_pct(z75.cov_volume, 1)} volume-weighted; through every dumped "
+              f"pair (bulk Z {zall.z_bulk:.2f}) {_pct(zall.cov_number, 1)} and "
+              f"{_pct(zall.cov_volume, 1)}: "
               + ("fewer links per sphere *raise* the raw scatter (each sphere's flux is an "
                  "average over fewer contacts), so a higher Z does not explain why ours is "
                  "above the paper's 27 % (before issue 23 this section said it might)."
-                 if z75["cov_number"] > zall["cov_number"] else
+                 if z75.cov_number > zall.cov_number else
                  "fewer links lower the raw scatter here.")
-              + f" The Halo CoV follows: {_pct(z75['halo4'])} / {_pct(z75['halo11'])} at "
-              f"ratios 4 / 11 through Z 7.5 against {_pct(zall['halo4'])} / "
-              f"{_pct(zall['halo11'])} through every dumped pair.")
+              + f" The Halo CoV follows: {_pct(z75.halo4)} / {_pct(z75.halo11)} at "
+              f"ratios 4 / 11 through Z 7.5 against {_pct(zall.halo4)} / "
+              f"{_pct(zall.halo11)} through every dumped pair.")
     speed_n = min(recs, key=lambda r: r.n_particles)
     t11 = _at(speed_n, 11.0, "seconds_per_particle") * speed_n.n_particles
     speed = ("the CoV does not depend on N (the paper's finding, and ours: "
@@ -691,14 +749,20 @@ consistent, but it is no longer centred on p) — case 9 measures what that does
                  f"common halo radius; N-independent as in the paper; raw {_pct(raw_n, 0)} "
                  f"per particle / {_pct(raw_v, 0)} volume-weighted (paper 27 %)"),
         section_md=section,
-        numbers={"n_particles": n_main, "cov_raw": raw_n, "cov_raw_volume_weighted": raw_v,
-                 "cov_ratio4": c4, "cov_ratio11": c11, "cov_ratio4_own": o4,
-                 "cov_ratio11_own": o11, "ratio_at_5pct": r5, "ratio_at_2pct": r2,
-                 "ratio_at_5pct_own": r5o, "ratio_at_2pct_own": r2o, "slopes": slopes,
-                 "target": {f"{n}_{r:g}": v for (n, r), (v, _) in judged.items()},
-                 "records": [to_dict(r) for r in recs]},
+        numbers=to_dict(HaloResult(
+            n_particles=n_main, cov_raw=raw_n, cov_raw_volume_weighted=raw_v, cov_ratio4=c4,
+            cov_ratio11=c11, cov_ratio4_own=o4, cov_ratio11_own=o11,
+            ratio_at_5pct=_by_n(r5), ratio_at_2pct=_by_n(r2), ratio_at_5pct_own=_by_n(r5o),
+            ratio_at_2pct_own=_by_n(r2o), slopes=slopes,
+            target={f"{n}_{r:g}": v for (n, r), (v, _) in judged.items()},
+            records=tuple(recs))),
         command="tdem validate 7",
         at_paper_n=at_paper, speed_vs_error=speed, target_met=met)
+
+
+def _by_n(values: dict) -> dict[str, float]:
+    """{N as text: value} (a record's dict keys are text, as JSON keeps them)."""
+    return {str(n): v for n, v in values.items()}
 
 
 def _pack(name):
