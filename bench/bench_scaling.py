@@ -416,10 +416,14 @@ def document(data) -> str:
       "Per-rank reading (parallel HDF5 by blocks of the Morton order, each contact sent to "
       "its owners, the boundary kinds on a block), a distributed cluster search and parallel "
       "output are the next step; the cost model states what they change.\n")
-    w("Limits of the backend today: no checkpoints (`--checkpoint-every` and `--resume` are "
-      "refused with `--ranks`: in-process runs only); no progress bar; `tdem campaign` and "
-      "`tdem validate` run their cases in-process whatever the scene's `backend` (only "
-      "`tdem run` reads it); the preconditioner is GAMG unless PETSC_OPTIONS says "
+    w("As in-process: `--checkpoint-every K` and `--resume` (rank 0 gathers the state after "
+      "every K output times and writes the in-process checkpoint; either kind resumes on "
+      "either), rank 0 shows the in-process progress bar, and `tdem campaign` runs each case "
+      "on the ranks when the scene says `backend = \"petsc\"` (1 rank) or `--ranks N` is "
+      "given (`tests/test_petsc_backend.py`: a run resumed on 2 ranks from an in-process "
+      "checkpoint, and a campaign on the backend, give the in-process answers). Limits of the "
+      "backend today: `tdem validate` runs its cases in-process whatever the scene's "
+      "`backend`; the preconditioner is GAMG unless PETSC_OPTIONS says "
       "`-pc_type hypre` (hypre was faster here, the table; GAMG stays the default because it "
       "is part of every PETSc build, hypre an optional package).\n")
     w(f"## Measured ({data['date']}, this machine: 2 cores, shared)\n")

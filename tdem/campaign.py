@@ -99,15 +99,21 @@ def case_scenes(campaign_path: Path, conf: dict, text: str, out_dir: Path) -> di
     ``output`` relative to the case folder (thermal.h5, or [output] path)."""
     from thermal_kernel.laws import LAWS
     from thermal_kernel.scene import load_scene
-    data = {k: v for k, v in read_toml(campaign_path, text, error=UserError)[0].items()
-            if k not in ("pack", "campaign", "law")}
     placeholder = (out_dir / "packings" / "packing.h5").resolve()
     scenes = {}
     for law in conf["laws"]:
-        case = {"packing": str(placeholder), "law": law, **data}
         scenes[law] = load_scene(campaign_path, known_laws=LAWS, out_dir=Path("."), text=text,
-                                 data=case)
+                                 data=case_tables(campaign_path, text, law, placeholder))
     return scenes
+
+
+def case_tables(campaign_path: Path, text: str, law: str, packing: Path) -> dict:
+    """A case's scene as tables: the campaign file's without [pack] and [campaign], with
+    ``law`` and ``packing`` set (what :func:`case_scenes` parses; the PETSc backend's ranks
+    parse the same, :func:`_compute`)."""
+    data = {k: v for k, v in read_toml(campaign_path, text, error=UserError)[0].items()
+            if k not in ("pack", "campaign", "law")}
+    return {"packing": str(packing), "law": law, **data}
 
 
 def case_scene(base, packing: Path, case_dir: Path):
@@ -190,7 +196,8 @@ def _build_seed(campaign_path, generator, params, pdir, *, threads, quiet):
 
 
 def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads: int = 1,
-                 quiet: bool = False, repost: bool = False, jobs: int = 1) -> dict:
+                 quiet: bool = False, repost: bool = False, jobs: int = 1,
+                 ranks: int | None = None) -> dict:
     """Packings (YADE, ``yade_threads``; 1 keeps them bit-reproducible for a seed: YADE's
     parallel force summation order varies between runs), then thermal cases (numba, ``threads``).
     Finished cases are kept while they match their inputs (the hashes of the case's scene and
@@ -202,7 +209,11 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
     ``<out>/seed_<s>/`` (``packings/``, ``cases/``) and the report gives mean +- sd over the
     seeds. ``jobs`` = 1: seed after seed, each series built and then its cases run (an
     interrupted campaign has whole seeds done); ``jobs`` > 1: the missing series are built first,
-    ``jobs`` YADE processes at a time, then all the cases."""
+    ``jobs`` YADE processes at a time, then all the cases.
+
+    ``[solver] backend = "petsc"`` (or ``ranks``) runs each case's thermal solve on ``ranks``
+    MPI ranks (default 1) through PETSc, as ``tdem run --ranks`` (thermal_kernel/mpi_run.py):
+    the same thermal.h5, so the same post-processing and report."""
     from .pack import default_out_dir, read_pack_table
 
     campaign_path = Path(campaign_path)
@@ -211,6 +222,7 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
         raise UserError(f"--jobs: expected a number of YADE series at a time >= 1, got {jobs}")
     out_dir = Path(out_dir) if out_dir else default_out_dir(campaign_path)
     scenes = check_case_scenes(campaign_path, conf, text, out_dir)   # before YADE builds
+    ranks = _ranks(campaign_path, scenes, ranks)                     # before YADE builds too
     if conf["has_pack"]:                # [pack] checked before anything is made
         generator, _ = read_pack_table(campaign_path)
         if generator != "bed":
@@ -219,16 +231,34 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
     if conf["packings"] is not None:    # the listed files: every case checked on its packing
         check_cases(campaign_path, scenes, conf["packings"])
     run_args = dict(command="campaign", campaign=str(campaign_path), out=str(out_dir),
-                    threads=threads, repost=repost)
+                    threads=threads, repost=repost, **({} if ranks is None else
+                                                       {"ranks": ranks}))
     made = _missing_folders(out_dir)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         return _run_series(campaign_path, conf, scenes, out_dir, threads=threads,
                            yade_threads=yade_threads, quiet=quiet, repost=repost, jobs=jobs,
-                           run_args=run_args)
+                           run_args=run_args, ranks=ranks)
     except BaseException:
         _remove_empty(made)             # a refused campaign leaves no empty --out behind
         raise
+
+
+def _ranks(campaign_path, scenes, ranks):
+    """The MPI ranks the cases run on (None: in-process): ``ranks``, else 1 when the scene's
+    ``[solver] backend = "petsc"``; the PETSc venv and mpirun checked now (one line)."""
+    petsc = any(s.solver.backend == "petsc" for s in scenes.values())
+    if ranks is None and not petsc:
+        return None
+    ranks = 1 if ranks is None else int(ranks)
+    if ranks < 1:
+        raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
+    from thermal_kernel.solvers.mpi_launch import missing
+    why = missing()
+    if why is not None:
+        raise UserError(f"{campaign_path}: solver.backend: the PETSc backend cannot run here "
+                        f"({why})")
+    return ranks
 
 
 def _missing_folders(path: Path) -> list[Path]:
@@ -254,7 +284,7 @@ def _remove_empty(folders) -> None:
 
 
 def _run_series(campaign_path, conf, scenes, out_dir, *, threads, yade_threads, quiet, repost,
-                jobs, run_args):
+                jobs, run_args, ranks=None):
     from tdem_post.campaign_record import CaseRow
     start = time.time()
     seeds = conf["seeds"]
@@ -278,7 +308,7 @@ def _run_series(campaign_path, conf, scenes, out_dir, *, threads, yade_threads, 
             for law in conf["laws"]:
                 k += 1
                 summary = _run_case(scenes[law], conf, sdir, packing, repost, threads,
-                                    run_args, packing_hash=hashes[packing],
+                                    run_args, packing_hash=hashes[packing], ranks=ranks,
                                     label=f"[{k}/{n_cases}] "
                                           + (f"seed {seed} " if seed is not None else ""))
                 cases.append((summary, CaseRow.from_summary(
@@ -389,7 +419,7 @@ def _stale(summary: dict, thermal_path: Path, packing: Path, inputs: dict) -> li
 
 
 def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label,
-              packing_hash=None):
+              packing_hash=None, ranks=None):
     """One pressure x law case in ``series_dir/cases/<p>Pa_<law>/``: kept when its
     ``post/summary.json`` exists and records the hashes of this case's scene and packing file
     (post-processed again, from its thermal.h5 alone, with ``repost``, another ``n_bins`` or
@@ -429,7 +459,7 @@ def _run_case(scene, conf, series_dir, packing, repost, threads, run_args, label
     if summary_path.exists():       # stale: never left beside a new run
         summary_path.unlink()
     summary = _compute(scene, conf, case_dir, packing, threads, run_args, name, inputs,
-                       summary_path)
+                       summary_path, ranks)
     ci = summary.gamma_ci95 or (None, None)
     print(f"{label}{name}: gamma {_g(summary.gamma)}"
           + (f" [{_g(ci[0])}, {_g(ci[1])}]" if summary.gamma is not None else "")
@@ -470,16 +500,26 @@ def _case_summary(posted: dict, summary_path: Path, **campaign):
     return summary
 
 
-def _compute(scene, conf, case_dir, packing, threads, run_args, name, inputs, summary_path):
-    """Run the case and post-process it; its summary (with ``inputs``, the hashes) written."""
+def _compute(scene, conf, case_dir, packing, threads, run_args, name, inputs, summary_path,
+             ranks=None):
+    """Run the case and post-process it; its summary (with ``inputs``, the hashes) written.
+    With ``ranks``, the thermal solve runs on MPI ranks (the PETSc backend), which parse the
+    same case scene (:func:`case_tables`) and write the same thermal.h5."""
     from thermal_kernel.run import run_scene
     from tdem_post.post_run import analyse, write_post
     scene = case_scene(scene, packing, case_dir)
     t0 = time.time()
-    result = run_scene(scene, packing, quiet=True, threads=threads,
-                       run_args=dict(run_args, case=name))
+    if ranks is None:
+        output = run_scene(scene, packing, quiet=True, threads=threads,
+                           run_args=dict(run_args, case=name)).output
+    else:
+        from thermal_kernel.solvers.mpi_launch import run_on_ranks
+        run_on_ranks(scene.path, ranks, packing=scene.packing, out=case_dir, quiet=True,
+                     run_args=dict(run_args, case=name),
+                     data=case_tables(scene.path, scene.text, scene.law, scene.packing))
+        output = scene.output
     run_seconds = time.time() - t0
-    post = analyse(result.output, n_bins=conf["n_bins"])
+    post = analyse(output, n_bins=conf["n_bins"])
     posted = write_post(post)
     return _case_summary(posted, summary_path, case_wall_seconds=time.time() - t0,
                          thermal_wall_seconds=run_seconds, flags=post.run.flags, **inputs,

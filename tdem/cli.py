@@ -108,13 +108,12 @@ def _cmd_run(args):
         ranks = 1 if args.ranks is None else args.ranks
         if ranks < 1:
             raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
-        for flag, given in (("--checkpoint-every", args.checkpoint_every),
-                            ("--resume", args.resume), ("--threads", args.threads)):
-            if given:
-                raise UserError(f"{flag}: not with the PETSc backend (--ranks, or solver.backend"
-                                " = \"petsc\"); expected an in-process run for it")
+        if args.threads:
+            raise UserError("--threads: not with the PETSc backend (--ranks, or solver.backend"
+                            " = \"petsc\"); expected an in-process run for it")
         run_on_ranks(Path(args.scene), ranks, packing=packing, out=args.out,
-                     quiet=args.quiet,
+                     quiet=args.quiet, checkpoint_every=args.checkpoint_every,
+                     resume=args.resume,
                      run_args={k: v for k, v in vars(args).items() if k != "func"})
         return
     run_scene(scene, packing, quiet=args.quiet, threads=threads,
@@ -187,10 +186,13 @@ def _cmd_demo(args):
 def _cmd_campaign(args):
     from .campaign import run_campaign
     _text_file(args.campaign, "campaign")
+    if args.ranks is not None and args.threads is not None:
+        raise UserError("--threads: not with the PETSc backend (--ranks); expected an "
+                        "in-process campaign for it")
     run_campaign(Path(args.campaign), _out_dir(args),
                  threads=_threads(args, default=2), yade_threads=_positive(args, "yade_threads"),
                  quiet=args.quiet,
-                 repost=args.repost, jobs=_positive(args, "jobs"))
+                 repost=args.repost, jobs=_positive(args, "jobs"), ranks=args.ranks)
 
 
 def _cmd_post(args):
@@ -414,6 +416,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, default=1,
                    help="with [campaign] seeds: YADE series built at a time, default 1 (seed "
                         "after seed, each one's cases run before the next is built)")
+    p.add_argument("--ranks", type=int, default=None, metavar="N",
+                   help="each case's thermal solve on N MPI ranks with PETSc (solver.backend = "
+                        "\"petsc\" runs on 1 without it; needs .venv-mpi, docs/scaling.md)")
     p.set_defaults(func=_cmd_campaign)
 
     p = sub.add_parser("post", help="post-process a run: profiles, gamma, tau, mean field, "

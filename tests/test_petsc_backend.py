@@ -189,9 +189,6 @@ def test_a_bad_scene_on_the_ranks_is_one_line_and_exit_2(tmp_path, capsys):
 
 @pytest.mark.parametrize("extra,message", [
     (["--ranks", "0"], "tdem: error: --ranks: expected a number of MPI ranks >= 1, got 0"),
-    (["--ranks", "2", "--checkpoint-every", "1"],
-     'tdem: error: --checkpoint-every: not with the PETSc backend (--ranks, or solver.backend = '
-     '"petsc"); expected an in-process run for it'),
     (["--ranks", "2", "--threads", "2"],
      'tdem: error: --threads: not with the PETSc backend (--ranks, or solver.backend = '
      '"petsc"); expected an in-process run for it'),
@@ -201,3 +198,100 @@ def test_options_the_backend_does_not_take_are_one_line(tmp_path, capsys, extra,
                                   f'[solver]\n{SOLVERS["explicit"]}')
     assert main(["run", str(scene), "--out", str(tmp_path / "o"), *extra]) == 2
     assert capsys.readouterr().err.strip().splitlines() == [message]
+
+
+# ------------------------------------------------------------------ progress, checkpoints
+def test_checkpoints_and_progress_on_two_ranks(bed_runs, capfd, name="rannacher"):
+    """--checkpoint-every on the ranks: rank 0 writes the in-process checkpoint after each
+    output time, the answer is the in-process one, the checkpoint is removed at the end; and
+    rank 0 shows the in-process progress bar, labelled with the method."""
+    tmp, runs = bed_runs
+    scene, inproc, _ = runs[name]
+    out = tmp / f"{name}_ck"
+    assert main(["run", str(scene), "--out", str(out), "--ranks", "2",
+                 "--checkpoint-every", "1"]) == 0
+    _assert_same(inproc, _read(out / "thermal.h5"), RTOL[name])
+    assert not (out / "thermal.checkpoint.h5").exists()
+    err = capfd.readouterr().err
+    assert "implicit(rannacher):" in err and "step" in err
+
+
+def test_a_run_resumes_on_two_ranks_from_an_in_process_checkpoint(bed_runs, monkeypatch, capfd):
+    """An in-process run stopped (Ctrl-C) after its first checkpoint resumes on 2 ranks to
+    the uninterrupted in-process answer: the state, the step count (Rannacher's start-up steps
+    are not taken again) and the ledger carried over."""
+    import thermal_kernel.run as run_mod
+    from thermal_kernel.scene import load_scene
+    tmp, runs = bed_runs
+    scene, inproc, _ = runs["rannacher"]
+    out = tmp / "resumed"
+    write = run_mod.write_checkpoint
+
+    def write_then_stop(*args, **kw):
+        write(*args, **kw)
+        raise KeyboardInterrupt
+    monkeypatch.setattr(run_mod, "write_checkpoint", write_then_stop)
+    with pytest.raises(KeyboardInterrupt, match="checkpoint .* kept"):
+        run_mod.run_scene(load_scene(scene, out_dir=out), quiet=True, checkpoint_every=1)
+    ckpt = out / "thermal.checkpoint.h5"
+    with h5py.File(ckpt) as f:
+        assert list(f["outputs/times"][()]) == [0.5]
+    capfd.readouterr()
+    assert main(["run", str(scene), "--out", str(out), "--ranks", "2", "--resume",
+                 "--quiet"]) == 0
+    assert "resuming from" in capfd.readouterr().out
+    resumed = _read(out / "thermal.h5")
+    _assert_same(inproc, resumed, RTOL["rannacher"])
+    assert resumed["attrs"]["ledger_residual_relative"] <= 1e-9
+    assert not ckpt.exists()
+
+
+# ----------------------------------------------------------------------------- campaign
+CAMPAIGN = f'''[campaign]
+laws = ["pipe"]
+packings = ["{BED}"]
+n_bins = 4
+{BED_THERMAL}
+[solver]
+method = "implicit"
+theta = 0.5
+dt = 2.0
+end_time = 200.0
+output_times = [5.0, 10.0, 20.0, 50.0, 100.0, 200.0]
+'''
+
+
+def test_a_campaign_honours_the_petsc_backend(tmp_path):
+    """`tdem campaign` on a scene with solver.backend = "petsc" runs its cases on the ranks
+    (thermal.h5 says so) and gives the in-process campaign's temperatures, gamma and tau."""
+    import json
+    plain = _scene(tmp_path, "plain", CAMPAIGN)
+    petsc = _scene(tmp_path, "petsc", CAMPAIGN.replace('[solver]\n',
+                                                       '[solver]\nbackend = "petsc"\n'))
+    sums = {}
+    for name, path in (("plain", plain), ("petsc", petsc)):
+        assert main(["campaign", str(path), "--out", str(tmp_path / name)]) == 0
+        case = tmp_path / name / "cases" / "bed_small_4.05e+07Pa_pipe"
+        sums[name] = (_read(case / "thermal.h5"),
+                      json.loads((case / "post" / "summary.json").read_text()))
+    (a, sa), (b, sb) = sums["plain"], sums["petsc"]
+    change = float(np.abs(a["T"] - a["T0"][None, :]).max())
+    assert np.abs(a["T"] - b["T"]).max() <= 1e-10 * change
+    assert a["attrs"]["flags"] == b["attrs"]["flags"]
+    assert "backend" not in a["attrs"] and b["attrs"]["backend"] == "petsc"
+    assert b["attrs"]["ranks"] == 1
+    for key in ("gamma", "gamma_steady", "tau_s"):
+        assert sa[key] is not None and abs(sb[key] - sa[key]) <= 1e-8 * abs(sa[key]), key
+
+
+def test_campaign_ranks_errors_are_one_line(tmp_path, capsys):
+    path = _scene(tmp_path, "c", CAMPAIGN)
+    assert main(["campaign", str(path), "--out", str(tmp_path / "o"), "--ranks", "0"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "tdem: error: --ranks: expected a number of MPI ranks >= 1, got 0"]
+    assert main(["campaign", str(path), "--out", str(tmp_path / "o"), "--ranks", "2",
+                 "--threads", "2"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "tdem: error: --threads: not with the PETSc backend (--ranks); expected an in-process "
+        "campaign for it"]
+    assert not (tmp_path / "o").exists()

@@ -1,7 +1,8 @@
 """`tdem run SCENE --ranks N` on the ranks: the MPI program that ``mpirun`` starts (issue 25).
 
     mpirun -n N .venv-mpi/bin/python -m thermal_kernel.mpi_run SCENE [--packing P]
-        [--out DIR] [--pc gamg|hypre] [--quiet] [--status FILE] [--run-args JSON]
+        [--out DIR] [--pc gamg|hypre] [--quiet] [--checkpoint-every K] [--resume]
+        [--status FILE] [--run-args JSON] [--scene-data JSON]
 
 This is the command a user runs on a cluster (with ``--hostfile``; docs/scaling.md).
 ``tdem run --ranks N`` (:mod:`.solvers.mpi_launch`) starts it from the project's venv. It lives
@@ -13,7 +14,9 @@ rank its rows (:class:`~thermal_kernel.solvers.petsc_backend.DistributedNetwork`
 distributed (:mod:`.solvers.petsc_backend`); rank 0 checks the physics (the in-process
 :func:`~thermal_kernel.solvers.check_physics`) and writes the ordinary ``thermal.h5`` with the
 in-process run's attributes, plus ``backend``, ``ranks``, ``cut_contacts``, ``linear_solver``
-and ``run_seconds``.
+and ``run_seconds``. Transient runs go through the in-process chunk loop
+(:func:`~thermal_kernel.run.run_in_chunks`): rank 0 shows the in-process progress bar, writes
+the in-process checkpoint (``--checkpoint-every``) and resumes from one (``--resume``).
 
 Bad input: one line (``tdem: error: ...``) from rank 0, exit 2; with ``--status`` (the
 launcher's) rank 0 writes the line there instead and every rank exits 0 (a non-zero exit makes
@@ -38,6 +41,12 @@ def _args(argv):
     p.add_argument("--out")
     p.add_argument("--pc", default="gamg", choices=("gamg", "hypre"))
     p.add_argument("--quiet", action="store_true")
+    p.add_argument("--checkpoint-every", type=int, default=0, metavar="K",
+                   help="rank 0 writes the in-process checkpoint every K output times")
+    p.add_argument("--resume", action="store_true",
+                   help="continue from the checkpoint (in-process or ranks made)")
+    p.add_argument("--scene-data", help="JSON file: the scene's tables, parsed (a campaign's "
+                                        "case: the campaign file's tables, law and packing set)")
     p.add_argument("--status", help="file to write the one-line error to (the launcher's)")
     p.add_argument("--run-args", default="{}", help="the CLI's arguments (JSON), stored")
     return p.parse_args(argv)
@@ -78,20 +87,27 @@ def _run(args, rank, held):
     from .output import scene_to_json
     from .packing import read_packing
     from .problem import build_problem
-    from .run import _check_finite, _check_step_count, _print_summary, write_run_output
+    from .run import (_check_step_count, _print_summary, _progress_bar, check_resume,
+                      run_in_chunks, transient_label, write_run_output)
     from .scene import SceneError, load_scene
     from .solvers import UnstableTimeStepError
     from .solvers import petsc_backend as backend
 
     t_start = time.perf_counter()
     comm = PETSc.COMM_WORLD.tompi4py()
-    scene = load_scene(args.scene, out_dir=Path(args.out) if args.out else None)  # every rank
+    data = None
+    if args.scene_data:                     # a campaign's case (tdem/campaign.py)
+        data = json.loads(Path(args.scene_data).read_text(encoding="utf-8"))
+    scene = load_scene(args.scene, out_dir=Path(args.out) if args.out else None,  # every rank
+                       text=Path(args.scene).read_text(encoding="utf-8") if data else None,
+                       data=data)
     solver = scene.solver
     built = {}
 
     def build():
         """Rank 0 only: the output's lock (a second run onto it is refused at once, as
-        in-process), the packing, the problem (laws, boundary kinds) and the network."""
+        in-process), the packing, the problem (laws, boundary kinds), the network and the
+        checkpoint to resume from. Every rank gets the time resumed from."""
         held.enter_context(output_lock(scene.output))
         packing_path = Path(args.packing) if args.packing else scene.packing
         if packing_path is None:
@@ -106,12 +122,15 @@ def _run(args, rank, held):
             _check_step_count(scene, solver.safety * net.dt_max_s if np.isnan(solver.dt)
                               else solver.dt, "solver.end_time" if np.isnan(solver.dt)
                               else "solver.dt")
+        packing_hash = packing_sha256(packing)
+        resumed = check_resume(scene, args.checkpoint_every, args.resume, packing.n_particles,
+                               packing_hash, packing_path)
         built.update(packing=packing, info=info, net=net, scene_json=scene_json,
-                     packing_hash=packing_sha256(packing), assemble_t0=t0,
+                     packing_hash=packing_hash, assemble_t0=t0, resumed=resumed,
                      T0=np.full(packing.n_particles, scene.initial_temperature))
-        return True
+        return None if resumed is None else resumed[0].time_s
 
-    backend.on_root(comm, build)
+    resumed_at = backend.on_root(comm, build)
     net = built.get("net")
     dist = backend.DistributedNetwork(net, built["packing"].position if rank == 0 else None)
     if rank == 0:
@@ -123,29 +142,43 @@ def _run(args, rank, held):
               f"({net.n_zero_contacts} with H = 0); PETSc on {dist.size} rank(s), "
               f"{dist.cut} contacts cut by the Morton blocks", flush=True)
         print(f"  network: {net.clusters.summary()}", flush=True)
-    progress = None
+    ckpt = None
     if solver.method == "steady":
         result = backend.solve_steady(dist, T0, pc=args.pc)
-    elif solver.method == "explicit":
-        try:
-            result = backend.run_explicit(
-                dist, T0, solver.output_times, dt=None if np.isnan(solver.dt) else solver.dt,
-                safety=solver.safety, allow_unstable=solver.allow_unstable, progress=progress)
-        except UnstableTimeStepError as e:
-            raise SceneError(f"{scene.path}: solver.dt: {e}") from None
     else:
-        result = backend.run_implicit(
-            dist, T0, solver.output_times, dt=solver.dt, theta=solver.theta,
-            scheme=solver.scheme, startup_steps=solver.startup_steps, pc=args.pc,
-            progress=progress)
+        # rank 0 shows the in-process run's progress bar
+        bar, progress = _progress_bar(0, solver.end_time, args.quiet or rank != 0,
+                                      transient_label(solver))
+
+        def transient(start, times):
+            if solver.method == "explicit":
+                try:
+                    return backend.run_explicit(
+                        dist, start, times, dt=None if np.isnan(solver.dt) else solver.dt,
+                        safety=solver.safety, allow_unstable=solver.allow_unstable,
+                        progress=progress)
+                except UnstableTimeStepError as e:
+                    raise SceneError(f"{scene.path}: solver.dt: {e}") from None
+            return backend.run_implicit(
+                dist, start, times, dt=solver.dt, theta=solver.theta, scheme=solver.scheme,
+                startup_steps=solver.startup_steps, pc=args.pc, progress=progress)
+
+        try:
+            result, ckpt = run_in_chunks(
+                transient, T0, scene, args.checkpoint_every, built.get("resumed"),
+                net.n if rank == 0 else 0, built.get("packing_hash", ""),
+                n_contacts=dist.n_active_contacts, on_root=lambda fn: backend.on_root(comm, fn),
+                resumed_at=resumed_at)
+        finally:
+            if bar is not None:
+                bar.close()
     if rank != 0:
         return
     packing, info, scene_json = built["packing"], built["info"], built["scene_json"]
     packing_hash = built["packing_hash"]
-    if result.method != "steady":
-        _check_finite(scene, result)
     run_args = json.loads(args.run_args)
-    run_args_json = json.dumps(dict(run_args, threads=None, checkpoint_every=0, resume=False,
+    run_args_json = json.dumps(dict(run_args, threads=None,
+                                    checkpoint_every=args.checkpoint_every, resume=args.resume,
                                     packing=str(args.packing) if args.packing else None),
                                sort_keys=True, default=str)
     # the in-process run's attributes and checks (thermal_kernel/run.py), and the backend's own
@@ -155,6 +188,8 @@ def _run(args, rank, held):
             "backend": "petsc", "ranks": int(dist.size), "cut_contacts": int(dist.cut),
             "linear_solver": str(result.info.get("linear_solver", "none")),
             "run_seconds": float(time.perf_counter() - t_start)})
+    if ckpt is not None and ckpt.exists():
+        ckpt.unlink()            # the output is complete: the checkpoint has served
     if not args.quiet:
         its = result.info.get("cg_iterations", [])
         if its:

@@ -79,11 +79,21 @@ def _check_finite(scene, result):
                      "dt at most the bound")
 
 
-def _run_with_checkpoints(net, T0, scene, threads, progress, every, resumed, n_particles,
-                          packing_hash=""):
-    """The transient in chunks of ``every`` output times, a checkpoint after each; or from a
-    checkpoint ``resumed`` = (state, outputs, totals). Returns (ThermalResult over all output
-    times, checkpoint path)."""
+def run_in_chunks(transient, T0, scene, every, resumed, n_particles, packing_hash="", *,
+                  n_contacts=0, on_root=None, resumed_at=None):
+    """The transient through the scene's output times in chunks of ``every`` of them, a
+    checkpoint after each (0: one chunk, no checkpoint); or from a checkpoint ``resumed`` =
+    (state, outputs, totals). ``transient(start, times)`` runs one chunk from ``start`` (array
+    or state) and returns its ThermalResult. Returns (ThermalResult over all output times,
+    checkpoint path).
+
+    The one loop of the in-process run and of the PETSc backend's ranks
+    (thermal_kernel/mpi_run.py), where ``transient`` is collective and returns the result on
+    rank 0 only (None elsewhere, and this returns (None, path) there), ``on_root(fn)`` runs
+    rank 0's part -- the finite check, the outputs kept, the checkpoint written: the
+    in-process checkpoint -- and raises its error on every rank, ``resumed`` is rank 0's and
+    ``resumed_at`` its time, given on every rank."""
+    on_root = on_root or (lambda fn: fn())
     times = np.asarray(scene.solver.output_times, dtype=np.float64)
     ckpt = checkpoint_path(scene.output)
     outputs = {key: [] for key in ("times", "temperature_k", "boundary_heat_flow_w",
@@ -92,31 +102,68 @@ def _run_with_checkpoints(net, T0, scene, threads, progress, every, resumed, n_p
     start = T0
     if resumed is not None:
         start, done, totals = resumed
+        resumed_at = start.time_s
         for key in outputs:
             outputs[key].append(done[key])
-        times = times[times > start.time_s]
         print(f"  resuming from {ckpt} at t = {start.time_s:.6g} s ({len(done['times'])} "
-              f"outputs done, {len(times)} to go)", flush=True)
+              f"outputs done, {int(np.sum(times > start.time_s))} to go)", flush=True)
+    if resumed_at is not None:
+        times = times[times > resumed_at]
     size = every if every > 0 else max(len(times), 1)
     last = None
     for i in range(0, len(times), size):
-        last = _transient(net, start, times[i:i + size], scene, threads, progress)
-        _check_finite(scene, last)
-        start = last.state
-        for key in outputs:
-            outputs[key].append(getattr(last, key))
-        totals = {"steps": totals["steps"] + last.steps,
-                  "wall_seconds": totals["wall_seconds"] + last.wall_seconds,
-                  "step_seconds": totals["step_seconds"] + last.info.get("step_seconds", 0.0)}
-        if every > 0:
-            write_checkpoint(ckpt, last.state, {k: np.concatenate(v) for k, v in outputs.items()},
-                             totals, scene.text, n_particles, packing_hash)
+        last = transient(start, times[i:i + size])
+
+        def keep(last=last):
+            nonlocal totals
+            _check_finite(scene, last)
+            for key in outputs:
+                outputs[key].append(getattr(last, key))
+            totals = {"steps": totals["steps"] + last.steps,
+                      "wall_seconds": totals["wall_seconds"] + last.wall_seconds,
+                      "step_seconds": totals["step_seconds"]
+                      + last.info.get("step_seconds", 0.0)}
+            if every > 0:
+                write_checkpoint(ckpt, last.state,
+                                 {k: np.concatenate(v) for k, v in outputs.items()},
+                                 totals, scene.text, n_particles, packing_hash)
+            return True
+        on_root(keep)
+        start = None if last is None else last.state
+    if last is None:
+        return None, ckpt
     joined = {k: np.concatenate(v) for k, v in outputs.items()}
-    cups = (net.n_active_contacts * totals["steps"] / totals["step_seconds"]
+    cups = (n_contacts * totals["steps"] / totals["step_seconds"]
             if totals["step_seconds"] > 0 else float("nan"))
     return dataclasses.replace(last, **joined, steps=int(totals["steps"]),
                                wall_seconds=float(totals["wall_seconds"]),
                                contact_updates_per_second=cups), ckpt
+
+
+def transient_label(solver) -> str:
+    """The progress bar's label: the method, the implicit scheme named."""
+    return "explicit" if solver.method == "explicit" else scheme_name(solver.scheme,
+                                                                      solver.theta)
+
+
+def check_resume(scene, checkpoint_every, resume, packing_n, packing_hash, packing_path):
+    """Before anything runs: a steady solve takes no checkpoint options; ``resume`` reads the
+    checkpoint (one line if it is missing, of another scene or packing, or already complete).
+    The checkpoint's (state, outputs, totals), or None. In-process and on rank 0."""
+    solver = scene.solver
+    if solver.method == "steady":
+        if checkpoint_every or resume:
+            raise SceneError(f"{scene.path}: solver.method: a steady solve has no checkpoints "
+                             "(--checkpoint-every and --resume are for transient runs)")
+        return None
+    if not resume:
+        return None
+    resumed = read_checkpoint(checkpoint_path(scene.output), scene.text, packing_n,
+                              packing_hash, packing_path=packing_path)
+    if resumed[0].time_s >= solver.output_times[-1]:
+        raise SceneError(f"{checkpoint_path(scene.output)}: --resume: the checkpoint "
+                         "already holds every output time (delete it to run again)")
+    return resumed
 
 
 def run_scene(scene: Scene, packing_path: Path | None = None, *, quiet: bool = False,
@@ -272,28 +319,18 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
         print(f"  network: {net.clusters.summary()}", flush=True)
         if info["neighbours"] is not None:
             print(f"  {info['neighbours'].line()}", flush=True)
+    resumed = check_resume(scene, checkpoint_every, resume, packing.n_particles, packing_hash,
+                           packing_path or scene.packing)    # before anything runs or prints
     ckpt = None
     if solver.method == "steady":
-        if checkpoint_every or resume:
-            raise SceneError(f"{scene.path}: solver.method: a steady solve has no checkpoints "
-                             "(--checkpoint-every and --resume are for transient runs)")
         result = solve_steady(net, T0)
     else:
-        resumed = None
-        if resume:     # checked before anything runs or prints
-            resumed = read_checkpoint(checkpoint_path(scene.output), scene.text,
-                                      packing.n_particles, packing_hash,
-                                      packing_path=packing_path or scene.packing)
-            if resumed[0].time_s >= solver.output_times[-1]:
-                raise SceneError(f"{checkpoint_path(scene.output)}: --resume: the checkpoint "
-                                 "already holds every output time (delete it to run again)")
-        label = "explicit" if solver.method == "explicit" else scheme_name(solver.scheme,
-                                                                          solver.theta)
-        bar, progress = _progress_bar(0, solver.end_time, quiet, label)
+        bar, progress = _progress_bar(0, solver.end_time, quiet, transient_label(solver))
         try:
-            result, ckpt = _run_with_checkpoints(net, T0, scene, threads, progress,
-                                                 checkpoint_every, resumed, packing.n_particles,
-                                                 packing_hash)
+            result, ckpt = run_in_chunks(
+                lambda start, times: _transient(net, start, times, scene, threads, progress),
+                T0, scene, checkpoint_every, resumed, packing.n_particles, packing_hash,
+                n_contacts=net.n_active_contacts)
         finally:
             if bar is not None:
                 bar.close()

@@ -65,7 +65,8 @@ def mpi_env() -> dict:
 
 
 def command(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg",
-            run_args=None, status=None) -> list[str]:
+            run_args=None, status=None, checkpoint_every=0, resume=False,
+            scene_data=None) -> list[str]:
     cmd = ["mpirun", "-n", str(int(ranks)), *MPIRUN_LOCAL, "-x", "OMP_NUM_THREADS",
            "-x", "NUMBA_NUM_THREADS", str(mpi_python()), "-m", "thermal_kernel.mpi_run",
            str(scene)]
@@ -81,12 +82,21 @@ def command(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg"
         cmd += ["--run-args", json.dumps(run_args, sort_keys=True, default=str)]
     if status:
         cmd += ["--status", str(status)]
+    if checkpoint_every:
+        cmd += ["--checkpoint-every", str(int(checkpoint_every))]
+    if resume:
+        cmd.append("--resume")
+    if scene_data:
+        cmd += ["--scene-data", str(scene_data)]
     return cmd
 
 
 def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg",
-                 run_args=None) -> None:
-    """Run the scene on ``ranks`` MPI ranks (output: the scene's thermal.h5, as in-process).
+                 run_args=None, checkpoint_every=0, resume=False, data=None) -> None:
+    """Run the scene on ``ranks`` MPI ranks (output: the scene's thermal.h5, as in-process;
+    rank 0 writes the in-process checkpoint every ``checkpoint_every`` output times, and
+    ``resume`` continues from one). ``data``: the scene's tables, already parsed, instead of
+    the file's (a campaign's case: the campaign file with law and packing set; JSON-able).
     A bad input is one line (UserError); so is mpirun failing."""
     if int(ranks) < 1:
         raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
@@ -94,8 +104,18 @@ def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="
         raise UserError("--ranks: mpirun not found (Debian: apt-get install openmpi-bin)")
     with tempfile.TemporaryDirectory(prefix="tdem-mpi-") as tmp:
         status = Path(tmp) / "status"
+        scene_data = None
+        if data is not None:
+            scene_data = Path(tmp) / "scene.json"
+            try:
+                scene_data.write_text(json.dumps(data), encoding="utf-8")
+            except (TypeError, ValueError) as e:
+                raise UserError(f"{scene}: a value of the scene's tables does not go to the "
+                                f"ranks ({e}); expected numbers, strings, arrays and tables "
+                                "(a TOML date does not)") from None
         cmd = command(scene, ranks, packing=packing, out=out, quiet=quiet, pc=pc,
-                      run_args=run_args, status=status)
+                      run_args=run_args, status=status, checkpoint_every=checkpoint_every,
+                      resume=resume, scene_data=scene_data)
         sys.stdout.flush()
         done = subprocess.run(cmd, env=mpi_env(), cwd=os.getcwd())
         if status.exists():     # rank 0's one line (a bad scene, packing or solve)
