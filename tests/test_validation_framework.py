@@ -327,7 +327,8 @@ def test_the_judges_use_the_stricter_measure_at_the_papers_n():
                           for c, e in zip((0.01, 5, 100), errs)], thermal_s=1.0, solves=4)
     runs = [run8("faces", 2000, (0.001, 0.001, 0.001)), run8("faces", 100_031, (-0.006, 0, 0.002)),
             run8("faces", 999_902, (0.001, 0, 0)), run8("periodic_harmonic", 80_000, (0, 0, 0))]
-    j = case8_inclusion.judge({"runs": runs})
+    saved8 = framework.load_result(8)["result"]["numbers"]
+    j = case8_inclusion.judge(dict(saved8, runs=runs))
     assert j.target_met is False and "N 100,031" in j.at_paper_n and "0.60 %" in j.at_paper_n
     saved2 = framework.load_result(2)["result"]["numbers"]
     j = case2_beam.judge(dict(saved2, per_seed=[0.004, 0.009, 0.0101], n_particles=[19_000] * 3,
@@ -508,20 +509,41 @@ def test_case6_carries_what_this_run_did_not_measure():
 
 
 def test_case8_runs_are_records():
-    """Case 8's saved runs read back as InclusionRun records (a row per contrast, the faced
-    series' extra fields optional) and write back to the same data; a contrast row without its
-    error is refused in one line."""
+    """Case 8's saved numbers read back as one InclusionResult (its runs InclusionRun records,
+    a row per contrast, the faced series' extra fields optional, the FFT check a record) and
+    write back to the same JSON; a contrast row without its error, or an unknown field, is
+    refused in one line (by the judge too)."""
     from tdem_post.records import RecordError, to_dict
     from validation import case8_inclusion
     numbers = framework.load_result(8)["result"]["numbers"]
-    runs = case8_inclusion.read_runs(numbers["runs"])
-    assert [to_dict(r) for r in runs] == numbers["runs"]
-    assert {r.series for r in runs} == {"faces", "faces_z75", "periodic_harmonic",
-                                        "periodic_cut"}
-    bad = json.loads(json.dumps(numbers["runs"][0]))
-    del bad["rows"][2]["err_maxwell"]
+    m = case8_inclusion.read_numbers(numbers)
+    assert json.dumps(to_dict(m)) == json.dumps(numbers)
+    assert {r.series for r in m.runs} == {"faces", "faces_z75", "periodic_harmonic",
+                                          "periodic_cut"}
+    assert m.fft_rayleigh.grid_n == case8_inclusion.FFT_GRID
+    bad = json.loads(json.dumps(numbers))
+    del bad["runs"][0]["rows"][2]["err_maxwell"]
     with pytest.raises(RecordError, match=r"runs\[0\]: rows\[2\]: err_maxwell: missing"):
-        case8_inclusion.read_runs([bad])
+        case8_inclusion.judge(bad)
+    with pytest.raises(RecordError, match="faces_max_err: unknown field"):
+        case8_inclusion.read_numbers(dict(numbers, faces_max_err=0.01))
+
+
+def test_case8_quotes_the_fft_solve_it_computed():
+    """Case 8's sentence on case 10's FFT solver is computed (fft_rayleigh: the sphere as a
+    periodic cell against Rayleigh's formula), not typed: the saved check's largest error is
+    the one the saved section states; a coarser grid is further from Rayleigh at the worst
+    contrast (the solve converges to it)."""
+    from validation import case8_inclusion as c8
+    saved = framework.load_result(8)["result"]
+    fft = c8.read_numbers(saved["numbers"]).fft_rayleigh
+    worst = max(abs(e) for e in fft.err_rayleigh)
+    assert 0 < worst < 0.005 and f"within {100 * worst:.2f} % of it on 81³ voxels" in \
+        saved["section_md"].replace("\n", " ")
+    coarse = c8.fft_rayleigh(12)
+    assert coarse.contrasts == fft.contrasts
+    assert abs(coarse.err_rayleigh[-1]) > 2 * abs(fft.err_rayleigh[-1])
+    assert abs(coarse.err_rayleigh[0]) > 2 * abs(fft.err_rayleigh[0])
 
 
 @pytest.mark.slow       # ~5 s each: the figures are drawn again

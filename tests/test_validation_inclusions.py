@@ -71,16 +71,16 @@ def test_cut_interface_factor():
 
 def test_case8_quick_within_documented_error():
     result = case8.run(Context(8, quick=True))
-    n = result.numbers
-    assert n["faces_max_error"] < 0.45                 # measured 37.08 % (400 spheres)
-    assert n["periodic_harmonic_max_error"] < 0.045    # measured 3.69 % (3,200)
-    assert n["periodic_cut_max_error"] < 0.045         # measured 3.56 %
-    for r in n["runs"]:
-        ks = [x["k"] for x in r["rows"]]
+    n = case8.read_numbers(result.numbers)
+    assert n.faces_max_error < 0.45                 # measured 37.08 % (400 spheres)
+    assert n.periodic_harmonic_max_error < 0.045    # measured 3.69 % (3,200)
+    assert n.periodic_cut_max_error < 0.045         # measured 3.56 %
+    for r in n.runs:
+        ks = [x.k for x in r.rows]
         assert all(a < b for a, b in zip(ks, ks[1:]))   # k_eff grows with the contrast
         assert ks[0] < 1 < ks[-1]
     # the periodic error falls from 1^3 to 2^3 cells at the worst contrast
-    per = sorted((r for r in case8.read_runs(n["runs"]) if r.series == "periodic_harmonic"),
+    per = sorted((r for r in n.runs if r.series == "periodic_harmonic"),
                  key=lambda r: r.n)
     assert case8.max_err(per[1], "err_rayleigh") < case8.max_err(per[0], "err_rayleigh")
 

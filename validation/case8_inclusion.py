@@ -79,6 +79,71 @@ class InclusionRun:
     pack_s: float | None = field(default=None, metadata=_OPT)
 
 
+FFT_GRID, QUICK_FFT_GRID = 81, 24     # voxels a side of the cube for the FFT check
+
+
+@dataclass(frozen=True, kw_only=True)
+class FftRayleigh:
+    """Case 10's FFT solver (``tdem_post.fft_conductivity``: Willot's operator, laminate
+    voxels) on this cube's sphere taken as a periodic cell, the simple-cubic array, on
+    ``grid_n``³ voxels: k/k_m per contrast and its relative error against Rayleigh's formula
+    (dimensionless), and the seconds of the solves."""
+    grid_n: int
+    contrasts: tuple[float, ...]
+    k_fft: tuple[float, ...]
+    err_rayleigh: tuple[float, ...]
+    seconds: float
+
+
+def fft_rayleigh(n: int) -> FftRayleigh:
+    """:class:`FftRayleigh` on ``n``³ voxels (one FFT solve per contrast; ~40 s at 81³)."""
+    from tdem_post.fft_conductivity import solve, spheres
+    t0 = time.perf_counter()
+    radius = (3 * F / (4 * math.pi)) ** (1 / 3)
+    k = [float(solve(spheres([[0.5, 0.5, 0.5]], radius, 1.0, c, n), 0).k) for c in CONTRASTS]
+    return FftRayleigh(grid_n=n, contrasts=CONTRASTS, k_fft=tuple(k),
+                       err_rayleigh=tuple(v / float(rayleigh_cubic_array(1, c, F)) - 1
+                                      for v, c in zip(k, CONTRASTS)),
+                       seconds=time.perf_counter() - t0)
+
+
+def _fft_check(ctx: Context) -> FftRayleigh:
+    """:func:`fft_rayleigh` at the case's grid, cached under validation/out/case8."""
+    n = QUICK_FFT_GRID if ctx.quick else FFT_GRID
+    rec = framework.cached(ctx.out / f"fft_rayleigh_{n}.json",
+                           lambda: to_dict(fft_rayleigh(n)), version=1)
+    return from_dict(FftRayleigh, {k: v for k, v in rec.items() if k != "version"},
+                     f"case 8: fft_rayleigh_{n}")
+
+
+def _fft_text(fft: FftRayleigh) -> str:
+    """How far the FFT solve is from Rayleigh's value: the max over the contrasts and where."""
+    k = int(np.argmax(np.abs(fft.err_rayleigh)))
+    return (f"{100 * abs(fft.err_rayleigh[k]):.2f} % of it on {fft.grid_n}³ voxels (max over "
+            f"the contrasts, at c = {fft.contrasts[k]:g})")
+
+
+@dataclass(frozen=True, kw_only=True)
+class InclusionResult:
+    """Case 8's saved ``numbers``: the contrasts and the inclusion's fraction, the fitted order
+    of each series' max error against N, every run, each series' largest run's max error
+    (against Maxwell for the faces, Rayleigh for the periodic blocks; None: not run) and the
+    FFT check of Rayleigh's value (None in results saved before it)."""
+    contrasts: tuple[float, ...]
+    fraction: float
+    orders: dict[str, float]
+    runs: tuple[InclusionRun, ...]
+    faces_max_error: float | None
+    periodic_harmonic_max_error: float | None
+    periodic_cut_max_error: float | None
+    fft_rayleigh: FftRayleigh | None = field(default=None, metadata=_OPT)
+
+
+def read_numbers(numbers: dict) -> InclusionResult:
+    """Case 8's saved numbers as its record (a missing or unknown field: RecordError)."""
+    return from_dict(InclusionResult, numbers, "case 8: numbers")
+
+
 def read_runs(runs: list) -> list[InclusionRun]:
     """Case 8's runs (saved dicts, or records already) as records (RecordError in one line)."""
     return [r if isinstance(r, InclusionRun) else from_dict(InclusionRun, r, f"case 8: runs[{k}]")
@@ -299,7 +364,7 @@ def judge(numbers: dict) -> Judgement:
     """Issue 23's columns: the paper's N is ~150,000 (0.65 %, max over contrasts 0.01–100
     against Maxwell). Judged on the max |k/k_Maxwell - 1| over the contrasts of the faced box
     nearest the paper's N (the paper's own boundaries), the periodic block nearest it beside."""
-    runs = read_runs(numbers.get("runs", []))
+    runs = read_numbers(numbers).runs if numbers else ()
     if not runs:
         return Judgement("not measured", "", None)
 
@@ -387,11 +452,13 @@ def _needed_n(runs, series, key, goal=0.005):
     return float((goal / c) ** (1.0 / p))
 
 
-def finish(ctx: Context, runs: list, total: float) -> CaseResult:
+def finish(ctx: Context, runs: list, total: float, fft: FftRayleigh | None = None) -> CaseResult:
     """Figures, section and summary row from the measured series (also used to rebuild them
-    from a saved result: ``finish(ctx, numbers["runs"], seconds)``). Most of its length is the
-    section's text (its table from :func:`_table`, its limits from :func:`_limits`)."""
+    from a saved result: ``finish(ctx, numbers["runs"], seconds, fft)``; ``fft`` None: the FFT
+    check computed, or read from its cache). Most of its length is the section's text (its
+    table from :func:`_table`, its limits from :func:`_limits`)."""
     runs = read_runs(runs)
+    fft = fft or _fft_check(ctx)
     orders = _plots(ctx, runs)
     key = ERROR_KEY
 
@@ -400,12 +467,12 @@ def finish(ctx: Context, runs: list, total: float) -> CaseResult:
         return max(rs, key=lambda r: r.n) if rs else None
 
     f_big, h_big, c_big = best("faces"), best("periodic_harmonic"), best("periodic_cut")
-    numbers = dict(
-        contrasts=list(CONTRASTS), fraction=F, orders=orders,
-        runs=[to_dict(r) for r in runs],
+    m = InclusionResult(
+        contrasts=CONTRASTS, fraction=F, orders=orders, runs=tuple(runs),
         faces_max_error=max_err(f_big, "err_maxwell") if f_big else None,
         periodic_harmonic_max_error=max_err(h_big, "err_rayleigh") if h_big else None,
-        periodic_cut_max_error=max_err(c_big, "err_rayleigh") if c_big else None)
+        periodic_cut_max_error=max_err(c_big, "err_rayleigh") if c_big else None,
+        fft_rayleigh=fft)
     img = "img/validation_case8_"
     limits = _limits(runs, key)
     fsec = [r for r in runs if r.series == "faces"]
@@ -419,9 +486,9 @@ law `haddad` (C_t cancels in k_eff/k_m), a particle is in the inclusion when its
 (002, the YADE generator), the interface contacts get the harmonic mean (002 eq. 24). The paper
 compares with Maxwell; for this geometry the exact continuum value is the simple-cubic array's
 (the cube's faces are symmetry planes of the array), Rayleigh's formula
-(`tdem_post.analytic.rayleigh_cubic_array`), {_rayleigh_vs_maxwell()}; the \
-finite-volume solver of case 10 converges to it under
-refinement (0.1–0.3 % off at 81³ cells). Three series (validation/case8_inclusion.py):
+(`tdem_post.analytic.rayleigh_cubic_array`), {_rayleigh_vs_maxwell()}; the
+FFT solver of case 10 (`tdem_post.fft_conductivity`, the cube taken as a periodic cell) is
+within {_fft_text(fft)}. Three series (validation/case8_inclusion.py):
 
 - **faces** — the paper's setup on the shared boxes: faces y = 0 / L held at 25 / 35 °C,
   adiabatic sides, one steady solve per contrast plus the single-phase one (k_eff/k_m is the
@@ -453,8 +520,7 @@ error (wall time per steady solve, one thread on a machine shared with other job
 Packings: {pack or 'shared packings of validation/framework.py'}; the periodic blocks are built
 in memory from runs/out/dense_box_1e5/cell.h5 in seconds.
 """
-    errs = [numbers["faces_max_error"], numbers["periodic_harmonic_max_error"],
-            numbers["periodic_cut_max_error"]]
+    errs = [m.faces_max_error, m.periodic_harmonic_max_error, m.periodic_cut_max_error]
     our_err = (f"faces {100 * errs[0]:.2f} % (N {f_big.n:,})"
                + (f"; periodic {100 * errs[1]:.2f} % harmonic (N {h_big.n:,}) / "
                   f"{100 * errs[2]:.2f} % cut (N {c_big.n:,})" if h_big and c_big else ""))
@@ -474,7 +540,7 @@ in memory from runs/out/dense_box_1e5/cell.h5 in seconds.
         + "; 0.5 % is reached near N ≈ "
         + (f"{_needed_n(runs, 'faces', 'err_maxwell'):.0e} (faces)" if _needed_n(
             runs, 'faces', 'err_maxwell') else "?"),
-        section_md=section, numbers=numbers,
+        section_md=section, numbers=to_dict(m),
         command="`tdem validate 8 --action paper-n`, `--action extend` add to the saved result")
 
 
@@ -489,8 +555,13 @@ def add_paper_n() -> None:
     runs.append(faces_series(PAPER_N_BOX, path, ctx))
     runs.append(faces_series(PAPER_N_BOX, path, ctx, target_z=I.TARGET_Z))
     seconds = record["run_seconds"] + time.perf_counter() - t0
-    result = finish(ctx, runs, seconds)
+    result = finish(ctx, runs, seconds, _saved_fft(record))
     print(framework.save_result(CASE, result, seconds))
+
+
+def _saved_fft(record: dict) -> FftRayleigh | None:
+    """The FFT check of a saved result (None when it was saved before the check)."""
+    return read_numbers(record["result"]["numbers"]).fft_rayleigh
 
 
 def _rayleigh_vs_maxwell() -> str:
@@ -507,7 +578,8 @@ def _rayleigh_vs_maxwell() -> str:
 def rebuild() -> None:
     """Figures, section and row again from validation/results/case8.json (no solve)."""
     record = framework.load_result(8)
-    result = finish(Context(8), record["result"]["numbers"]["runs"], record["run_seconds"])
+    result = finish(Context(8), record["result"]["numbers"]["runs"], record["run_seconds"],
+                    _saved_fft(record))
     print(framework.save_result(CASE, result, record["run_seconds"]))
 
 
@@ -524,7 +596,7 @@ def extend(blocks, variants) -> None:
                     x["series"] == r["series"] and x["n"] == r["n"] for x in runs):
                 runs.append(r)
     seconds = record["run_seconds"] + time.perf_counter() - t0
-    result = finish(ctx, runs, seconds)
+    result = finish(ctx, runs, seconds, _saved_fft(record))
     print(framework.save_result(CASE, result, seconds))
 
 
