@@ -515,6 +515,7 @@ def _compute(scene, conf, case_dir, packing, threads, run_args, name, inputs, su
     else:
         from thermal_kernel.solvers.mpi_launch import run_on_ranks
         run_on_ranks(scene.path, ranks, packing=scene.packing, out=case_dir, quiet=True,
+                     output=scene.output,
                      run_args=dict(run_args, case=name),
                      data=case_tables(scene.path, scene.text, scene.law, scene.packing))
         output = scene.output

@@ -113,7 +113,7 @@ def _cmd_run(args):
                             " = \"petsc\"); expected an in-process run for it")
         run_on_ranks(Path(args.scene), ranks, packing=packing, out=args.out,
                      quiet=args.quiet, checkpoint_every=args.checkpoint_every,
-                     resume=args.resume,
+                     resume=args.resume, output=scene.output,
                      run_args={k: v for k, v in vars(args).items() if k != "func"})
         return
     run_scene(scene, packing, quiet=args.quiet, threads=threads,

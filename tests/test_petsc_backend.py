@@ -295,3 +295,64 @@ def test_campaign_ranks_errors_are_one_line(tmp_path, capsys):
         "tdem: error: --threads: not with the PETSc backend (--ranks); expected an in-process "
         "campaign for it"]
     assert not (tmp_path / "o").exists()
+
+
+def test_a_run_on_ranks_ended_by_sigterm_keeps_the_in_process_checkpoint(tmp_path):
+    """SIGTERM to `tdem run --ranks 2` after its first checkpoint: the in-process run's line
+    and exit status, mpirun and the ranks ended, the lock removed, and the checkpoint rank 0
+    wrote is the in-process one (state and step count of an in-process run to that time)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from thermal_kernel.lattice import simple_cubic_packing
+    from thermal_kernel.network import assemble
+    from thermal_kernel.packing import read_packing, write_packing
+    from thermal_kernel.problem import build_problem
+    from thermal_kernel.scene import load_scene
+    from thermal_kernel.solvers import run_explicit
+    write_packing(tmp_path / "lattice.h5", simple_cubic_packing((10, 10, 10), spacing_m=1e-3))
+    scene = _scene(tmp_path, "s", '''packing = "lattice.h5"
+law = "terreros"
+[material]
+conductivity = 50.0
+density = 7800.0
+heat_capacity = 460.0
+[initial]
+temperature = 300.0
+[[boundary]]
+kind = "temperature"
+on = "xmin"
+value = 400.0
+[solver]
+method = "explicit"
+end_time = 1000.0
+output_times = [20.0, 1000.0]
+''')
+    out = tmp_path / "o"
+    ckpt = out / "thermal.checkpoint.h5"
+    proc = subprocess.Popen([sys.executable, "-m", "tdem.cli", "run", str(scene), "--out",
+                             str(out), "--ranks", "2", "--checkpoint-every", "1", "--quiet"],
+                            stderr=subprocess.PIPE, text=True)
+    while not ckpt.exists() and proc.poll() is None:
+        time.sleep(0.01)
+    os.kill(proc.pid, signal.SIGTERM)
+    err = proc.communicate()[1]
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines()[-1] == (
+        f"tdem: terminated (SIGTERM): {out / 'thermal.h5'} not written; checkpoint {ckpt} kept "
+        "(--resume continues from it)")
+    assert sorted(p.name for p in out.iterdir()) == ["thermal.checkpoint.h5"]   # no lock
+    assert subprocess.run(["pgrep", "-f", str(out)], capture_output=True).returncode == 1
+    s = load_scene(scene, out_dir=out)
+    net = assemble(build_problem(s, read_packing(s.packing))[0])
+    ref = run_explicit(net, s.initial_temperature, [20.0], safety=s.solver.safety).state
+    with h5py.File(ckpt) as f:
+        state = f["state"]
+        assert list(f["outputs/times"][()]) == [20.0]
+        assert state.attrs["step"] == ref.step and state.attrs["time_s"] == 20.0
+        change = float(np.abs(ref.temperature_k - s.initial_temperature).max())
+        assert np.abs(state["temperature_k"][()] - ref.temperature_k).max() <= 1e-12 * change
+        np.testing.assert_allclose(state["boundary_energy_j"][()], ref.boundary_energy_j,
+                                   rtol=1e-9)

@@ -8,6 +8,7 @@ second thread per rank on a 2-core machine only competes with the other rank.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -92,12 +93,15 @@ def command(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg"
 
 
 def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg",
-                 run_args=None, checkpoint_every=0, resume=False, data=None) -> None:
+                 run_args=None, checkpoint_every=0, resume=False, data=None,
+                 output=None) -> None:
     """Run the scene on ``ranks`` MPI ranks (output: the scene's thermal.h5, as in-process;
     rank 0 writes the in-process checkpoint every ``checkpoint_every`` output times, and
     ``resume`` continues from one). ``data``: the scene's tables, already parsed, instead of
     the file's (a campaign's case: the campaign file with law and packing set; JSON-able).
-    A bad input is one line (UserError); so is mpirun failing."""
+    A bad input is one line (UserError); so is mpirun failing. Interrupted (KeyboardInterrupt:
+    Ctrl-C, SIGTERM), mpirun and the ranks are ended and, given the run's ``output`` path, the
+    interrupt says what the in-process run says (not written, the checkpoint kept)."""
     if int(ranks) < 1:
         raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
     if shutil.which("mpirun") is None:
@@ -117,9 +121,40 @@ def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="
                       run_args=run_args, status=status, checkpoint_every=checkpoint_every,
                       resume=resume, scene_data=scene_data)
         sys.stdout.flush()
-        done = subprocess.run(cmd, env=mpi_env(), cwd=os.getcwd())
+        proc = subprocess.Popen(cmd, env=mpi_env(), cwd=os.getcwd())
+        try:
+            returncode = proc.wait()
+        except KeyboardInterrupt as e:      # Ctrl-C, SIGTERM (tdem/cli.py): as in-process
+            _stop(proc)
+            if output is None:
+                raise
+            raise type(e)(_interrupted(Path(output))) from None
         if status.exists():     # rank 0's one line (a bad scene, packing or solve)
             raise UserError(status.read_text(encoding="utf-8").strip())
-        if done.returncode:
-            raise UserError(f"--ranks {ranks}: mpirun exited with {done.returncode} "
+        if returncode:
+            raise UserError(f"--ranks {ranks}: mpirun exited with {returncode} "
                             f"({' '.join(cmd[:3])} ... thermal_kernel.mpi_run)")
+
+
+def _stop(proc) -> None:
+    """End mpirun and its ranks: SIGTERM, which mpirun forwards to the ranks, then (10 s
+    later) SIGKILL; returns when mpirun has ended (so have the ranks: it waits for them)."""
+    with contextlib.suppress(ProcessLookupError):
+        proc.terminate()
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def _interrupted(output: Path) -> str:
+    """The in-process run's words for an interrupted run (thermal_kernel/run.py), once the
+    lock rank 0 held on ``output`` is removed (a rank ended by a signal leaves its file)."""
+    from ..atomic import OutputBusyError, output_lock
+    from ..checkpoint import checkpoint_path
+    with contextlib.suppress(OutputBusyError, OSError), output_lock(output):
+        pass                            # nobody holds it now: taken and removed
+    ckpt = checkpoint_path(output)
+    return f"{output} not written" + (f"; checkpoint {ckpt} kept (--resume continues from it)"
+                                      if ckpt.exists() else "")
