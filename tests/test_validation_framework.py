@@ -603,3 +603,31 @@ def test_same_outputs_snapshots_and_diffs_validation(tmp_path, capsys):
     csv.write_text(csv.read_text() + "1\n")
     assert so.diff(tmp_path / "a", tmp_path / "b") == 1
     assert f"img/{csv.name}: differs" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("edit, said", [
+    (lambda d: d["result"].update(our_error=12345), "result: our_error: expected a string"),
+    (lambda d: d["result"].update(extra=1), "result: extra: unknown field of a CaseResult"),
+    (lambda d: d["info"].pop("title"), "info: title: missing"),
+    (lambda d: d.update(run_seconds=-1), "run_seconds: -1.0 is not >= 0"),
+    (lambda d: d["info"].update(number=4), "info: number: 4, not 5"),
+])
+def test_a_saved_result_is_read_as_its_record(edit, said):
+    """validation/results/caseN.json is read as a SavedResult record (issue 26: the hand-kept
+    list of its fields is gone): a field of another type, unknown or missing, negative seconds
+    or another case's number are refused in one line naming the file, the field and the way to
+    write it again; a result saved before the optional fields existed still reads."""
+    saved = framework.load_result(5)
+    bad = json.loads(json.dumps(saved))
+    edit(bad)
+    path = framework.RESULTS / "case5.json"
+    with pytest.raises(framework.ResultError) as e:
+        framework.check_record(5, bad, path)
+    text = str(e.value)
+    assert text.startswith("validation/results/case5.json: ") and said in text
+    assert "`tdem validate 5 --force`" in text and "\n" not in text
+    old = json.loads(json.dumps(saved))
+    for key in ("at_paper_n", "speed_vs_error", "target_met", "command"):
+        old["result"].pop(key)
+    old["info"].pop("target")
+    assert framework.check_record(5, old, path) is old

@@ -283,20 +283,19 @@ class RawScatter:
 
 
 @dataclass(frozen=True, kw_only=True)
-class ZRow:
-    """One neighbour criterion (its relative gap and bulk Z): the Halo CoV of |q| at ratios 4
-    and 11 (common radius) through it, then the raw scatter's fields (:class:`RawScatter`)."""
+class _Criterion:
     criterion: str
     gap: float
     z_bulk: float
     halo4: float
     halo11: float
-    n_inside: int
-    cov_number: float
-    cov_volume: float
-    cov_number_small_half: float
-    cov_number_large_half: float
-    mean_abs: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class ZRow(RawScatter, _Criterion):
+    """One neighbour criterion (its relative gap and bulk Z): the Halo CoV of |q| at ratios 4
+    and 11 (common radius) through it, and the raw scatter through it (:class:`RawScatter`);
+    the criterion's fields first, as the cache saves them."""
 
 
 @dataclass(frozen=True, kw_only=True)

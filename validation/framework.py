@@ -35,6 +35,8 @@ ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "validation" / "out"            # large outputs (gitignored)
 RESULTS = ROOT / "validation" / "results"    # small JSON per case (committed)
 IMG = ROOT / "docs" / "img"
+# a field a saved result may lack (written before it existed): read as absent, not refused
+_MAY_LACK = {"optional": True}
 
 
 @dataclass(frozen=True)
@@ -46,7 +48,7 @@ class CaseInfo:
     paper_error: str    # the paper's result / error, as text
     # issue 23: what tdem must reach at the paper's own N, by the paper's measure (or the stricter
     # reading where the paper leaves the measure open), as text; the verdict is judged on it
-    target: str = ""
+    target: str = field(default="", metadata=_MAY_LACK)
 
 
 @dataclass
@@ -56,15 +58,17 @@ class CaseResult:
     wall_time: str              # "packing + thermal" as text with units
     verdict: str                # in words: met / not met / why
     section_md: str             # the case's section of docs/validation.md (markdown, no heading)
-    numbers: dict = field(default_factory=dict)   # machine-readable values (tests read them)
-    command: str = ""           # the command that reproduces it
+    # machine-readable values (tests read them)
+    numbers: dict = field(default_factory=dict, metadata=_MAY_LACK)
+    command: str = field(default="", metadata=_MAY_LACK)    # the command that reproduces it
     # issue 23, the column the verdict is judged on: tdem at the paper's own N by the paper's
     # measure (the stricter reading where the paper's is undefined, named), e.g.
     # "N 100,031: 0.58 % of ΔT (max over 10 bins; 0.17 % of T in °C beside it)"
-    at_paper_n: str = ""
+    at_paper_n: str = field(default="", metadata=_MAY_LACK)
     # the N and wall time tdem needs to reach the paper's error (or "not reached up to N ...")
-    speed_vs_error: str = ""
-    target_met: bool | None = None    # judged on at_paper_n against CaseInfo.target
+    speed_vs_error: str = field(default="", metadata=_MAY_LACK)
+    # judged on at_paper_n against CaseInfo.target
+    target_met: bool | None = field(default=None, metadata=_MAY_LACK)
 
 
 @dataclass(frozen=True)
@@ -271,64 +275,33 @@ def _shown(path: Path) -> str:
         return str(path)
 
 
-def _describe(value) -> str:
-    text = repr(value)
-    return f"{type(value).__name__} {text if len(text) <= 40 else text[:37] + '...'}"
-
-
-# the fields of a saved record and what each must be (save_result writes them)
-_STRINGS = ("our_n", "our_error", "wall_time", "verdict", "section_md")
-_OPTIONAL_STRINGS = ("command", "at_paper_n", "speed_vs_error")
+@dataclass(frozen=True)
+class SavedResult:
+    """What :func:`save_result` writes as validation/results/caseN.json: the case's info, its
+    result, the seconds the run took and when it finished (read back by :func:`load_result`)."""
+    info: CaseInfo
+    result: CaseResult
+    run_seconds: float
+    finished: str
 
 
 def check_record(number: int, record, path: Path) -> dict:
-    """``record`` if it is what :func:`save_result` writes for case ``number``, else
-    :class:`ResultError` in one line."""
-    def fail(field, expected, got):
-        raise ResultError(f"{_shown(path)}: " + (f"{field}: " if field else "")
-                          + f"expected {expected}, got {got}; the saved result is unreadable "
-                          f"(`tdem validate {number} --force` runs case {number} again and "
-                          "rewrites it)")
+    """``record`` if it is a :class:`SavedResult` of case ``number`` (every field there, none
+    unknown, each of its type, run_seconds >= 0), else :class:`ResultError` in one line."""
+    from tdem_post.records import RecordError, from_dict
 
-    if not isinstance(record, dict):
-        fail(None, "a JSON object (info, result, run_seconds, finished)",
-             f"a JSON {type(record).__name__}")
-    for key, kind, what in (("info", dict, "an object"), ("result", dict, "an object"),
-                            ("finished", str, "a date as text")):
-        if key not in record:
-            fail(key, what, "nothing (missing)")
-        if not isinstance(record[key], kind):
-            fail(key, what, _describe(record[key]))
-    seconds = record.get("run_seconds")
-    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) \
-            or not seconds >= 0:
-        fail("run_seconds", "a number of seconds >= 0",
-             "nothing (missing)" if "run_seconds" not in record else _describe(seconds))
-    result = record["result"]
-    for key in _STRINGS + _OPTIONAL_STRINGS:
-        if key not in result:
-            if key in _STRINGS:
-                fail(f"result.{key}", "text", "nothing (missing)")
-        elif not isinstance(result[key], str):
-            fail(f"result.{key}", "text", _describe(result[key]))
-    if not isinstance(result.get("numbers", {}), dict):
-        fail("result.numbers", "an object", _describe(result["numbers"]))
-    if result.get("target_met") not in (None, True, False):
-        fail("result.target_met", "true, false or null", _describe(result["target_met"]))
-    info = record["info"]
-    fields = {f.name: f for f in dataclasses.fields(CaseInfo)}
-    for key, value in info.items():
-        if key not in fields:
-            fail(f"info.{key}", f"one of {', '.join(fields)}", "an unknown key")
-        kind = int if key == "number" else str
-        if isinstance(value, bool) or not isinstance(value, kind):
-            fail(f"info.{key}", "an integer" if kind is int else "text", _describe(value))
-    missing = [k for k, f in fields.items() if k not in info
-               and f.default is dataclasses.MISSING]
-    if missing:
-        fail(f"info.{missing[0]}", "a value", "nothing (missing)")
-    if info["number"] != number:
-        fail("info.number", str(number), _describe(info["number"]))
+    def fail(what):
+        raise ResultError(f"{what}; expected a result as `tdem validate` saves it: the saved "
+                          f"result is unreadable (`tdem validate {number} --force` runs case "
+                          f"{number} again and rewrites it)")
+    try:
+        saved = from_dict(SavedResult, record, _shown(path))
+    except RecordError as e:
+        fail(str(e))
+    if not saved.run_seconds >= 0:
+        fail(f"{_shown(path)}: run_seconds: {saved.run_seconds!r} is not >= 0")
+    if saved.info.number != number:
+        fail(f"{_shown(path)}: info: number: {saved.info.number}, not {number}")
     return record
 
 
