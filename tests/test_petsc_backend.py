@@ -302,34 +302,20 @@ def test_a_run_on_ranks_ended_by_sigterm_keeps_the_in_process_checkpoint(tmp_pat
     and exit status, mpirun and the ranks ended, the lock removed, and the checkpoint rank 0
     wrote is the in-process one (state and step count of an in-process run to that time)."""
     import os
+    import shutil
     import signal
     import subprocess
     import sys
     import time
-    from thermal_kernel.lattice import simple_cubic_packing
     from thermal_kernel.network import assemble
-    from thermal_kernel.packing import read_packing, write_packing
+    from thermal_kernel.packing import read_packing
     from thermal_kernel.problem import build_problem
     from thermal_kernel.scene import load_scene
     from thermal_kernel.solvers import run_explicit
-    write_packing(tmp_path / "lattice.h5", simple_cubic_packing((10, 10, 10), spacing_m=1e-3))
-    scene = _scene(tmp_path, "s", '''packing = "lattice.h5"
-law = "terreros"
-[material]
-conductivity = 50.0
-density = 7800.0
-heat_capacity = 460.0
-[initial]
-temperature = 300.0
-[[boundary]]
-kind = "temperature"
-on = "xmin"
-value = 400.0
-[solver]
-method = "explicit"
-end_time = 1000.0
-output_times = [20.0, 1000.0]
-''')
+    # ~2e5 steps: ended long before its end, after the first output time (~20 steps)
+    scene = _scene(tmp_path, "s", f'packing = "{BED}"\nlaw = "pipe"\n{BED_THERMAL}[solver]\n'
+                                  'method = "explicit"\nend_time = 2e4\n'
+                                  'output_times = [2.0, 2e4]\n')
     out = tmp_path / "o"
     ckpt = out / "thermal.checkpoint.h5"
     proc = subprocess.Popen([sys.executable, "-m", "tdem.cli", "run", str(scene), "--out",
@@ -344,14 +330,15 @@ output_times = [20.0, 1000.0]
         f"tdem: terminated (SIGTERM): {out / 'thermal.h5'} not written; checkpoint {ckpt} kept "
         "(--resume continues from it)")
     assert sorted(p.name for p in out.iterdir()) == ["thermal.checkpoint.h5"]   # no lock
-    assert subprocess.run(["pgrep", "-f", str(out)], capture_output=True).returncode == 1
+    if shutil.which("pgrep"):                      # no rank left (their command names out)
+        assert subprocess.run(["pgrep", "-f", str(out)], capture_output=True).returncode == 1
     s = load_scene(scene, out_dir=out)
     net = assemble(build_problem(s, read_packing(s.packing))[0])
-    ref = run_explicit(net, s.initial_temperature, [20.0], safety=s.solver.safety).state
+    ref = run_explicit(net, s.initial_temperature, [2.0], safety=s.solver.safety).state
     with h5py.File(ckpt) as f:
         state = f["state"]
-        assert list(f["outputs/times"][()]) == [20.0]
-        assert state.attrs["step"] == ref.step and state.attrs["time_s"] == 20.0
+        assert list(f["outputs/times"][()]) == [2.0]
+        assert state.attrs["step"] == ref.step and state.attrs["time_s"] == 2.0
         change = float(np.abs(ref.temperature_k - s.initial_temperature).max())
         assert np.abs(state["temperature_k"][()] - ref.temperature_k).max() <= 1e-12 * change
         np.testing.assert_allclose(state["boundary_energy_j"][()], ref.boundary_energy_j,

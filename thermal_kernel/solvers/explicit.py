@@ -222,6 +222,23 @@ def check_dt(net, dt, allow_unstable: bool):
     return ()
 
 
+def explicit_start(net, T0, times, t_start, dt, safety, allow_unstable):
+    """(T, t, step, boundary energy, source energy, T_ref, times, dt, flags) of an explicit run
+    from ``T0`` (array or state): :func:`start_state`, the output times checked, and dt (given,
+    the state's, or ``safety`` x the bound) checked against the bound. In-process and on the
+    PETSc backend's rank 0."""
+    T, t, step0, energy, src_energy, ref, state_dt = start_state(net, T0, t_start, "explicit")
+    times = check_times(times, t)
+    if dt is None:
+        dt = state_dt if state_dt is not None else safety * net.dt_max_s
+        if not (0 < safety <= 1 or (safety > 1 and allow_unstable)):
+            raise ValueError(f"safety = {safety}: must be in (0, 1] (above 1 only with "
+                             "allow_unstable)")
+    dt = float(dt)
+    flags = list(net.flags) + list(check_dt(net, dt, allow_unstable))
+    return T, t, step0, energy, src_energy, ref, times, dt, flags
+
+
 # ----------------------------------------------------------------------------- driver
 def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
                  allow_unstable=False, progress=None, threads=None, keep_temperatures=True,
@@ -239,15 +256,8 @@ def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
     ``on_output(k, t, T)`` is called at each output time."""
     net = as_network(problem)
     prob = net.problem
-    T, t, step0, energy, src_energy, ref, state_dt = start_state(net, T0, t_start, "explicit")
-    times = check_times(times, t)
-    if dt is None:
-        dt = state_dt if state_dt is not None else safety * net.dt_max_s
-        if not (0 < safety <= 1 or (safety > 1 and allow_unstable)):
-            raise ValueError(f"safety = {safety}: must be in (0, 1] (above 1 only with "
-                             "allow_unstable)")
-    dt = float(dt)
-    flags = list(net.flags) + list(check_dt(net, dt, allow_unstable))
+    (T, t, step0, energy, src_energy, ref, times, dt,
+     flags) = explicit_start(net, T0, times, t_start, dt, safety, allow_unstable)
     use_rhs = prob.source is not None or net.has_exchange or net.has_constant_rhs
     arr = _Arrays(net, use_rhs)
     sb = prob.source_boundary

@@ -158,6 +158,14 @@ def scheme_args(scheme, theta, startup_steps):
     return theta, startup_steps
 
 
+def implicit_start(net, T0, t_start, times):
+    """(T, t, step, boundary energy, source energy, T_ref, times) of an implicit run from
+    ``T0`` (array or state): :func:`start_state` and the output times checked. In-process and
+    on the PETSc backend's rank 0."""
+    T, t, step0, energy, src, ref, _ = start_state(net, T0, t_start, "implicit")
+    return T, t, step0, energy, src, ref, check_times(times, t)
+
+
 class LocalOperator:
     """The in-process network for :func:`drive_implicit`: the unknowns are the free particles'
     temperatures (one array), the matrices scipy's, each solved by :class:`SpdSolver`.
@@ -174,12 +182,10 @@ class LocalOperator:
 
     def start(self, T0, t_start, times):
         """(times, t, step, source energy, flags) of the run from ``T0`` (array or state)."""
-        net = self.net
-        self.T, t, step0, self.energy0, src, ref, _ = start_state(net, T0, t_start, "implicit")
-        times = check_times(times, t)
-        self.ref = ref
-        self.recorder = Recorder(net, times, ref, self.keep, self.on_output)
-        return times, t, step0, src, list(net.flags)
+        self.T, t, step0, self.energy0, src, self.ref, times = implicit_start(
+            self.net, T0, t_start, times)
+        self.recorder = Recorder(self.net, times, self.ref, self.keep, self.on_output)
+        return times, t, step0, src, list(self.net.flags)
 
     def setup(self):
         self.free, self.k_ff, self.r_d = _split(self.net)

@@ -44,10 +44,9 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from . import (Recorder, SolverState, ThermalResult, check_times, instantaneous_source,
-               start_state, step_plan)
-from .explicit import check_dt
-from .implicit import drive_implicit, scheme_args
+from . import Recorder, SolverState, ThermalResult, instantaneous_source, step_plan
+from .explicit import explicit_start
+from .implicit import drive_implicit, implicit_start, scheme_args
 from .partition import block_starts, cut_contacts, owner_of_particle, particle_order
 from .steady import steady_inputs, steady_result, untied_temperatures
 
@@ -362,17 +361,8 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
     start = {}
 
     def prelude():
-        net = dist.net
-        T, t, step0, energy0, src, ref, state_dt = start_state(net, T0, t_start, "explicit")
-        times_c = check_times(times, t)
-        dt_ = dt
-        if dt_ is None:
-            dt_ = state_dt if state_dt is not None else safety * net.dt_max_s
-            if not (0 < safety <= 1 or (safety > 1 and allow_unstable)):
-                raise ValueError(f"safety = {safety}: must be in (0, 1] (above 1 only with "
-                                 "allow_unstable)")
-        dt_ = float(dt_)
-        flags = list(net.flags) + list(check_dt(net, dt_, allow_unstable))
+        (T, t, step0, energy0, src, ref, times_c, dt_,
+         flags) = explicit_start(dist.net, T0, times, t_start, dt, safety, allow_unstable)
         start.update(T=T, ref=ref, energy0=energy0)
         return dict(t=t, step0=step0, src=src, dt=dt_, flags=flags, times=times_c)
 
@@ -477,10 +467,9 @@ class DistributedOperator:
 
         def prelude():
             net = dist.net
-            T, t, step0, energy0, src, ref, _ = start_state(net, T0, t_start, "implicit")
+            T, t, step0, energy0, src, ref, times_c = implicit_start(net, T0, t_start, times)
             start.update(T=T, ref=ref, energy0=energy0)
-            return dict(t=t, step0=step0, src=src, flags=list(net.flags),
-                        times=check_times(times, t))
+            return dict(t=t, step0=step0, src=src, flags=list(net.flags), times=times_c)
 
         p = dist.on_root(prelude)
         self.T, self.ref = start.get("T"), start.get("ref")
