@@ -197,7 +197,7 @@ def _build_seed(campaign_path, generator, params, pdir, *, threads, quiet):
 
 def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads: int = 1,
                  quiet: bool = False, repost: bool = False, jobs: int = 1,
-                 ranks: int | None = None) -> dict:
+                 ranks: int | None = None, threads_given: bool = False) -> dict:
     """Packings (YADE, ``yade_threads``; 1 keeps them bit-reproducible for a seed: YADE's
     parallel force summation order varies between runs), then thermal cases (numba, ``threads``).
     Finished cases are kept while they match their inputs (the hashes of the case's scene and
@@ -213,7 +213,8 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
 
     ``[solver] backend = "petsc"`` (or ``ranks``) runs each case's thermal solve on ``ranks``
     MPI ranks (default 1) through PETSc, as ``tdem run --ranks`` (thermal_kernel/mpi_run.py):
-    the same thermal.h5, so the same post-processing and report."""
+    the same thermal.h5, so the same post-processing and report; ``threads_given`` (the
+    user's ``--threads``) is then refused, each rank running one thread."""
     from .pack import default_out_dir, read_pack_table
 
     campaign_path = Path(campaign_path)
@@ -222,7 +223,7 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
         raise UserError(f"--jobs: expected a number of YADE series at a time >= 1, got {jobs}")
     out_dir = Path(out_dir) if out_dir else default_out_dir(campaign_path)
     scenes = check_case_scenes(campaign_path, conf, text, out_dir)   # before YADE builds
-    ranks = _ranks(campaign_path, scenes, ranks)                     # before YADE builds too
+    ranks = _ranks(campaign_path, scenes, ranks, threads_given)      # before YADE builds too
     if conf["has_pack"]:                # [pack] checked before anything is made
         generator, _ = read_pack_table(campaign_path)
         if generator != "bed":
@@ -244,15 +245,22 @@ def run_campaign(campaign_path, out_dir=None, *, threads: int = 2, yade_threads:
         raise
 
 
-def _ranks(campaign_path, scenes, ranks):
+def _ranks(campaign_path, scenes, ranks, threads_given=False):
     """The MPI ranks the cases run on (None: in-process): ``ranks``, else 1 when the scene's
-    ``[solver] backend = "petsc"``; the PETSc venv and mpirun checked now (one line)."""
+    ``[solver] backend = "petsc"``; --threads refused with them, the PETSc venv and mpirun
+    checked now (one line each)."""
     petsc = any(s.solver.backend == "petsc" for s in scenes.values())
     if ranks is None and not petsc:
         return None
-    ranks = 1 if ranks is None else int(ranks)
-    if ranks < 1:
+    if ranks is not None and int(ranks) < 1:
         raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
+    if threads_given:
+        raise UserError("--threads: not with --ranks (each rank runs one thread); expected an "
+                        "in-process campaign for it" if ranks is not None else
+                        f"{campaign_path}: solver.backend: \"petsc\" runs the cases on MPI "
+                        "ranks of one thread each; expected no --threads with it (or backend "
+                        "= \"in-process\")")
+    ranks = 1 if ranks is None else int(ranks)
     from thermal_kernel.solvers.mpi_launch import missing
     why = missing()
     if why is not None:

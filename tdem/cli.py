@@ -186,13 +186,11 @@ def _cmd_demo(args):
 def _cmd_campaign(args):
     from .campaign import run_campaign
     _text_file(args.campaign, "campaign")
-    if args.ranks is not None and args.threads is not None:
-        raise UserError("--threads: not with the PETSc backend (--ranks); expected an "
-                        "in-process campaign for it")
     run_campaign(Path(args.campaign), _out_dir(args),
                  threads=_threads(args, default=2), yade_threads=_positive(args, "yade_threads"),
                  quiet=args.quiet,
-                 repost=args.repost, jobs=_positive(args, "jobs"), ranks=args.ranks)
+                 repost=args.repost, jobs=_positive(args, "jobs"), ranks=args.ranks,
+                 threads_given=args.threads is not None)
 
 
 def _cmd_post(args):

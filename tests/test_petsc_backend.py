@@ -290,10 +290,15 @@ def test_campaign_ranks_errors_are_one_line(tmp_path, capsys):
     assert capsys.readouterr().err.strip().splitlines() == [
         "tdem: error: --ranks: expected a number of MPI ranks >= 1, got 0"]
     assert main(["campaign", str(path), "--out", str(tmp_path / "o"), "--ranks", "2",
-                 "--threads", "2"]) == 2
+                 "--threads", "1"]) == 2
     assert capsys.readouterr().err.strip().splitlines() == [
-        "tdem: error: --threads: not with the PETSc backend (--ranks); expected an in-process "
-        "campaign for it"]
+        "tdem: error: --threads: not with --ranks (each rank runs one thread); expected an "
+        "in-process campaign for it"]
+    petsc = _scene(tmp_path, "p", CAMPAIGN.replace('[solver]\n', '[solver]\nbackend = "petsc"\n'))
+    assert main(["campaign", str(petsc), "--out", str(tmp_path / "o"), "--threads", "1"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f'tdem: error: {petsc}: solver.backend: "petsc" runs the cases on MPI ranks of one '
+        'thread each; expected no --threads with it (or backend = "in-process")']
     assert not (tmp_path / "o").exists()
 
 
