@@ -189,7 +189,9 @@ def _validation_quick(dest: Path, numbers, quick: bool = True) -> None:
     dest.mkdir(parents=True)
     cases = vrun.discover()
     real, img = time.perf_counter, fw.IMG
-    figures = dest / "figures"
+    # a full instance's figures: one fixed folder (the section links them by path), then kept
+    figures = Path(tempfile.gettempdir()) / "tdem_same_outputs_figures"
+    shutil.rmtree(figures, ignore_errors=True)
     for n in numbers:
         tick = iter(range(10 ** 9))
         time.perf_counter = lambda tick=tick: float(next(tick))
@@ -212,6 +214,9 @@ def _validation_quick(dest: Path, numbers, quick: bool = True) -> None:
             for path in sorted(ctx.out.glob("validation_*.csv")) + \
                     sorted(ctx.out.glob("validation_*.png")):
                 shutil.copy(path, dest / path.name)
+    if not quick and figures.exists():
+        shutil.copytree(figures, dest / "figures")
+        shutil.rmtree(figures)
 
 
 def snap(dest: Path, instances) -> None:

@@ -31,10 +31,9 @@ import numpy as np
 from tdem_post.records import from_dict, to_dict
 from tdem_post.analytic import rod_mean_temperature, rod_temperature
 from tdem_post.profiles import binned_profile
-from thermal_kernel.calibrate import flux_test
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
-from thermal_kernel.problem import boundary_particles, build_problem
+from thermal_kernel.problem import build_problem
 from thermal_kernel.scene import load_scene
 from thermal_kernel.solvers.implicit import run_implicit
 
@@ -78,15 +77,12 @@ def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: floa
     where = Path("validation/case2_scene.toml")
     c0 = time.perf_counter()
     scene = load_scene(where, text=scene_text(packing_path, law, 0.806))
-    z0, z1 = (float(np.mean(packing.position[boundary_particles(scene, packing, on, "b")][:, 2]))
-              for on in ("zmin", "zmax"))
+    z0 = fw.held_planes(scene, packing, "z")[0]
     z_end = float(packing.domain_hi[2])
     length = z_end - z0                               # the rod: held plane -> adiabatic face
     ct = None
     if law == "haddad":
-        test = flux_test(scene, packing, "z")
-        ct_domain = 0.806 * LAMBDA / test.effective_w_mk
-        ct = ct_domain * test.length_m / (z1 - z0)    # held-plane length (case 4's convention)
+        ct = fw.held_plane_ct(scene, packing, "z", 0.806, LAMBDA)[2]   # case 4's convention
         scene = load_scene(where, text=scene_text(packing_path, law, ct))
     calib_s = time.perf_counter() - c0
 

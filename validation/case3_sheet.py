@@ -29,10 +29,9 @@ import numpy as np
 
 from tdem_post import continuum as fv
 from tdem_post.records import from_dict, to_dict
-from thermal_kernel.calibrate import flux_test
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
-from thermal_kernel.problem import boundary_particles, build_problem
+from thermal_kernel.problem import build_problem
 from thermal_kernel.scene import load_scene
 from thermal_kernel.solvers.implicit import run_implicit
 
@@ -154,12 +153,7 @@ def sheet_dem(packing_path, dt: float = 0.01, times=None) -> dict:
     where = Path("validation/case3_scene.toml")
     c0 = time.perf_counter()
     scene = load_scene(where, text=scene_text(packing_path, 0.806))
-    cts = []
-    for axis in "xy":
-        test = flux_test(scene, packing, axis)
-        lo, hi = (float(np.mean(packing.position[boundary_particles(
-            scene, packing, f"{axis}{s}", "b"), "xy".index(axis)])) for s in ("min", "max"))
-        cts.append(0.806 * LAMBDA / test.effective_w_mk * test.length_m / (hi - lo))
+    cts = [fw.held_plane_ct(scene, packing, axis, 0.806, LAMBDA)[2] for axis in "xy"]
     ct = float(np.mean(cts))
     scene = load_scene(where, text=scene_text(packing_path, ct))
     problem, _ = build_problem(scene, packing)

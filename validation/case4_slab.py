@@ -33,8 +33,8 @@ from thermal_kernel.atomic import write_text_atomic
 
 from .framework import (ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today, write_csv)
-from .framework import Action, Judgement, cell_cost_text, fit_order, judged, new_figure, \
-    rebuild_saved, save_figure, scene_toml
+from .framework import Action, Judgement, cell_cost_text, fit_order, held_plane_ct, \
+    held_planes, judged, new_figure, rebuild_saved, save_figure, scene_toml
 
 CASE = CaseInfo(number=4, title="cube slab, eq. 17", paper="002 sec. 2.2", paper_n="1e5",
                 paper_error="max rel. error 0.7 %",
@@ -87,10 +87,10 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
     """One packing: (summary dict, profile rows (Fo, t, x/L, T_dem C, T_exact C, error K))."""
     from tdem_post.analytic import slab_mean_temperature
     from tdem_post.profiles import binned_profile
-    from thermal_kernel.calibrate import cross_section, flux_test
+    from thermal_kernel.calibrate import cross_section
     from thermal_kernel.network import assemble
     from thermal_kernel.packing import read_packing
-    from thermal_kernel.problem import boundary_particles, build_problem
+    from thermal_kernel.problem import build_problem
     from thermal_kernel.scene import load_scene
     from thermal_kernel.solvers.explicit import run_explicit
     from thermal_kernel.solvers.steady import solve_steady
@@ -100,15 +100,12 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
     scene = load_scene(scene_path, text=scene_text(packing_path, ct_arb, target_z))
     c0 = time.perf_counter()
     # held-plane slab: mean centre planes of the two held sets
-    x0, x1 = (float(np.mean(packing.position[boundary_particles(scene, packing, on, "b")][:, 0]))
-              for on in ("xmin", "xmax"))
+    x0, x1 = held_planes(scene, packing, "x")
     length = x1 - x0
     domain_length = float(packing.domain_hi[0] - packing.domain_lo[0])
     # C_t from one steady flux test (002 eq. 8-9); lambda_e is proportional to the length used
-    test = flux_test(scene, packing, "x")
+    test, ct_domain, ct_held = held_plane_ct(scene, packing, "x", ct_arb, LAMBDA)
     area = cross_section(packing, 0)
-    ct_domain = ct_arb * LAMBDA / test.effective_w_mk
-    ct_held = ct_domain * domain_length / length
     calib_s = time.perf_counter() - c0
 
     scene = load_scene(scene_path, text=scene_text(packing_path, ct_held, target_z))

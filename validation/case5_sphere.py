@@ -42,7 +42,6 @@ import numpy as np
 from tdem_post.analytic import (sphere_centre_temperature, sphere_shell_mean_temperature,
                                 sphere_temperature)
 from tdem_post.records import column, from_dict, to_dict
-from thermal_kernel.calibrate import flux_test
 from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
 from thermal_kernel.problem import boundary_particles, build_problem
@@ -52,7 +51,7 @@ from thermal_kernel.solvers.implicit import run_implicit
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
     register_packing
 from validation.framework import Judgement, cached, cell_cost_text, csv_writer, fit_order, \
-    new_figure, save_figure, scene_toml
+    held_plane_ct, new_figure, save_figure, scene_toml
 
 CASE = CaseInfo(number=5, title="sphere with held surface, eq. 18-19",
                 paper="002 sec. 2.3, eq. 18-19, Fig. 7-8", paper_n="1e5, 1e6",
@@ -222,13 +221,9 @@ def calibrate_box(box_path, axes="xyz", ct_arb=0.806):
     t0 = time.perf_counter()
     out = {"axes": axes, "ct_domain": [], "ct_held": [], "balance": []}
     for axis in axes:
-        k = "xyz".index(axis)
-        test = flux_test(scene, packing, axis)
-        lo, hi = (float(np.mean(packing.position[boundary_particles(
-            scene, packing, f"{axis}{side}", "b")][:, k])) for side in ("min", "max"))
-        ct_domain = ct_arb * LAMBDA / test.effective_w_mk
+        test, ct_domain, ct_held = held_plane_ct(scene, packing, axis, ct_arb, LAMBDA)
         out["ct_domain"].append(ct_domain)
-        out["ct_held"].append(ct_domain * test.length_m / (hi - lo))
+        out["ct_held"].append(ct_held)
         out["balance"].append(test.balance)
     out["ct_domain_mean"] = float(np.mean(out["ct_domain"]))
     out["ct_held_mean"] = float(np.mean(out["ct_held"]))

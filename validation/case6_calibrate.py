@@ -32,7 +32,8 @@ import numpy as np
 from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 
-from .framework import Action, cell_cpu_seconds, new_figure, rebuild_saved, save_figure
+from .framework import Action, cell_cpu_seconds, held_planes, new_figure, rebuild_saved, \
+    save_figure
 from .framework import (OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
                         optional_packing, previous_numbers, register_packing,
                         today, write_csv)
@@ -171,17 +172,13 @@ def _scene(variant: str):
 def _measure_variant(packing, variant: str) -> dict:
     from thermal_kernel.calibrate import calibrate_axes
     from thermal_kernel.neighbours import bulk_coordination, bulk_particles
-    from thermal_kernel.problem import boundary_particles
     scene = _scene(variant)
     t0 = time.perf_counter()
     results, _, _ = calibrate_axes(scene, packing)
     seconds = time.perf_counter() - t0
     axes = {}
     for r in results:
-        k = "xyz".index(r.axis)
-        x0, x1 = (float(np.mean(packing.position[boundary_particles(scene, packing, f"{r.axis}{s}",
-                                                                    "b")][:, k]))
-                  for s in ("min", "max"))
+        x0, x1 = held_planes(scene, packing, r.axis)
         axes[r.axis] = dict(ct_domain=r.ct, ct_held=r.ct * r.length_m / (x1 - x0),
                             length_domain_m=r.length_m, length_held_m=x1 - x0)
     choice = results[0].neighbours

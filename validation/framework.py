@@ -386,6 +386,30 @@ def scene_toml(packing, law: str, **tables) -> str:
     return "\n".join(lines) + "\n"
 
 
+def held_planes(scene, packing, axis: str) -> tuple[float, float]:
+    """(lo, hi) along ``axis``: the mean centre coordinate of the particles held on the
+    ``axis``min and ``axis``max faces (the boundary rule of ``scene``) - the held planes, whose
+    distance is the slab length of cases 2-6 (docs/validation.md, "The slab length")."""
+    import numpy as np
+
+    from thermal_kernel.problem import boundary_particles
+    k = "xyz".index(axis)
+    lo, hi = (float(np.mean(packing.position[boundary_particles(
+        scene, packing, f"{axis}{side}", "b")][:, k])) for side in ("min", "max"))
+    return lo, hi
+
+
+def held_plane_ct(scene, packing, axis: str, ct_used: float, conductivity_w_mk: float):
+    """The steady flux test along ``axis`` (002 eq. 8-9) and C_t in both length conventions:
+    (test, ct_domain, ct_held), ct_domain = ct_used λ / λ_e with the domain length (the
+    paper's), ct_held = ct_domain × domain length / held-plane distance."""
+    from thermal_kernel.calibrate import flux_test
+    test = flux_test(scene, packing, axis)
+    lo, hi = held_planes(scene, packing, axis)
+    ct_domain = ct_used * conductivity_w_mk / test.effective_w_mk
+    return test, ct_domain, ct_domain * test.length_m / (hi - lo)
+
+
 def new_figure(*args, **kwargs):
     """``plt.subplots(*args, **kwargs)`` on matplotlib's Agg backend (no display): (fig, axes).
     Every case's figure starts here and ends in :func:`save_figure`."""
