@@ -401,7 +401,9 @@ def document(data) -> str:
       "checks, plus `backend`, `ranks`, `cut_contacts`, `linear_solver`, `run_seconds`), so "
       "`tdem post` takes it unchanged. On a cluster, with a hostfile:\n")
     w("```\nmpirun --hostfile hosts -n 256 -x OMP_NUM_THREADS=1 -x NUMBA_NUM_THREADS=1 \\\n"
-      "    .venv-mpi/bin/python -m thermal_kernel.mpi_run SCENE.toml --out runs/out/big\n```\n")
+      "    .venv-mpi/bin/python -m thermal_kernel.mpi_run SCENE.toml --out runs/out/big \\\n"
+      "    --checkpoint-every 10   # a transient run; after a batch system's time limit, "
+      "the same line with --resume\n```\n")
     w("Agreement with the in-process solvers (`tests/test_petsc_backend.py`, 1, 2 and 3 ranks, "
       "`make test`): explicit within 1e-12 of the temperature change, implicit and steady "
       "within 1e-10, boundary flows and ledger alike, flags identical; the last column of the "
