@@ -127,15 +127,18 @@ def unreadable_results() -> dict:
     """{case number: ResultError} of every saved validation/results/caseN.json that is not a
     readable record (truncated, empty, binary, a list, a field missing or mistyped)."""
     bad = {}
-    if framework.RESULTS.exists():
-        for p in framework.RESULTS.glob("case*.json"):
-            m = re.fullmatch(r"case(\d+)\.json", p.name)
-            if m:
-                try:
-                    framework.load_result(int(m.group(1)))
-                except ResultError as e:
-                    bad[int(m.group(1))] = e
-    return dict(sorted(bad.items()))
+    for n in _saved_numbers():
+        try:
+            framework.load_result(n)
+        except ResultError as e:
+            bad[n] = e
+    return bad
+
+
+def _saved_numbers() -> list[int]:
+    """The case numbers with a saved validation/results/caseN.json, in order."""
+    found = (re.fullmatch(r"case(\d+)\.json", p.name) for p in framework.RESULTS.glob("case*.json"))
+    return sorted(int(m.group(1)) for m in found if m)
 
 
 def _refuse(bad: dict) -> None:
@@ -296,13 +299,7 @@ def _cell(text) -> str:
 
 
 def _records() -> dict:
-    out = {}
-    if framework.RESULTS.exists():
-        for p in framework.RESULTS.glob("case*.json"):
-            m = re.fullmatch(r"case(\d+)\.json", p.name)
-            if m:
-                out[int(m.group(1))] = framework.load_result(int(m.group(1)))
-    return out
+    return {n: framework.load_result(n) for n in _saved_numbers()}
 
 
 def _info(n: int, cases: dict, record: dict | None) -> CaseInfo:
