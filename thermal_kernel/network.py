@@ -151,6 +151,11 @@ class Network:
     dt_max_particle: int            # the particle that sets it (-1 if none)
     dt_paper_s: float               # paper 002 eq. 15-16 in network form, for comparison
     flags: tuple[str, ...] = field(default=())
+    # None: ``adjacency`` holds every row. Else the particles whose rows it holds, the others'
+    # rows being empty: the PETSc backend's rank 0 (thermal_kernel/rank_build.py), whose ranks
+    # hold the contacts; it keeps the rows its own work reads (the held particles for
+    # boundary_heat_flow, the untied clusters for the steady solve's floating clusters).
+    adjacency_rows: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -345,6 +350,13 @@ def tied_clusters(adjacency, reservoir) -> ClusterReport:
     particle with ``reservoir`` True (a Dirichlet particle, or an exchange row with g > 0).
     Untied components of >= 2 particles are floating clusters, of one particle rattlers."""
     n_comp, label = connected_components(adjacency, directed=False)
+    return cluster_report(n_comp, label, reservoir)
+
+
+def cluster_report(n_comp: int, label: np.ndarray, reservoir) -> ClusterReport:
+    """The :class:`ClusterReport` of components ``label`` (numbered 0..n_comp-1, in the order
+    of their first particle, as scipy's connected_components numbers them): found whole by
+    :func:`tied_clusters` or across ranks (thermal_kernel/rank_build.py)."""
     tied = np.zeros(n_comp, dtype=bool)
     tied[label[np.asarray(reservoir, dtype=bool)]] = True
     sizes = np.bincount(label, minlength=n_comp)
@@ -356,6 +368,21 @@ def tied_clusters(adjacency, reservoir) -> ClusterReport:
     tied.flags.writeable = False
     return ClusterReport(n_components=int(n_comp), label=label, floating_clusters=floating,
                          floating_sizes=sizes[floating], rattlers=rattlers, tied=tied)
+
+
+def particle_terms(v: dict) -> dict:
+    """The per-particle boundary terms of a validated problem (:func:`validate`'s ``v``): held
+    and its temperature, the exchange g_p and sum g Tw, the constant power."""
+    n = v["n"]
+    held = np.zeros(n, dtype=bool)
+    held[v["fixed_particle"]] = True
+    held_t = np.full(n, np.nan)
+    held_t[v["fixed_particle"]] = v["fixed_temperature"]
+    ep, eg = v["exchange_particle"], v["exchange_g"]
+    g_p = np.bincount(ep, weights=eg, minlength=n).astype(np.float64)
+    gt_p = np.bincount(ep, weights=eg * v["exchange_t"], minlength=n).astype(np.float64)
+    pw_p = np.bincount(v["power_particle"], weights=v["power"], minlength=n).astype(np.float64)
+    return dict(held=held, held_t=held_t, g_p=g_p, gt_p=gt_p, pw_p=pw_p)
 
 
 def assemble(problem: ThermalProblem) -> Network:
@@ -370,7 +397,7 @@ def assemble(problem: ThermalProblem) -> Network:
       C_p / (sum_q H_pq + g_p), and the paper-002 estimate C_mean / (n_max H_mean).
     """
     v = validate(problem)
-    n, m = v["n"], v["m"]
+    n = v["n"]
     h, pair = v["conductance"], v["pair"]
     active = h > 0
     n_active = int(active.sum())
@@ -396,17 +423,23 @@ def assemble(problem: ThermalProblem) -> Network:
     degree = np.bincount(np.repeat(np.arange(n), np.diff(indptr)), weights=adjacency.data,
                          minlength=n).astype(np.float64)
 
-    held = np.zeros(n, dtype=bool)
-    held[v["fixed_particle"]] = True
-    held_t = np.full(n, np.nan)
-    held_t[v["fixed_particle"]] = v["fixed_temperature"]
-    ep, eg = v["exchange_particle"], v["exchange_g"]
-    g_p = np.bincount(ep, weights=eg, minlength=n).astype(np.float64)
-    gt_p = np.bincount(ep, weights=eg * v["exchange_t"], minlength=n).astype(np.float64)
-    pw_p = np.bincount(v["power_particle"], weights=v["power"], minlength=n).astype(np.float64)
+    terms = particle_terms(v)
+    clusters = tied_clusters(adjacency, terms["held"] | (terms["g_p"] > 0))
+    coord_max = int(np.diff(indptr).max()) if n_active else 0
+    h_mean = float(np.mean(ha)) if n_active else float("nan")
+    return network_of(problem, v, terms, adjacency, degree, n_active, clusters, coord_max,
+                      h_mean)
 
-    clusters = tied_clusters(adjacency, held | (g_p > 0))
 
+def network_of(problem: ThermalProblem, v: dict, terms: dict, adjacency, degree, n_active,
+               clusters, coord_max, h_mean, adjacency_rows=None) -> Network:
+    """The :class:`Network` from its parts: the explicit bounds and the flags computed here,
+    for :func:`assemble` (whole) and the PETSc backend's rank 0 (``degree``, ``n_active``, the
+    clusters, the largest coordination ``coord_max`` and the mean conducting H ``h_mean``
+    gathered from the ranks; ``adjacency`` only the rows ``adjacency_rows``)."""
+    n, m = v["n"], v["m"]
+    held, held_t, g_p = terms["held"], terms["held_t"], terms["g_p"]
+    gt_p, pw_p = terms["gt_p"], terms["pw_p"]
     c = v["capacity"]
     denom = degree + g_p
     ok = (~held) & (denom > 0)
@@ -419,9 +452,8 @@ def assemble(problem: ThermalProblem) -> Network:
         p_min, dt_max = -1, float("inf")
     # Paper 002 eq. 15-16 in network form: every particle like the mean particle, every contact
     # like the mean contact, the largest coordination number.
-    coord = np.diff(indptr)
     if n_active:
-        dt_paper = float(np.mean(c) / (coord.max() * np.mean(ha)))
+        dt_paper = float(np.mean(c) / (coord_max * h_mean))
     else:
         dt_paper = float("inf")
     flags = []
@@ -437,11 +469,12 @@ def assemble(problem: ThermalProblem) -> Network:
     return Network(problem=problem, adjacency=adjacency, degree_w_k=degree,
                    n_active_contacts=n_active, n_zero_contacts=m - n_active, held=held,
                    held_temperature_k=held_t, capacity_j_k=c, fixed_particle=v["fixed_particle"],
-                   fixed_boundary=v["fixed_boundary"], exchange_particle=ep,
-                   exchange_row_g_w_k=eg, exchange_row_temperature_k=v["exchange_t"],
+                   fixed_boundary=v["fixed_boundary"], exchange_particle=v["exchange_particle"],
+                   exchange_row_g_w_k=v["exchange_g"],
+                   exchange_row_temperature_k=v["exchange_t"],
                    exchange_boundary=v["exchange_boundary"],
                    power_by_boundary_w=np.bincount(v["power_boundary"], weights=v["power"],
                                                    minlength=len(problem.boundary_names)),
                    exchange_g_w_k=g_p, exchange_gt_w=gt_p, power_w=pw_p, clusters=clusters,
                    dt_max_s=dt_max, dt_max_particle=p_min, dt_paper_s=dt_paper,
-                   flags=tuple(flags))
+                   flags=tuple(flags), adjacency_rows=adjacency_rows)

@@ -56,6 +56,10 @@ class Packing:
     wall_contact_radius: np.ndarray | None = None   # (K,) m, optional
     yade_id: np.ndarray | None = None               # (N,) optional
     path: str = ""
+    # A part of the file's contacts (the PETSc backend's ranks, thermal_kernel/rank_build.py):
+    # the file's row of each contact held, and how many rows the file has. None: all of them.
+    contact_row: np.ndarray | None = None           # (M,) int64
+    file_contacts: int | None = None
 
     @property
     def n_particles(self) -> int:
@@ -80,8 +84,10 @@ def _fail(path, fieldname, what):
     raise PackingError(f"{path}: {fieldname}: {what}")
 
 
-def _dataset(f, path, name, dtype_kind, shape, optional=False):
-    """Read dataset ``name``; check its kind ('f', 'i', 'S') and shape (None = any length)."""
+def _dataset(f, path, name, dtype_kind, shape, optional=False, rows=None):
+    """Read dataset ``name``; check its kind ('f', 'i', 'S') and shape (None = any length).
+    ``rows`` (a slice of the first axis, numeric datasets): read those rows only (the shape
+    checked is the whole dataset's; an empty slice reads nothing)."""
     if name not in f:
         if optional:
             return None
@@ -98,8 +104,8 @@ def _dataset(f, path, name, dtype_kind, shape, optional=False):
         if obj.dtype.kind not in (dtype_kind + ("u" if dtype_kind == "i" else "")):
             expected = {"f": "floating point", "i": "integer"}[dtype_kind]
             _fail(path, name, f"expected {expected} values, got dtype {obj.dtype}")
-        data = obj[()]
-        got_shape = data.shape
+        data = obj[()] if rows is None else obj[rows]
+        got_shape = obj.shape
     if len(got_shape) != len(shape) or any(s is not None and s != g
                                            for s, g in zip(shape, got_shape)):
         want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + \
@@ -107,6 +113,8 @@ def _dataset(f, path, name, dtype_kind, shape, optional=False):
         _fail(path, name, f"expected shape {want}, got {got_shape}")
     if dtype_kind == "f" and not np.all(np.isfinite(data)) and name != "walls/radius":
         bad = int(np.flatnonzero(~np.isfinite(np.asarray(data).reshape(-1)))[0])
+        if rows is not None:            # the flat index in the whole dataset
+            bad += int(rows.start or 0) * int(np.prod(got_shape[1:], dtype=np.int64))
         _fail(path, name, f"non-finite value (NaN or inf) at flat index {bad}")
     return data
 
@@ -118,16 +126,65 @@ def _lengths_agree(path, names_arrays, length):
                               f"got {arr.shape[0]}")
 
 
-def read_packing(path) -> Packing:
-    """Read and validate ``packing.h5``. Raises PackingError with a one-line message."""
+def _open(path):
     path = str(path)
     if not Path(path).is_file():
         raise PackingError(f"{path}: file not found")
     try:
-        f = h5py.File(path, "r")
+        return h5py.File(path, "r"), path
     except OSError as e:
         raise PackingError(f"{path}: not an HDF5 file ({str(e).splitlines()[0]})") from None
-    return _read_open(f, path)
+
+
+def read_packing(path, contacts: bool = True) -> Packing:
+    """Read and validate ``packing.h5``. Raises PackingError with a one-line message.
+    ``contacts=False``: everything but the particle-particle contacts (their datasets' kinds
+    and shapes are checked, their rows neither read nor checked; ``file_contacts`` says how
+    many there are): the PETSc backend's ranks read their rows with :func:`read_contact_rows`."""
+    f, path = _open(path)
+    return _read_open(f, path, contacts)
+
+
+def read_contact_rows(particles: Packing, start: int, stop: int) -> Packing:
+    """Rows ``start:stop`` of the contacts of the file ``particles`` was read from (by
+    ``read_packing(path, contacts=False)``), checked as :func:`read_packing` checks every row
+    against the particles (indices, i < j, overlaps, forces, branch vectors; duplicates within
+    these rows -- a duplicate across two parts is found by whoever holds both: the rows of a
+    particle, thermal_kernel/rank_build.py); messages name the file's row. ``particles`` with
+    these contacts (``contact_row`` their rows)."""
+    import dataclasses
+    f, path = _open(particles.path)
+    rows = slice(int(start), int(stop))
+    m = int(particles.file_contacts)
+    with f:
+        pair = _dataset(f, path, "contacts/pair", "i", (None, 2), rows=rows)
+        overlap = _dataset(f, path, "contacts/overlap", "f", (m,), rows=rows)
+        normal_force = _dataset(f, path, "contacts/normal_force", "f", (m,), rows=rows)
+        branch = _dataset(f, path, "contacts/branch", "f", (m, 3), rows=rows)
+        contact_radius = _dataset(f, path, "contacts/contact_radius", "f", (m,), optional=True,
+                                  rows=rows)
+    n = particles.n_particles
+    _check_pairs(path, pair, n, row0=start)
+    _check_contact_rows(path, particles, pair, overlap, normal_force, branch, row0=start)
+    return dataclasses.replace(
+        particles, pair=pair.astype(np.int64), overlap=overlap, normal_force=normal_force,
+        branch=branch, contact_radius=contact_radius,
+        contact_row=np.arange(start, stop, dtype=np.int64))
+
+
+def _check_contact_rows(path, p: Packing, pair, overlap, normal_force, branch, row0=0):
+    """The checks of :func:`_read_open` that read contact rows, on some rows of them (``row0``
+    the file's row of the first; messages name the file's rows)."""
+    if np.any(normal_force < 0):
+        i = int(np.flatnonzero(normal_force < 0)[0])
+        _fail(path, "contacts/normal_force", f"contact {i + row0} has a tensile (negative) "
+                                             f"force {normal_force[i]!r}; expected >= 0")
+    none = np.zeros(0, np.int64)
+    _check_geometry(path, p.position, p.radius, p.phase, pair, overlap, branch, none,
+                    np.zeros(0), p.domain_lo, p.domain_hi, p.periodic, row0=row0)
+    _check_forces_and_walls(path, p.position, p.radius, pair, overlap, normal_force, branch,
+                            [], p.wall_point, p.wall_normal, p.wall_radius, none, none,
+                            np.zeros(0), np.zeros(0), row0=row0, centres=False)
 
 
 def read_packing_image(image, name) -> Packing:
@@ -140,7 +197,7 @@ def read_packing_image(image, name) -> Packing:
     return _read_open(f, str(name))
 
 
-def _read_open(f, path) -> Packing:
+def _read_open(f, path, contacts=True) -> Packing:
     with f:
         fmt = f.attrs.get("format")
         if isinstance(fmt, bytes):
@@ -184,12 +241,14 @@ def _read_open(f, path) -> Packing:
             _fail(path, "particles/radius", f"particle {i} has radius {radius[i]!r}; "
                                             "expected > 0")
 
-        pair = _dataset(f, path, "contacts/pair", "i", (None, 2))
-        m = pair.shape[0]
-        overlap = _dataset(f, path, "contacts/overlap", "f", (m,))
-        normal_force = _dataset(f, path, "contacts/normal_force", "f", (m,))
-        branch = _dataset(f, path, "contacts/branch", "f", (m, 3))
-        contact_radius = _dataset(f, path, "contacts/contact_radius", "f", (m,), optional=True)
+        rows = None if contacts else slice(0, 0)         # no rows: kinds and shapes only
+        pair = _dataset(f, path, "contacts/pair", "i", (None, 2), rows=rows)
+        m = pair.shape[0] if contacts else int(f["contacts/pair"].shape[0])
+        overlap = _dataset(f, path, "contacts/overlap", "f", (m,), rows=rows)
+        normal_force = _dataset(f, path, "contacts/normal_force", "f", (m,), rows=rows)
+        branch = _dataset(f, path, "contacts/branch", "f", (m, 3), rows=rows)
+        contact_radius = _dataset(f, path, "contacts/contact_radius", "f", (m,), optional=True,
+                                  rows=rows)
         _check_pairs(path, pair, n)
         if np.any(normal_force < 0):
             i = int(np.flatnonzero(normal_force < 0)[0])
@@ -264,7 +323,7 @@ def _read_open(f, path) -> Packing:
                    wall_normal_force=wall_normal_force, domain_lo=dom["lo"],
                    domain_hi=dom["hi"], periodic=dom["periodic"], attrs=attrs,
                    contact_radius=contact_radius, wall_contact_radius=wall_contact_radius,
-                   yade_id=yade_id, path=path)
+                   yade_id=yade_id, path=path, file_contacts=None if contacts else m)
 
 
 # Relative round-off allowed in the geometric checks below (positions of ~1e4 radii from the
@@ -276,7 +335,7 @@ BRANCH_RTOL = 1e-6
 
 
 def _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_particle,
-                    wall_overlap, lo, hi, periodic):
+                    wall_overlap, lo, hi, periodic, row0=0):
     """Arrays that are each well formed but describe an impossible packing: a negative phase
     id, a centre outside the domain, an overlap beyond a radius, a branch vector that does not
     join the two centres. Spheres may stick out of the domain (a tiled packing carved to a
@@ -304,9 +363,9 @@ def _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_p
         if too_deep.any():
             c = int(np.flatnonzero(too_deep)[0])
             _fail(path, "contacts/overlap",
-                  f"contact {c} ({int(i[c])}, {int(j[c])}) has overlap {overlap[c]:.6g} m, larger "
-                  f"than the smaller radius {r_min[c]:.6g} m; expected overlap <= the smaller "
-                  "radius")
+                  f"contact {c + row0} ({int(i[c])}, {int(j[c])}) has overlap "
+                  f"{overlap[c]:.6g} m, larger than the smaller radius {r_min[c]:.6g} m; "
+                  "expected overlap <= the smaller radius")
         residual = branch - (position[j] - position[i])
         for axis in np.flatnonzero(periodic):        # the partner's image: any whole period
             residual[:, axis] -= extent[axis] * np.round(residual[:, axis] / extent[axis])
@@ -317,7 +376,7 @@ def _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_p
             c = int(np.flatnonzero(bad)[0])
             image = " (nearest periodic image)" if periodic.any() else ""
             _fail(path, "contacts/branch",
-                  f"contact {c} ({int(i[c])}, {int(j[c])}): the branch vector is "
+                  f"contact {c + row0} ({int(i[c])}, {int(j[c])}): the branch vector is "
                   f"{error[c] / r_min[c]:.3g} radii away from x_j - x_i{image}; expected the "
                   f"vector from centre i to centre j (within {BRANCH_RTOL:g} of the radius)")
     if wall_particle.size:
@@ -392,7 +451,7 @@ def _wall_distance(kind, point, normal, radius, x):
 
 def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force, branch,
                             wall_kind, wall_point, wall_normal, wall_radius, wall_particle,
-                            wall_index, wall_overlap, wall_normal_force):
+                            wall_index, wall_overlap, wall_normal_force, row0=0, centres=True):
     """Overlaps that contradict the geometry, forces on gaps: a contact's overlap is
     r_i + r_j - |branch| (the branch is already checked against the centres), a touching wall
     contact's is r - its centre's distance to the wall; a gap (overlap <= 0) carries no force;
@@ -408,14 +467,14 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
         if off.any():
             c = int(np.flatnonzero(off)[0])
             _fail(path, "contacts/overlap",
-                  f"contact {c} ({int(i[c])}, {int(j[c])}) has overlap {overlap[c]:.6g} m, "
+                  f"contact {c + row0} ({int(i[c])}, {int(j[c])}) has overlap {overlap[c]:.6g} m, "
                   f"but its spheres give r_i + r_j - |branch| = {geo[c]:.6g} m; expected the "
                   f"overlap of the two spheres (within {OVERLAP_RTOL:g} of the smaller radius)")
         gap_force = (overlap <= 0) & (normal_force > 0)
         if gap_force.any():
             c = int(np.flatnonzero(gap_force)[0])
             _fail(path, "contacts/normal_force",
-                  f"contact {c} ({int(i[c])}, {int(j[c])}) is a gap (overlap "
+                  f"contact {c + row0} ({int(i[c])}, {int(j[c])}) is a gap (overlap "
                   f"{overlap[c]:.6g} m) with a normal force of {normal_force[c]:.6g} N; "
                   "expected 0 on a gap")
     if wall_particle.size:
@@ -449,7 +508,7 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
                   f"{wall_normal_force[c]:.6g} N; expected 0 on a gap")
     # coincident centres: two spheres in one place (any overlap search would be O(N log N) on
     # every load; equal centres are the impossible case that costs one sort)
-    if position.shape[0] > 1:
+    if centres and position.shape[0] > 1:
         by_x = np.argsort(position[:, 0], kind="stable")
         tied = np.flatnonzero(np.diff(position[by_x, 0]) == 0)      # equal x: the candidates
         mask = np.zeros(position.shape[0], bool)
@@ -529,25 +588,35 @@ def _check_index(path, name, index, n, what):
                           f"out of range 0..{n - 1}")
 
 
-def _check_pairs(path, pair, n):
-    _check_index(path, "contacts/pair", pair.reshape(-1), n, "particle")
+def _check_pairs(path, pair, n, row0=0, row=None):
+    """Indices in range, i < j, no contact twice. ``row0`` the file's row of the first row
+    (or ``row`` the file's row of each): messages name the file's rows."""
+    def at(r):
+        return int(row[r]) if row is not None else r + row0
+    if pair.shape[0] and (pair.min() < 0 or pair.max() >= n):
+        bad = int(np.flatnonzero(((pair < 0) | (pair >= n)).any(axis=1))[0])
+        _fail(path, "contacts/pair", f"row {at(bad)} refers to particle "
+                                     f"{int(pair[bad][(pair[bad] < 0) | (pair[bad] >= n)][0])}, "
+                                     f"out of range 0..{n - 1}")
     if pair.shape[0] == 0:
         return
     self_rows = np.flatnonzero(pair[:, 0] == pair[:, 1])
     if self_rows.size:
         r = int(self_rows[0])
-        _fail(path, "contacts/pair", f"row {r} is a self contact ({pair[r, 0]}, {pair[r, 1]})")
+        _fail(path, "contacts/pair", f"row {at(r)} is a self contact ({pair[r, 0]}, "
+                                     f"{pair[r, 1]})")
     bad_order = np.flatnonzero(pair[:, 0] > pair[:, 1])
     if bad_order.size:
         r = int(bad_order[0])
-        _fail(path, "contacts/pair", f"row {r} is ({pair[r, 0]}, {pair[r, 1]}); "
+        _fail(path, "contacts/pair", f"row {at(r)} is ({pair[r, 0]}, {pair[r, 1]}); "
                                      "expected i < j in every row")
     key = pair[:, 0] * np.int64(n) + pair[:, 1]
     order = np.argsort(key, kind="stable")
     dup = np.flatnonzero(np.diff(key[order]) == 0)
     if dup.size:
         r = int(order[dup[0] + 1])
-        _fail(path, "contacts/pair", f"row {r} duplicates contact ({pair[r, 0]}, {pair[r, 1]})")
+        _fail(path, "contacts/pair", f"row {at(r)} duplicates contact ({pair[r, 0]}, "
+                                     f"{pair[r, 1]})")
 
 
 # ----------------------------------------------------------------------------- writing

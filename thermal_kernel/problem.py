@@ -41,12 +41,15 @@ def particle_materials(scene: Scene, packing: Packing):
     return k, rho, cp
 
 
-def build_law_inputs(scene: Scene, packing: Packing, keep: np.ndarray | None = None):
+def build_law_inputs(scene: Scene, packing: Packing, keep: np.ndarray | None = None,
+                     neighbours: np.ndarray | None = None):
     """The ContactInput and ParticleInput the scene's law receives (every dumped row; with
-    ``keep``, the neighbour counts are those of the kept rows only)."""
+    ``keep``, the neighbour counts are those of the kept rows only). ``neighbours``: the (N,)
+    neighbour counts given (a packing holding part of the file's contacts: the ranks'
+    counts summed over every part, thermal_kernel/rank_build.py)."""
     k, rho, cp = particle_materials(scene, packing)
     young, poisson = mechanical_properties(scene, packing)
-    nb = neighbour_counts(packing, keep)
+    nb = neighbour_counts(packing, keep) if neighbours is None else neighbours
     i, j = packing.pair[:, 0], packing.pair[:, 1]
     contacts = ContactInput(
         radius_i_m=packing.radius[i], radius_j_m=packing.radius[j],
@@ -67,6 +70,24 @@ def law_params(scene: Scene, law) -> dict:
     return {**law.defaults, **scene.law_params}
 
 
+def evaluate_law(scene: Scene, packing: Packing, keep: np.ndarray | None = None,
+                 neighbours: np.ndarray | None = None):
+    """The scene's law on the packing's contacts and particles, checked: (law, params,
+    ParticleInput, H per contact of ``packing``, C per particle). The one place a law is
+    evaluated: on the whole packing (:func:`build_problem`) or on the contacts a rank holds
+    (``packing.contact_row``, ``neighbours`` the whole packing's counts; rank_build.py)."""
+    law = get_law(scene.law)
+    params = law_params(scene, law)
+    contacts, particles = build_law_inputs(scene, packing, keep, neighbours)
+    with np.errstate(all="ignore"):     # a value out of range is said below, in one line
+        conductance = np.asarray(law.conductance(contacts, params), dtype=np.float64)
+        capacity = np.asarray(law.capacity(particles, params), dtype=np.float64)
+    if keep is not None:
+        conductance = np.where(keep, conductance, 0.0)
+    _check_law_output(scene, law, conductance, capacity, packing.contact_row)
+    return law, params, particles, conductance, capacity
+
+
 def build_problem(scene: Scene, packing: Packing):
     """Return (ThermalProblem, info dict) for a scene on a packing.
 
@@ -74,18 +95,18 @@ def build_problem(scene: Scene, packing: Packing):
     the dumped rows outside it (they stay in the problem's arrays, aligned with the packing's
     rows; the network drops them); ``info["neighbours"]`` is its
     :class:`~thermal_kernel.neighbours.NeighbourChoice` (None without a criterion)."""
-    law = get_law(scene.law)
-    params = law_params(scene, law)
     choice = choose_neighbours(scene, packing)
     keep = None if choice is None else choice.keep
-    contacts, particles = build_law_inputs(scene, packing, keep)
-    with np.errstate(all="ignore"):     # a value out of range is said below, in one line
-        conductance = np.asarray(law.conductance(contacts, params), dtype=np.float64)
-        capacity = np.asarray(law.capacity(particles, params), dtype=np.float64)
-    if keep is not None:
-        conductance = np.where(keep, conductance, 0.0)
-    _check_law_output(scene, law, conductance, capacity)
+    law, params, particles, conductance, capacity = evaluate_law(scene, packing, keep)
+    return boundary_problem(scene, packing, law, params, particles, capacity, conductance,
+                            choice)
 
+
+def boundary_problem(scene: Scene, packing: Packing, law, params, particles, capacity,
+                     conductance, choice=None):
+    """(ThermalProblem, info) from the law's outputs: each boundary adds its rows (its kind's
+    ``contribute``), checked. ``packing.pair`` and ``conductance`` are the problem's contacts
+    (none: the PETSc backend's rank 0, whose ranks hold the contacts, rank_build.py)."""
     young, poisson = mechanical_properties(scene, packing)
     ctx = BuildContext(scene=scene, packing=packing, law=law, params=params,
                        particles=particles, capacity_j_k=capacity, young_pa=young,
@@ -148,7 +169,7 @@ def _scene_inputs(scene: Scene, keys) -> str:
     return ", ".join(out)
 
 
-def _check_law_output(scene: Scene, law, conductance, capacity) -> None:
+def _check_law_output(scene: Scene, law, conductance, capacity, contact_row=None) -> None:
     """A law's H and C computed from the scene's numbers, refused in one line naming the scene
     keys they came from (not the solvers' arrays) when a value is out of floating-point range:
     H not finite or < 0, C not finite or <= 0."""
@@ -163,11 +184,12 @@ def _check_law_output(scene: Scene, law, conductance, capacity) -> None:
     bad = ~np.isfinite(conductance) | (conductance < 0)
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
+        row = k if contact_row is None else int(contact_row[k])     # the file's row
         raise SceneError(
             f"{scene.path}: "
             f"{_scene_inputs(scene, ('conductivity', 'young_pa', 'poisson'))}: law "
             f"{law.name!r} gives a conductance H = {conductance[k]:g} W/K for "
-            f"{int(bad.sum())} of {conductance.size} contacts (first: contact {k}); expected "
+            f"{int(bad.sum())} of {conductance.size} contacts (first: contact {row}); expected "
             "numbers for which the law's H is finite and >= 0")
 
 
