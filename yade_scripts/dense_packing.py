@@ -506,7 +506,15 @@ def hertz_overlap(p, young):
     return (p["confining_pressure_pa"] / e_star) ** (2.0 / 3.0)
 
 
-def press_shell(p, box, centres, radii, frozen, shell_m, start_factor=None):
+def shell_radius_factor(p, young):
+    """The radius factor of the shell path's spheres at modulus ``young``: a contact's overlap /
+    (r_i + r_j) is shell_overlap_gain times Hertz's (p/E*)^(2/3) on average, so a factor
+    1 + gain (h(E) - h(E_real)) carries the stage's overlaps (1 at the real modulus)."""
+    return 1.0 + p["shell_overlap_gain"] * (hertz_overlap(p, young) -
+                                            hertz_overlap(p, p["young_pa"]))
+
+
+def press_shell(p, box, centres, radii, frozen, shell_m, start_factor=None, release=None):
     """method = "shell": the free shell and its frozen band in YADE, the walls on the carved
     surface pressed onto the shell until each carries the confining pressure (a servo per wall,
     the compliance of a column of shell_diameters contacts in Hertz's law), through the direct
@@ -514,7 +522,8 @@ def press_shell(p, box, centres, radii, frozen, shell_m, start_factor=None):
     radii carry each stage's Hertz overlap and end as given. Returns the pressed state of these
     spheres (indices into centres). ``start_factor``: each sphere's radius factor at the start
     (below 1: the shrunk cloud of shell.cloud_layer and its seam, shell.seam_shrink), grown back
-    to their radii against the walls first (grow_cloud)."""
+    to their radii against the walls first (grow_cloud). ``release``: frozen spheres made free
+    after the last stage, which is then run once more (shell_release_diameters)."""
     stages = stiffness_stages(p)
     mats, sphere_ids, wall_of_body, collider = build_scene(p, centres, radii, box, stages[0])
     for k, b in enumerate(sphere_ids):
@@ -546,11 +555,8 @@ def press_shell(p, box, centres, radii, frozen, shell_m, start_factor=None):
     # it the softened shell is compressed against a band held at the real modulus's overlaps,
     # and each stiffening stage opens the seam between them (measured: touching Z 3.9-4.4
     # against 4.8-5.7 there, docs/packings.md).
-    # a contact's overlap / (r_i + r_j) is shell_overlap_gain times Hertz's (p/E*)^(2/3) on
-    # average: a radius factor 1 + gain (h(E) - h(E_real)) carries the stage's overlaps
     def radius_factor(young):
-        return 1.0 + p["shell_overlap_gain"] * (hertz_overlap(p, young) -
-                                                hertz_overlap(p, p["young_pa"]))
+        return shell_radius_factor(p, young)
 
     def scale_radii(factor):
         utils.growParticles(factor, updateMass=False, dynamicOnly=True)     # the free shell
@@ -569,7 +575,19 @@ def press_shell(p, box, centres, radii, frozen, shell_m, start_factor=None):
     if shrunk:
         grow_cloud(p, box, shrunk, collider, walls, body, inward,
                    r_mean * layers * hertz_overlap(p, stages[0]), every)
-    for k, young in enumerate(stages):
+    # the last stage again once the outer part of the frozen band is released: the seam the
+    # stages left against it (touching Z ~4.8 against the direct boxes' ~5.3 there) is then
+    # between free spheres, and the new one behind it has seen only this last relaxation
+    released = [] if release is None else [int(b) for k, b in enumerate(sphere_ids)
+                                           if release[k]]
+    schedule = list(enumerate(stages)) + ([(len(stages) - 1, stages[-1])] if released else [])
+    for n_stage, (k, young) in enumerate(schedule):
+        if n_stage == len(stages):
+            for b in released:
+                O.bodies[b].dynamic = True
+                O.bodies[b].groupMask = SHELL_MASK
+            collider.doSort = True
+            log(f"shell: {len(released)} spheres of the frozen band released")
         if young != young_now:
             set_young(mats, young, young_now)
             if young == p["young_pa"]:
@@ -582,6 +600,11 @@ def press_shell(p, box, centres, radii, frozen, shell_m, start_factor=None):
             young_now = young
         final, label, unbalanced_target, overlap_scale = enter_stage(p, mats, stages, k,
                                                                      friction_stage)
+        if not final:
+            # the stages before the last end once the walls carry the pressure and the
+            # unbalanced force is below shell_stage_unbalanced (the direct path's 1e-2: most of
+            # each stage's steps go to its slow creep from ~3e-2 down to 1e-2)
+            unbalanced_target = max(unbalanced_target, p["shell_stage_unbalanced"])
         # a wall moves at most this far per control interval: a few overlaps of its column of
         # contacts, or shell_press_step mean radii while it carries less than a quarter of the
         # target (the cut layer's deficit closing: little resistance)
@@ -701,18 +724,25 @@ def shell_state(p, state):
             dict(p, n_particles=int(round(p["n_particles"] / kept_first.mean()))), state)
     box, position, radius = carved["box"], carved["position"], carved["radius"]
     shell_m = p["shell_diameters"] * 2.0 * float(radius.mean())
-    band_m = shell.frozen_band_m(radius, p["gap_tolerance"])
+    release_m = p["shell_release_diameters"] * 2.0 * float(radius.mean())
+    band_m = shell.frozen_band_m(radius, p["gap_tolerance"]) + release_m
     whole, free, band = shell.split(box, position, radius, shell_m, band_m,
                                     p["shell_cut_depth"])
+    # the band's outer release_m, freed for the last relaxation (press_shell)
+    release = band & (shell.boundary_distance(box, position) < shell_m + release_m)
     _, rows, pair = carve(whole, carved["pair"])
     kept = (pair,) + tuple(carved[k][rows] for k in ("branch", "overlap", "normal_force",
                                                      "contact_radius"))
-    position, radius, free, band = position[whole], radius[whole], free[whole], band[whole]
+    position, radius, free, band, release = (a[whole] for a in (position, radius, free, band,
+                                                                 release))
     if p["shell_cloud_diameters"] > 0:
-        # the outer layer put back as a loose cloud in a grown box, the walls on its faces
+        # the outer layer put back as a loose cloud in a grown box, the walls on its faces; the
+        # layer holds its spheres at the direct box's solid fraction at the radii they grow
+        # back to, the soft stage's (shell_radius_factor)
+        soft_factor = shell_radius_factor(p, stiffness_stages(p)[0])
         layer_phi = shell.layer_solid_fraction(
             float(np.sum(4.0 / 3.0 * np.pi * radius ** 3)) / float(np.prod(box.size)),
-            p["shell_cloud_diameters"])
+            p["shell_cloud_diameters"]) / soft_factor ** 3
         depth = shell.boundary_distance(box, position)      # in the carved box
         try:
             position, clouded, grown = shell.cloud_layer(
@@ -746,7 +776,8 @@ def shell_state(p, state):
         f"{int(band.sum())} frozen behind it ({band_m:.4g} m), {len(radius) - len(sub)} "
         f"interior spheres stay as tiled")
     pressed = press_shell(p, box, position[sub], radius[sub], band[sub], shell_m,
-                          start_factor[sub])
+                          start_factor[sub], release[sub])
+    free = free | release           # they moved: their contacts are YADE's
     position = position.copy()
     position[sub] = pressed["position"]
     position -= pressed["lo"]
@@ -763,8 +794,11 @@ def shell_state(p, state):
                 shell_cloud_diameters=float(p["shell_cloud_diameters"]),
                 shell_seam_diameters=float(p["shell_seam_diameters"]),
                 shell_overlap_gain=float(p["shell_overlap_gain"]),
+                shell_release_diameters=float(p["shell_release_diameters"]),
                 shell_thickness_m=shell_m, frozen_band_m=band_m,
-                shell_free_particles=int(free.sum()), shell_frozen_particles=int(band.sum()),
+                shell_stage_unbalanced=float(p["shell_stage_unbalanced"]),
+                shell_free_particles=int(free.sum()),
+                shell_frozen_particles=int((band & ~release).sum()),
                 shell_cut_particles_removed=int((~whole).sum()),
                 shell_steps=pressed["steps"], shell_seconds=pressed["seconds"],
                 cell_steps=int(state["compress_steps"]),

@@ -88,6 +88,16 @@ PARAMS = {
                                       "too, less with depth (from the cloud's shrink to none), "
                                       "and grow back with the cloud, so that the grown layer "
                                       "does not meet a jammed carved surface"),
+    "shell_release_diameters": dict(kind="float", default=0.0, minimum=0.0,
+                                    help="shell: the frozen band is this many mean diameters "
+                                         "thicker, and its outer part is freed for one more "
+                                         "relaxation at the real modulus after the stages (the "
+                                         "seam against the frozen band moves inward and sees "
+                                         "only that last relaxation)"),
+    "shell_stage_unbalanced": dict(kind="float", default=1e-2, minimum=1e-4, maximum=0.5,
+                                   help="shell: the unbalanced-force ratio that ends each stage "
+                                        "before the last (the last ends at "
+                                        "unbalanced_force_target; 1e-2 as the direct path)"),
     "shell_overlap_gain": dict(kind="float", default=0.5, minimum=0.05, maximum=10.0,
                                help="shell: the mean overlap / (r_i + r_j) of the contacts over "
                                     "Hertz's (p / E*)^(2/3); each stage's radii carry it (0.5: "
