@@ -187,6 +187,51 @@ def test_a_bad_scene_on_the_ranks_is_one_line_and_exit_2(tmp_path, capsys):
     assert not (tmp_path / "o" / "thermal.h5").exists()
 
 
+# ------------------------------------------------------------------ the per-rank build
+@pytest.mark.parametrize("ranks", [2, 3])
+def test_each_rank_builds_its_own_rows_as_the_whole_build_does(tmp_path, ranks):
+    """thermal_kernel/rank_build.py against the whole build on rank 0 (tests/
+    mpi_rank_build_check.py, under mpirun): each rank's rows of the matrix and of the boundary
+    terms, rank 0's network (degrees, clusters, bounds, flags, the held rows) and the steady
+    temperatures bit for bit, on the bed (rattlers) and the dense box (every row kind).
+    What could fail: a contact lost or counted twice between the slices and the owners, the
+    law given other neighbour counts, a diagonal summed in another order, clusters numbered
+    otherwise than in-process."""
+    import subprocess
+
+    from thermal_kernel.solvers.mpi_launch import MPIRUN_LOCAL, mpi_env, mpi_python
+    check = Path(__file__).resolve().parent / "mpi_rank_build_check.py"
+    steady = '[solver]\nmethod = "steady"\n'
+    for name, text in (("bed", f'packing = "{BED}"\nlaw = "pipe"\n{BED_THERMAL}{steady}'),
+                       ("dense", DENSE_ROWS + steady)):
+        scene = _scene(tmp_path, name, text)
+        done = subprocess.run(["mpirun", "-n", str(ranks), *MPIRUN_LOCAL, str(mpi_python()),
+                               str(check), str(scene)], env=mpi_env(), capture_output=True,
+                              text=True, cwd=tmp_path)
+        assert done.returncode == 0, (name, done.stdout[-3000:], done.stderr[-3000:])
+        assert f"rank_build OK {ranks} " in done.stdout, (name, done.stdout[-3000:])
+
+
+def test_a_bad_contact_row_read_by_the_last_rank_is_one_line(tmp_path, capsys):
+    """The last rank reads the last contact rows: a tensile force there is rank 0's one line
+    (the file, the field, the file's row), exit 2, as the in-process reader says it."""
+    import shutil
+    bad = tmp_path / "bad.h5"
+    shutil.copy(DENSE, bad)
+    with h5py.File(bad, "r+") as f:
+        m = f["contacts/normal_force"].shape[0]
+        f["contacts/normal_force"][m - 1] = -1.0
+    scene = _scene(tmp_path, "s", DENSE_ROWS.replace(str(DENSE), str(bad))
+                   + '[solver]\nmethod = "steady"\n')
+    assert main(["run", str(scene), "--out", str(tmp_path / "o"), "--ranks", "3"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"tdem: error: {bad}: contacts/normal_force: contact {m - 1} has a tensile "
+                   "(negative) force -1.0; expected >= 0"]
+    assert main(["run", str(scene), "--out", str(tmp_path / "i")]) == 2     # in-process: alike
+    assert capsys.readouterr().err.strip().splitlines() == err
+    assert not (tmp_path / "o" / "thermal.h5").exists()
+
+
 @pytest.mark.parametrize("extra,message", [
     (["--ranks", "0"], "tdem: error: --ranks: expected a number of MPI ranks >= 1, got 0"),
     (["--ranks", "2", "--threads", "2"],

@@ -37,11 +37,42 @@ _PACKING_ARRAYS = ("position", "radius", "phase", "pair", "overlap", "normal_for
                    "contact_radius", "wall_contact_radius")
 
 
+# the contacts' arrays: their dataset in the file and the dtype read_packing gives them
+_CONTACT_ARRAYS = {"pair": ("contacts/pair", np.int64), "overlap": ("contacts/overlap", None),
+                   "normal_force": ("contacts/normal_force", None),
+                   "branch": ("contacts/branch", None),
+                   "contact_radius": ("contacts/contact_radius", None)}
+_HASH_ROWS = 1 << 20
+
+
+def _hash_from_file(h, path, name):
+    """``h`` updated as packing_sha256 updates it with the array ``name`` of read_packing(path),
+    read from the file a block of rows at a time."""
+    import h5py
+    dataset, dtype = _CONTACT_ARRAYS[name]
+    h.update(name.encode() + b"\0")
+    with h5py.File(path, "r") as f:
+        if dataset not in f:
+            h.update(b"none\0")
+            return
+        d = f[dataset]
+        want = np.dtype(dtype or d.dtype).newbyteorder("<")
+        h.update(f"{want.str}{d.shape}".encode() + b"\0")
+        for start in range(0, d.shape[0], _HASH_ROWS):
+            block = np.ascontiguousarray(d[start:start + _HASH_ROWS]).astype(want, copy=False)
+            h.update(block.tobytes())
+
+
 def packing_sha256(packing) -> str:
     """sha256 (hex) of a packing's content: every array (name, dtype, shape, little-endian
-    bytes) and the walls' names and kinds. Equal for the same packing read from a copy."""
+    bytes) and the walls' names and kinds. Equal for the same packing read from a copy. A
+    packing read without its contacts (``file_contacts`` set: the PETSc backend's ranks) hashes
+    them from its file, a block of rows at a time: the same hash, never all of them in memory."""
     h = hashlib.sha256()
     for name in _PACKING_ARRAYS:
+        if packing.file_contacts is not None and name in _CONTACT_ARRAYS:
+            _hash_from_file(h, packing.path, name)
+            continue
         a = getattr(packing, name, None)
         h.update(name.encode() + b"\0")
         if a is None:

@@ -7,7 +7,10 @@
 This is the command a user runs on a cluster (with ``--hostfile``; docs/scaling.md).
 ``tdem run --ranks N`` (:mod:`.solvers.mpi_launch`) starts it from the project's venv. It lives
 beside :mod:`.run` (not in ``solvers/``, which never import the scene or the problem builder:
-``tests/test_boundaries.py``). Every rank reads the scene;
+``tests/test_boundaries.py``). Every rank reads the scene and
+builds its own rows (:mod:`.rank_build`: its slice of the packing's contacts, sent to the ranks
+owning their particles; the law evaluated on each rank's contacts; the boundary kinds on rank 0,
+their rows sent to every rank; the clusters joined on rank 0); with a ``[neighbours]`` criterion
 rank 0 alone reads the packing, builds the problem with the one law registry and the boundary
 kinds (:func:`~thermal_kernel.problem.build_problem`) and assembles the network, then sends each
 rank its rows (:class:`~thermal_kernel.solvers.petsc_backend.DistributedNetwork`); the solve is
@@ -87,6 +90,7 @@ def _run(args, rank, held):
     from .output import scene_to_json
     from .packing import read_packing
     from .problem import build_problem
+    from .rank_build import build_on_ranks
     from .run import (_check_step_count, _print_summary, _progress_bar, check_resume,
                       run_in_chunks, transient_label, write_run_output)
     from .scene import SceneError, load_scene
@@ -104,20 +108,35 @@ def _run(args, rank, held):
     solver = scene.solver
     built = {}
 
-    def build():
-        """Rank 0 only: the output's lock (a second run onto it is refused at once, as
-        in-process), the packing, the problem (laws, boundary kinds), the network and the
-        checkpoint to resume from. Every rank gets the time resumed from."""
+    def lock():
+        """Rank 0: the output's lock (a second run onto it is refused at once, as
+        in-process); the packing's path."""
         held.enter_context(output_lock(scene.output))
         packing_path = Path(args.packing) if args.packing else scene.packing
         if packing_path is None:
             raise SceneError(f"{scene.path}: pack: a [pack] scene needs its packing built "
                              "first (tdem pack SCENE, or tdem run, which builds it)")
+        return str(packing_path)
+
+    packing_path = Path(backend.on_root(comm, lock))
+    per_rank = scene.neighbours is None
+    t0 = time.perf_counter()
+    if per_rank:            # each rank reads and builds its own rows (rank_build.py)
+        rb = build_on_ranks(scene, packing_path, comm)
+        if rank == 0:
+            built.update(packing=rb.particles, info=rb.info, net=rb.net)
+
+    def build():
+        """Rank 0 only: the packing, the problem (laws, boundary kinds) and the network when
+        the ranks did not build them ([neighbours]: a gap chosen over every bulk contact),
+        the checks before the run and the checkpoint to resume from. Every rank gets the time
+        resumed from."""
         scene_json = scene_to_json(scene)
-        packing = read_packing(packing_path)
-        problem, info = build_problem(scene, packing)
-        t0 = time.perf_counter()
-        net = assemble(problem)
+        if not per_rank:
+            packing = read_packing(packing_path)
+            problem, info = build_problem(scene, packing)
+            built.update(packing=packing, info=info, net=assemble(problem))
+        packing, net = built["packing"], built["net"]
         if solver.method == "explicit":
             _check_step_count(scene, solver.safety * net.dt_max_s if np.isnan(solver.dt)
                               else solver.dt, "solver.end_time" if np.isnan(solver.dt)
@@ -125,14 +144,17 @@ def _run(args, rank, held):
         packing_hash = packing_sha256(packing)
         resumed = check_resume(scene, args.checkpoint_every, args.resume, packing.n_particles,
                                packing_hash, packing_path)
-        built.update(packing=packing, info=info, net=net, scene_json=scene_json,
-                     packing_hash=packing_hash, assemble_t0=t0, resumed=resumed,
-                     T0=np.full(packing.n_particles, scene.initial_temperature))
+        built.update(scene_json=scene_json, packing_hash=packing_hash, assemble_t0=t0,
+                     resumed=resumed, T0=np.full(packing.n_particles, scene.initial_temperature))
         return None if resumed is None else resumed[0].time_s
 
     resumed_at = backend.on_root(comm, build)
     net = built.get("net")
-    dist = backend.DistributedNetwork(net, built["packing"].position if rank == 0 else None)
+    if per_rank:
+        dist = backend.DistributedNetwork(None, built=rb)
+        del rb
+    else:
+        dist = backend.DistributedNetwork(net, built["packing"].position if rank == 0 else None)
     if rank == 0:
         assemble_seconds = time.perf_counter() - built["assemble_t0"]
     T0 = built.get("T0")

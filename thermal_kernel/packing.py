@@ -172,13 +172,17 @@ def read_contact_rows(particles: Packing, start: int, stop: int) -> Packing:
         contact_row=np.arange(start, stop, dtype=np.int64))
 
 
-def _check_contact_rows(path, p: Packing, pair, overlap, normal_force, branch, row0=0):
-    """The checks of :func:`_read_open` that read contact rows, on some rows of them (``row0``
-    the file's row of the first; messages name the file's rows)."""
+def _check_tensile(path, normal_force, row0=0):
     if np.any(normal_force < 0):
         i = int(np.flatnonzero(normal_force < 0)[0])
         _fail(path, "contacts/normal_force", f"contact {i + row0} has a tensile (negative) "
-                                             f"force {normal_force[i]!r}; expected >= 0")
+                                             f"force {float(normal_force[i])!r}; expected >= 0")
+
+
+def _check_contact_rows(path, p: Packing, pair, overlap, normal_force, branch, row0=0):
+    """The checks of :func:`_read_open` that read contact rows, on some rows of them (``row0``
+    the file's row of the first; messages name the file's rows)."""
+    _check_tensile(path, normal_force, row0)
     none = np.zeros(0, np.int64)
     _check_geometry(path, p.position, p.radius, p.phase, pair, overlap, branch, none,
                     np.zeros(0), p.domain_lo, p.domain_hi, p.periodic, row0=row0)
@@ -250,10 +254,7 @@ def _read_open(f, path, contacts=True) -> Packing:
         contact_radius = _dataset(f, path, "contacts/contact_radius", "f", (m,), optional=True,
                                   rows=rows)
         _check_pairs(path, pair, n)
-        if np.any(normal_force < 0):
-            i = int(np.flatnonzero(normal_force < 0)[0])
-            _fail(path, "contacts/normal_force", f"contact {i} has a tensile (negative) force "
-                                                 f"{normal_force[i]!r}; expected >= 0")
+        _check_tensile(path, normal_force)
 
         wall_name = _dataset(f, path, "walls/name", "S", (None,))
         w = len(wall_name)

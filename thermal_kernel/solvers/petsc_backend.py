@@ -7,14 +7,16 @@ through :mod:`thermal_kernel.mpi_run`. Like the in-process solvers it sees an as
 same :class:`~thermal_kernel.solvers.ThermalResult`, so the output file, its flags and the checks
 are the in-process ones.
 
-Distribution. Rank 0 holds the assembled network (the one :func:`~thermal_kernel.network
-.assemble`: clusters, the explicit bound and the flags are the in-process ones). It orders the
-particles along a Morton curve of their centres (:mod:`.partition`), cuts the order into one
-contiguous block per rank and sends each rank only its rows of A = L + diag(g) (L the graph
-Laplacian, g the exchange conductance), renumbered in that order, with the per-particle and
-boundary rows of its block: no other rank holds the whole network. Each rank puts its rows into
-a PETSc MPIAIJ matrix; vectors are distributed the same way. Held particles keep their rows in
-the vectors and are masked: their increment is 0.
+Distribution. The particles are ordered along a Morton curve of their centres
+(:mod:`.partition`) and the order cut into one contiguous block per rank; a rank holds only its
+rows of A = L + diag(g) (L the graph Laplacian, g the exchange conductance), renumbered in that
+order, with the per-particle and boundary rows of its block (:func:`share_rows`). Each rank
+builds its share itself from its part of the packing (``built=``, thermal_kernel/rank_build.py:
+the contacts touching its particles, the law evaluated on those), or rank 0 cuts every share
+from a whole assembled network and sends it (``net``: a scene with a ``[neighbours]``
+criterion, and the bench). Each rank puts its rows into a PETSc MPIAIJ matrix; vectors are
+distributed the same way. Held particles keep their rows in the vectors and are masked: their
+increment is 0.
 
 * explicit: T' = T + dt/C (b + S - A T) on free rows, one distributed mat-vec a step; dt and its
   bound are the in-process ones (``check_dt``, the exact positivity bound of the network).
@@ -34,8 +36,9 @@ Rank 0 gathers the temperatures at the output times and records them with the in
 :class:`~thermal_kernel.solvers.Recorder`; a source is evaluated on rank 0 (it is a function of
 the whole packing) and its powers scattered, each step.
 
-Still whole on rank 0 (docs/scaling.md): the packing, the problem and the assembled network, and
-the output's temperatures. The other ranks hold their rows only.
+Still whole on rank 0 (docs/scaling.md): the network's per-particle arrays and boundary rows
+(with the per-rank build; the whole network with ``net``), a source's powers and the output's
+temperatures.
 """
 from __future__ import annotations
 
@@ -67,85 +70,77 @@ def _petsc():
 
 
 def _share(net, order, new_index, lo, hi) -> dict:
-    """Rank's rows ``order[lo:hi]``: its rows of A = L + diag(g) (CSR, columns in the new order,
-    a stored diagonal on every row) and the per-particle and boundary rows it owns."""
-    n = net.n
+    """Rank's rows ``order[lo:hi]`` of an assembled network: its rows of A = L + diag(g) (CSR,
+    columns in the new order, a stored diagonal on every row) and the per-particle and
+    boundary rows it owns."""
     mine = order[lo:hi]
-    n_local = hi - lo
-    lap_rows = net.laplacian[mine].tocoo()
+    return share_rows(net.laplacian[mine].tocoo(), mine, lo, new_index, net.n,
+                      capacity=net.capacity_j_k, held=net.held,
+                      held_t=net.held_temperature_k, g=net.exchange_g_w_k,
+                      b=net.constant_rhs_w, tied=net.clusters.tied_particle,
+                      fixed_particle=net.fixed_particle, fixed_boundary=net.fixed_boundary,
+                      exchange_particle=net.exchange_particle,
+                      exchange_row_g=net.exchange_row_g_w_k,
+                      exchange_row_t=net.exchange_row_temperature_k,
+                      exchange_boundary=net.exchange_boundary, held_boundary=net.held_boundary)
+
+
+def share_rows(lap_rows, mine, lo, new_index, n, *, capacity, held, held_t, g, b, tied,
+               fixed_particle, fixed_boundary, exchange_particle, exchange_row_g,
+               exchange_row_t, exchange_boundary, held_boundary) -> dict:
+    """One rank's share (the keys of :func:`_share_keys`): the rows ``lap_rows`` (COO, row k
+    the particle ``mine[k]``, columns the packing's indices) of L, with g on the diagonal, as a
+    CSR in the new order, and the per-particle and boundary rows of ``mine`` -- from the whole
+    network on rank 0 (:func:`_share`) or built by the rank itself
+    (thermal_kernel/rank_build.py). The per-particle arrays are indexed by particle, whole
+    (``None`` for ``tied`` when it is given already cut to ``mine``)."""
+    n_local = mine.size
     rows = np.concatenate([lap_rows.row, np.arange(n_local)])
-    cols = np.concatenate([new_index[lap_rows.col], np.arange(lo, hi)])
-    vals = np.concatenate([lap_rows.data, net.exchange_g_w_k[mine]])
-    del lap_rows
+    cols = np.concatenate([new_index[lap_rows.col], np.arange(lo, lo + n_local)])
+    vals = np.concatenate([lap_rows.data, g[mine]])
     block = sp.csr_matrix((vals, (rows, cols)), shape=(n_local, n))
     del rows, cols, vals
     block.sum_duplicates()
     block.sort_indices()
     local_of = np.full(n, -1, dtype=np.int64)
     local_of[mine] = np.arange(n_local)
-    fl = local_of[net.fixed_particle]
+    fl = local_of[fixed_particle]
     fk = fl >= 0
-    el = local_of[net.exchange_particle]
+    el = local_of[exchange_particle]
     ek = el >= 0
     return dict(
         lo=lo, indptr=block.indptr, indices=block.indices, data=block.data,
-        capacity=np.ascontiguousarray(net.capacity_j_k[mine]),
-        held=np.ascontiguousarray(net.held[mine]),
-        held_t=np.ascontiguousarray(net.held_temperature_k[mine]),
-        g=np.ascontiguousarray(net.exchange_g_w_k[mine]),
-        b=np.ascontiguousarray(net.constant_rhs_w[mine]),
-        tied=np.ascontiguousarray(net.clusters.tied_particle[mine]),
-        fixed_local=fl[fk], fixed_boundary=net.fixed_boundary[fk],
-        ex_local=el[ek], ex_g=net.exchange_row_g_w_k[ek],
-        ex_t=net.exchange_row_temperature_k[ek], ex_b=net.exchange_boundary[ek],
-        ex_held_b=net.held_boundary[net.exchange_particle[ek]])
+        capacity=np.ascontiguousarray(capacity[mine]),
+        held=np.ascontiguousarray(held[mine]), held_t=np.ascontiguousarray(held_t[mine]),
+        g=np.ascontiguousarray(g[mine]), b=np.ascontiguousarray(b[mine]),
+        tied=np.ascontiguousarray(tied[mine]),
+        fixed_local=fl[fk], fixed_boundary=fixed_boundary[fk],
+        ex_local=el[ek], ex_g=exchange_row_g[ek], ex_t=exchange_row_t[ek],
+        ex_b=exchange_boundary[ek], ex_held_b=held_boundary[exchange_particle[ek]])
 
 
 class DistributedNetwork:
-    """One rank's share of an assembled network: its rows of A = L + diag(g) as a PETSc MPIAIJ
-    matrix, in the Morton order, and the per-particle arrays of its rows. Collective: rank 0
-    passes the assembled ``net`` (and the centres, for the order), the others None."""
+    """One rank's share of a network: its rows of A = L + diag(g) as a PETSc MPIAIJ matrix, in
+    the Morton order, and the per-particle arrays of its rows. Collective: every rank passes
+    ``built`` (its :class:`~thermal_kernel.rank_build.RankBuild`), or rank 0 the assembled
+    ``net`` (and the centres, for the order) and the others None."""
 
-    def __init__(self, net, position_m=None, comm=None):
+    def __init__(self, net, position_m=None, comm=None, built=None):
         PETSc = _petsc()
         self.PETSc = PETSc
         self.comm = comm or PETSc.COMM_WORLD
         self.mpi = self.comm.tompi4py()
         self.rank, self.size = self.comm.getRank(), self.comm.getSize()
-        self.net = net if self.rank == 0 else None
         t0 = time.perf_counter()
-        meta = None
-        if self.rank == 0:
-            n = net.n
-            self.order = particle_order(position_m, "morton") if position_m is not None \
-                else np.arange(n, dtype=np.int64)
-            starts = block_starts(n, self.size)
-            owner = owner_of_particle(self.order, starts)
-            meta = dict(n=n, starts=starts, nb=net.problem.n_boundaries,
-                        has_source=net.problem.source is not None,
-                        cut=cut_contacts(net.problem.pair, net.problem.conductance_w_k, owner),
-                        active_contacts=int(net.n_active_contacts))
-            del owner
-        meta = self.mpi.bcast(meta, root=0)
+        if built is not None:        # each rank built its share (thermal_kernel/rank_build.py)
+            self.net = built.net if self.rank == 0 else None
+            self.order, meta, own = built.order, built.meta, built.share
+        else:
+            self.net = net if self.rank == 0 else None
+            meta, own = self._send_shares(net, position_m)
         self.n, self.starts, self.nb = meta["n"], meta["starts"], meta["nb"]
         self.has_source, self.cut = meta["has_source"], meta["cut"]
         self.n_active_contacts = meta["active_contacts"]
-        if self.rank == 0:
-            new_index = np.empty(self.n, dtype=np.int64)  # packing index -> place in the order
-            new_index[self.order] = np.arange(self.n, dtype=np.int64)
-            for r in range(1, self.size):             # one share at a time: rank 0's peak is
-                share = _share(net, self.order, new_index,  # its own network + one share
-                               int(self.starts[r]), int(self.starts[r + 1]))
-                # the receivers expect _share_keys(), in sorted order, one array a message
-                assert sorted(share) == sorted(_share_keys()), sorted(share)
-                for key in sorted(share):             # (< 2 GiB each)
-                    self.mpi.send(share[key], dest=r, tag=_SHARE_TAG)
-                del share
-            own = _share(net, self.order, new_index, 0, int(self.starts[1]))
-            del new_index
-        else:
-            keys = sorted(_share_keys())
-            own = {key: self.mpi.recv(source=0, tag=_SHARE_TAG) for key in keys}
         self.lo = int(own["lo"])
         self.n_local = int(self.starts[self.rank + 1] - self.starts[self.rank])
         self.block = sp.csr_matrix((own["data"], own["indices"], own["indptr"]),
@@ -163,6 +158,40 @@ class DistributedNetwork:
         self.x = self.A.createVecRight()
         self.y = self.A.createVecLeft()
         self.setup_seconds = time.perf_counter() - t0
+
+    def _send_shares(self, net, position_m):
+        """Rank 0 (holding the whole ``net``) sends each rank its share; (meta, own share)."""
+        meta = None
+        if self.rank == 0:
+            n = net.n
+            self.order = particle_order(position_m, "morton") if position_m is not None \
+                else np.arange(n, dtype=np.int64)
+            starts = block_starts(n, self.size)
+            owner = owner_of_particle(self.order, starts)
+            meta = dict(n=n, starts=starts, nb=net.problem.n_boundaries,
+                        has_source=net.problem.source is not None,
+                        cut=cut_contacts(net.problem.pair, net.problem.conductance_w_k, owner),
+                        active_contacts=int(net.n_active_contacts))
+            del owner
+        meta = self.mpi.bcast(meta, root=0)
+        if self.rank == 0:
+            new_index = np.empty(meta["n"], dtype=np.int64)  # packing index -> place in order
+            new_index[self.order] = np.arange(meta["n"], dtype=np.int64)
+            starts = meta["starts"]
+            for r in range(1, self.size):             # one share at a time: rank 0's peak is
+                share = _share(net, self.order, new_index,  # its own network + one share
+                               int(starts[r]), int(starts[r + 1]))
+                # the receivers expect _share_keys(), in sorted order, one array a message
+                assert sorted(share) == sorted(_share_keys()), sorted(share)
+                for key in sorted(share):             # (< 2 GiB each)
+                    self.mpi.send(share[key], dest=r, tag=_SHARE_TAG)
+                del share
+            own = _share(net, self.order, new_index, 0, int(starts[1]))
+            del new_index
+        else:
+            keys = sorted(_share_keys())
+            own = {key: self.mpi.recv(source=0, tag=_SHARE_TAG) for key in keys}
+        return meta, own
 
     # ------------------------------------------------------------------ building blocks
     def _mat(self, block: sp.csr_matrix):

@@ -1,0 +1,85 @@
+"""Run under mpirun (tests/test_petsc_backend.py): the per-rank build (thermal_kernel/rank_build.py)
+against the whole build on rank 0 (build_problem + assemble, each rank's share cut from it), on
+the same ranks:
+
+- each rank's share -- its rows of A = L + diag(g) (CSR: indptr, indices, data), capacities,
+  held flags and temperatures, g, b, tied flags, its held and exchange rows -- bit for bit;
+- rank 0's Network: degrees, cluster labels and counts, the explicit bound and its particle,
+  the conducting and zero-H contacts, the flags, the held and untied particles' adjacency rows
+  (bit for bit), dt_paper (its mean H summed in another order: 1e-14);
+- the steady temperatures of the backend on both builds (the same matrix: bit for bit).
+
+Prints "rank_build OK <ranks> <contacts cut>" on rank 0 when every check passed.
+"""
+import sys
+
+import numpy as np
+import petsc4py
+
+petsc4py.init([sys.argv[0]])
+from petsc4py import PETSc  # noqa: E402
+
+from thermal_kernel.network import assemble  # noqa: E402
+from thermal_kernel.packing import read_packing  # noqa: E402
+from thermal_kernel.problem import build_problem  # noqa: E402
+from thermal_kernel.rank_build import build_on_ranks  # noqa: E402
+from thermal_kernel.scene import load_scene  # noqa: E402
+from thermal_kernel.solvers import petsc_backend as backend  # noqa: E402
+
+
+def same(a, b, what):
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape, (what, a.shape, b.shape)
+    assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), what
+
+
+def main(scene_path):
+    comm = PETSc.COMM_WORLD.tompi4py()
+    rank = comm.Get_rank()
+    scene = load_scene(scene_path)
+    whole = None
+    if rank == 0:
+        packing = read_packing(scene.packing)
+        problem, _ = build_problem(scene, packing)
+        whole = assemble(problem)
+    ref = backend.DistributedNetwork(whole, packing.position if rank == 0 else None)
+    rb = build_on_ranks(scene, scene.packing, comm)
+    mine = backend.DistributedNetwork(None, built=rb)
+    for key in ("indptr", "indices", "data"):
+        same(getattr(ref.block, key), getattr(mine.block, key), f"rank {rank}: A.{key}")
+    for key in ("capacity", "held", "held_t", "g", "b", "tied", "fixed_local",
+                "fixed_boundary", "ex_local", "ex_g", "ex_t", "ex_b", "ex_held_b"):
+        same(getattr(ref, key), getattr(mine, key), f"rank {rank}: {key}")
+    assert (ref.lo, ref.n_local, ref.cut, ref.n_active_contacts) == \
+        (mine.lo, mine.n_local, mine.cut, mine.n_active_contacts), rank
+    if rank == 0:
+        a, b = whole, rb.net
+        for key in ("degree_w_k", "held", "held_temperature_k", "capacity_j_k",
+                    "exchange_g_w_k", "constant_rhs_w", "fixed_particle", "exchange_particle",
+                    "conducting", "held_boundary", "constant_boundary_flow_w"):
+            same(getattr(a, key), getattr(b, key), key)
+        for key in ("label", "floating_clusters", "floating_sizes", "rattlers", "tied"):
+            same(getattr(a.clusters, key), getattr(b.clusters, key), f"clusters.{key}")
+        assert a.clusters.n_components == b.clusters.n_components
+        assert (a.dt_max_s, a.dt_max_particle, a.n_active_contacts, a.n_zero_contacts,
+                a.flags) == (b.dt_max_s, b.dt_max_particle, b.n_active_contacts,
+                             b.n_zero_contacts, b.flags)
+        assert abs(a.dt_paper_s - b.dt_paper_s) <= 1e-14 * a.dt_paper_s
+        rows = b.adjacency_rows
+        assert np.all(np.isin(a.fixed_particle, rows))
+        assert np.all(np.isin(np.flatnonzero(~a.clusters.tied_particle), rows))
+        for key in ("indptr", "indices", "data"):
+            same(getattr(a.adjacency[rows], key), getattr(b.adjacency[rows], key),
+                 f"adjacency rows .{key}")
+        t = np.linspace(300.0, 500.0, a.n)
+        same(a.boundary_heat_flow(t), b.boundary_heat_flow(t), "boundary_heat_flow")
+        assert b.adjacency.nnz < a.adjacency.nnz or rows.size == a.n  # the others' rows not held
+    r1 = backend.solve_steady(ref, np.full(ref.n, 300.0) if rank == 0 else None)
+    r2 = backend.solve_steady(mine, np.full(ref.n, 300.0) if rank == 0 else None)
+    if rank == 0:
+        same(r1.temperature_k, r2.temperature_k, "steady temperatures")
+        print(f"rank_build OK {comm.Get_size()} {mine.cut}", flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
