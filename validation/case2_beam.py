@@ -309,7 +309,6 @@ def series_path(series: str, seed: int):
 
 
 def run(ctx: Context) -> CaseResult:
-    t_start = time.perf_counter()
     extra = {}
     if ctx.quick:
         ladder, seeds = {400: [str(QUICK_PACKING)]}, [1]
@@ -359,8 +358,7 @@ def run(ctx: Context) -> CaseResult:
     dts = (0.02, 0.01, 0.005, 0.0025) if not ctx.quick else (0.01, 0.0025)
     dt_runs = [beam_case(ladder[main_n][0], dt_fo=d) for d in dts] + \
         [beam_case(ladder[main_n][0], dt_fo=dts[-1] / 4)]
-    return _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s,
-                   time.perf_counter() - t_start, extra)
+    return _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, extra)
 
 
 def _series_text(extra: dict) -> str:
@@ -478,8 +476,7 @@ def _figure_speed(ctx, dt_runs, conv):
     return f_speed, dt_rows
 
 
-def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, total_s,
-            extra=None) -> CaseResult:
+def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, extra=None) -> CaseResult:
     """The three figures (:func:`_figure_profiles`, :func:`_figure_convergence`,
     :func:`_figure_speed`), the section and the summary's columns. Most of its length is the
     section's text."""

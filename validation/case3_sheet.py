@@ -264,7 +264,6 @@ def judge(numbers: dict) -> Judgement:
 
 
 def run(ctx: Context) -> CaseResult:
-    t_start = time.perf_counter()
     pack_s = 0.0
     if ctx.quick:
         name = "sheet_quick_1000"
@@ -305,7 +304,7 @@ def run(ctx: Context) -> CaseResult:
     times, fields, cont_s, est = continuum_reference(allpts, grids)
     ref = fields[-1]
     return _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref,
-                   point_index, grids, pack_s, time.perf_counter() - t_start)
+                   point_index, grids, pack_s)
 
 
 def _rows_by_n(sizes, seeds, dems, cmp, names):
@@ -405,7 +404,7 @@ def _figure_speed(ctx, conv, worst, cont_s, fields, est, rise_pt, grids):
 
 
 def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, point_index,
-            grids, pack_s, total_s) -> CaseResult:
+            grids, pack_s) -> CaseResult:
     """The rows per N (:func:`_rows_by_n`), the three figures, the section and the summary's
     columns. Most of its length is the section's text."""
     from .framework import fit_order
