@@ -93,11 +93,6 @@ def bridging_mask(packing, owner) -> np.ndarray:
     return (a >= 0) & (b >= 0) & (a != b)
 
 
-def bridging_contacts(packing, centres, radius) -> int:
-    """How many contacts bridging_mask finds for the inclusions (centres, radius)."""
-    return int(bridging_mask(packing, I.owner_of(packing, centres, radius)).sum())
-
-
 BRIDGE_BOXES = ("box_1e5", "box_1e6")
 BRIDGE_FRACTIONS = (0.4, 0.5)
 
@@ -326,7 +321,7 @@ class FractionRow:
     hs_high: float
     f_particles: float
     inclusion_particles: int
-    bridges: int | None = field(default=None, metadata=_OPT)     # counted later on old rows
+    bridges: int
     seconds: float
 
 
@@ -688,7 +683,7 @@ def _limits(rs, reals):
             "held and cut faces of the box add theirs. Where two inclusions come closer than "
             "about a particle diameter, contacts join particles of the two (both phase 1: "
             "they conduct at the inclusions' conductivity across the matrix gap) - "
-            + ", ".join(f"f {x.f:.2f}: {'?' if x.bridges is None else x.bridges}"
+            + ", ".join(f"f {x.f:.2f}: {x.bridges}"
                         for x in big.rows)
             + " such contacts at this N - a conducting bridge the continuum does not have. "
             + ("" if big.n >= 7_000_000 else
@@ -717,8 +712,7 @@ measurement of their share of the error, not the case's model (which keeps 002's
 
 
 def rebuild(bridges: list | None = None) -> None:
-    """Figures, section and row again from validation/results/case10.json (no solve; the
-    bridging contacts are counted again on the shared packings if the record lacks them)."""
+    """Figures, section and row again from validation/results/case10.json (no solve)."""
     record = framework.load_result(10)
     numbers = record["result"]["numbers"]
     reals = {}
@@ -726,15 +720,6 @@ def rebuild(bridges: list | None = None) -> None:
         rl = dict(rl, centres=np.asarray(rl["centres"]))
         reals[float(f)] = rl
     runs = numbers["runs"]
-    for r in runs:
-        if all("bridges" in x for x in r["rows"]):
-            continue
-        _, pk = I.load(framework.packing(r["name"]))
-        size = pk.domain_hi - pk.domain_lo
-        for x, f in zip(r["rows"], sorted(reals)):
-            rl = reals[f]
-            x["bridges"] = bridging_contacts(pk, pk.domain_lo + rl["centres"] * size,
-                                             rl["radius"] * float(size.min()))
     if bridges is None:
         bridges = numbers.get("bridge_test", [])
     result = finish(Context(10), reals, runs, record["run_seconds"], bridges)
