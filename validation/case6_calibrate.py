@@ -155,7 +155,7 @@ class CalibRow:
 
 def read_rows(numbers: dict) -> list[CalibRow]:
     """Case 6's saved rows as records (a missing or unknown field: RecordError)."""
-    return [from_dict(CalibRow, _upgrade(r), f"case 6: rows[{k}]")
+    return [from_dict(CalibRow, r, f"case 6: rows[{k}]")
             for k, r in enumerate(numbers.get("rows", []))]
 
 
@@ -226,18 +226,6 @@ def measure(key: str, path, variants=BASE, seed: int = 0) -> CalibRow:
                     shape=shape, seed=seed, variants=out,
                     solid_fraction=float(packing.attrs["solid_fraction"]),
                     measured=today(), how="tdem validate 6", diameter_m=diameter)
-
-
-def _upgrade(row: dict) -> dict:
-    """A row saved before issue 23 (one set of axes, every dumped pair): as variant "dump"."""
-    if "variants" in row:
-        return row
-    row = dict(row)
-    row["variants"] = {"dump": dict(axes=row.pop("axes"), gap=0.1, z_bulk=row.pop("z_bulk"),
-                                    z_all=row.pop("z_all"), seconds=row.pop("seconds"),
-                                    bulk_margin="3 mean radii")}
-    row.setdefault("seed", 0)
-    return row
 
 
 def _mean(row, what, variant="z75"):
