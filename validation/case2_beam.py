@@ -23,12 +23,13 @@ measured against dt/4 and reported).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+import dataclasses
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from tdem_post.records import from_dict, to_dict
+from tdem_post.records import column, from_dict, to_dict
 from tdem_post.analytic import rod_mean_temperature, rod_temperature
 from tdem_post.profiles import binned_profile
 from thermal_kernel.network import assemble
@@ -70,8 +71,8 @@ def scene_text(packing: str, law: str, ct: float) -> str:
 
 
 def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: float = 0.0025,
-              fourier=FOURIER) -> dict:
-    """One beam: calibrate (haddad), run, compare. Returns a dict of numbers and the profiles."""
+              fourier=FOURIER) -> BeamRun:
+    """One beam: calibrate (haddad), run, compare: its record with the profiles."""
     packing_path = str(Path(packing_path).resolve())
     packing = read_packing(packing_path)
     where = Path("validation/case2_scene.toml")
@@ -116,7 +117,7 @@ def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: floa
                      for k, t in enumerate(times)]) / DT_K
     balance = np.max(np.abs(res.ledger_residual_j())) / max(1e-300, np.max(np.abs(
         res.stored_energy_j)))
-    return {
+    return BeamRun(pack_seconds=None, **{
         "packing": packing_path, "n_particles": int(packing.n_particles), "law": law,
         "ct_held_plane": ct, "length_rod_m": length,
         # the beam's radius in mean sphere radii (000 Table 2: 0.1155303 mm / 8.998 um = 12.8)
@@ -132,7 +133,7 @@ def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: floa
         "calibration_seconds": calib_s, "run_seconds": run_s,
         "edges_over_L": (edges / length).tolist(), "profile_k": prof.tolist(),
         "exact_k": exact.tolist(),
-    }
+    })
 
 
 def _beam_radius(packing) -> float:
@@ -150,6 +151,9 @@ class _Joined:
 
     def ledger_residual_j(self):
         return self.ledger
+
+
+_OPT = column(optional=True)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -176,6 +180,11 @@ class BeamRun:
     calibration_seconds: float
     run_seconds: float
     pack_seconds: float | None          # None: not built here
+    # the binned profiles (K, per time and bin) and the bins' edges over L: the run's figures
+    # read them, the saved series leaves them out
+    profile_k: tuple[tuple[float, ...], ...] | None = field(default=None, metadata=_OPT)
+    exact_k: tuple[tuple[float, ...], ...] | None = field(default=None, metadata=_OPT)
+    edges_over_L: tuple[float, ...] | None = field(default=None, metadata=_OPT)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -203,11 +212,10 @@ def read_numbers(numbers: dict) -> BeamResult:
     return from_dict(BeamResult, numbers, "case 2: numbers")
 
 
-def _beam_run(r: dict, pack_s: float | None) -> BeamRun:
-    """The record of one beam measured by :func:`beam_case` (its profiles left out)."""
-    return BeamRun(**{k: v for k, v in r.items()
-                      if k not in ("profile_k", "exact_k", "edges_over_L")},
-                   pack_seconds=pack_s)
+def _beam_run(r: BeamRun, pack_s: float | None) -> BeamRun:
+    """One beam as the saved series holds it: its packing's seconds, its profiles left out."""
+    return dataclasses.replace(r, pack_seconds=pack_s, profile_k=None, exact_k=None,
+                               edges_over_L=None)
 
 
 # ---------------------------------------------------------------------------- the case
@@ -345,15 +353,15 @@ def run(ctx: Context) -> CaseResult:
         for s, path in zip(seeds, paths):
             r = beam_case(path)
             runs[(n, s, "haddad")] = r
-            ctx.progress(f"N {r['n_particles']} seed {s} haddad: C_t {r['ct_held_plane']:.4f}, "
-                         f"max |err| {100 * r['max_error_over_dT']:.3f} % of dT "
-                         f"({r['run_seconds']:.1f} s)")
+            ctx.progress(f"N {r.n_particles} seed {s} haddad: C_t {r.ct_held_plane:.4f}, "
+                         f"max |err| {100 * r.max_error_over_dT:.3f} % of dT "
+                         f"({r.run_seconds:.1f} s)")
     main_n = max(ladder) if ctx.quick else P.BEAM_N
     for s, path in zip(seeds, ladder[main_n]):
         r = beam_case(path, law="terreros")
         runs[(main_n, s, "terreros")] = r
-        ctx.progress(f"N {r['n_particles']} seed {s} terreros: max |err| "
-                     f"{100 * r['max_error_over_dT']:.3f} % of dT")
+        ctx.progress(f"N {r.n_particles} seed {s} terreros: max |err| "
+                     f"{100 * r.max_error_over_dT:.3f} % of dT")
     # time step: seed 1 at the main N, dt halved four times (speed against error)
     dts = (0.02, 0.01, 0.005, 0.0025) if not ctx.quick else (0.01, 0.0025)
     dt_runs = [beam_case(ladder[main_n][0], dt_fo=d) for d in dts] + \
@@ -386,11 +394,11 @@ packing):
 def _figure_profiles(ctx, main, seeds, n_actual):
     """Figure 1: the profiles (seed mean, min-max band) against eq. 8; (its file, the times
     in ms)."""
-    prof = np.array([r["profile_k"] for r in main])         # (seeds, times, bins)
-    exact = np.array(main[0]["exact_k"])
-    edges = np.array(main[0]["edges_over_L"])   # per packing L differs slightly; the bins are
+    prof = np.array([r.profile_k for r in main])         # (seeds, times, bins)
+    exact = np.array(main[0].exact_k)
+    edges = np.array(main[0].edges_over_L)   # per packing L differs slightly; the bins are
     mid = 0.5 * (edges[:-1] + edges[1:])        # equal fractions of each rod
-    times_ms = [1e3 * t for t in main[0]["paper_times_s"]]
+    times_ms = [1e3 * t for t in main[0].paper_times_s]
     xs = np.linspace(0, 1, 201)
     rows = []
     for k, fo in enumerate(FOURIER):
@@ -425,10 +433,10 @@ def _figure_convergence(ctx, ladder, runs, seeds):
     conv = []
     for n in ladder:
         rs = [runs[(n, s, "haddad")] for s in seeds]
-        e = [r["max_error_over_dT"] for r in rs]
-        conv.append((float(np.mean([r["n_particles"] for r in rs])), float(np.mean(e)),
+        e = [r.max_error_over_dT for r in rs]
+        conv.append((float(np.mean([r.n_particles for r in rs])), float(np.mean(e)),
                      float(np.min(e)), float(np.max(e)),
-                     float(np.mean([r["run_seconds"] + r["calibration_seconds"] for r in rs]))))
+                     float(np.mean([r.run_seconds + r.calibration_seconds for r in rs]))))
     conv = np.array(conv)
     order, const = fit_order(conv[:, 0], conv[:, 1])
 
@@ -454,12 +462,12 @@ def _figure_convergence(ctx, ladder, runs, seeds):
 def _figure_speed(ctx, dt_runs, conv):
     """Figure 3: speed against error, the time step at the main N and the N ladder; (its
     file, the time step's rows)."""
-    ref = np.array(dt_runs[-1]["profile_k"])
+    ref = np.array(dt_runs[-1].profile_k)
     dt_rows = []
     for r in dt_runs[:-1]:
-        dt_rows.append((r["dt_fourier"], r["steps"], r["run_seconds"],
-                        float(np.nanmax(np.abs(np.array(r["profile_k"]) - ref)) / DT_K),
-                        r["max_error_over_dT"]))
+        dt_rows.append((r.dt_fourier, r.steps, r.run_seconds,
+                        float(np.nanmax(np.abs(np.array(r.profile_k) - ref)) / DT_K),
+                        r.max_error_over_dT))
     dt_rows = np.array(dt_rows)
 
     def draw_speed(ax):
@@ -482,13 +490,13 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, extra=None) -> Ca
     section's text."""
     extra = extra or {}
     main = [runs[(main_n, s, "haddad")] for s in seeds]
-    radius_r = float(np.mean([r.get("radius_over_mean_radius", np.nan) for r in main]))
+    radius_r = float(np.mean([r.radius_over_mean_radius for r in main]))
     terr = [runs[(main_n, s, "terreros")] for s in seeds]
-    per_time = np.array([r["max_error_over_dT_per_time"] for r in main])   # (seeds, times)
+    per_time = np.array([r.max_error_over_dT_per_time for r in main])   # (seeds, times)
     worst = float(per_time.max())
-    terr_worst = float(max(r["max_error_over_dT"] for r in terr))
-    n_actual = [r["n_particles"] for r in main]
-    cts = [r["ct_held_plane"] for r in main]
+    terr_worst = float(max(r.max_error_over_dT for r in terr))
+    n_actual = [r.n_particles for r in main]
+    cts = [r.ct_held_plane for r in main]
 
     f_prof, times_ms = _figure_profiles(ctx, main, seeds, n_actual)
     f_conv, conv, order = _figure_convergence(ctx, ladder, runs, seeds)
@@ -498,11 +506,11 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, extra=None) -> Ca
             "thermal s (calibration + run) |", "|---|---|---|---|"]
     n_ok = {}
     for n, row in zip(ladder, conv):
-        e = [runs[(n, s, "haddad")]["max_error_over_dT"] for s in seeds]
+        e = [runs[(n, s, "haddad")].max_error_over_dT for s in seeds]
         n_ok[n] = int(sum(v < 0.01 for v in e))
         ntab.append(f"| {row[0]:,.0f} | {100 * row[1]:.2f} / {100 * row[2]:.2f} / "
                     f"{100 * row[3]:.2f} % | {n_ok[n]} of {len(seeds)} | {row[4]:.1f} |")
-    signed = np.array([(np.array(r["profile_k"]) - np.array(r["exact_k"])) / DT_K
+    signed = np.array([(np.array(r.profile_k) - np.array(r.exact_k)) / DT_K
                        for r in main])                        # (seeds, times, bins)
     bias_first = float(signed[:, 0, 0].mean())
     bias_all = float(np.nanmean(signed))
@@ -513,9 +521,9 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, extra=None) -> Ca
                  if bias_first < -0.5 * worst else "")
     per_time_txt = ", ".join(f"{times_ms[k]:.3g} ms {100 * per_time[:, k].max():.2f} %"
                              for k in range(len(FOURIER)))
-    seed_txt = ", ".join(f"{100 * r['max_error_over_dT']:.2f} %" for r in main)
+    seed_txt = ", ".join(f"{100 * r.max_error_over_dT:.2f} %" for r in main)
     rms_txt = ", ".join(
-        f"{100 * np.mean([r['particle_rms_over_dT_per_time'][k] for r in main]):.2f} %"
+        f"{100 * np.mean([r.particle_rms_over_dT_per_time[k] for r in main]):.2f} %"
         for k in range(len(FOURIER)))
     met = worst < 0.01
     section = f"""\
@@ -590,14 +598,14 @@ average. The beam is thin ({radius_r:.1f} mean diameters across), so each bin ho
 """
     numbers = to_dict(BeamResult(
         max_error_over_dT=worst, max_error_over_dT_per_time=tuple(per_time.max(axis=0).tolist()),
-        per_seed=tuple(r["max_error_over_dT"] for r in main), n_particles=tuple(n_actual),
+        per_seed=tuple(r.max_error_over_dT for r in main), n_particles=tuple(n_actual),
         ct_held_plane=tuple(cts), terreros_max_error_over_dT=terr_worst,
         convergence=tuple(tuple(c) for c in conv.tolist()), convergence_order=order,
         dt_error_over_dT=tuple(dt_rows[:, 3].tolist()), fourier=FOURIER,
         paper_times_ms=tuple(times_ms),
         series={series: {str(s): w for s, w in beams.items()}
                 for series, beams in extra.items()}))
-    thermal_s = sum(r["run_seconds"] + r["calibration_seconds"] for r in runs.values())
+    thermal_s = sum(r.run_seconds + r.calibration_seconds for r in runs.values())
     return CaseResult(
         our_n=f"{int(np.mean(n_actual)):,} × {len(seeds)} seeds (ladder "
               f"{int(conv[0, 0]):,}–{int(conv[-1, 0]):,})",
