@@ -75,7 +75,7 @@ def test_dem_moving_source_heats_as_much_as_the_continuum():
             shape="box", aspect=[25.0, 15.0, 1.0], n_particles=1000, method="tiled",
             cell_particles=400, cell_packing=str(case3_sheet.QUICK_CELL), seed=1))
     d = case3_sheet.sheet_dem(fw.packing("sheet_quick_1000"), times=np.array([2.0, 4.0]))
-    assert d["ledger_relative"] < 1e-10
+    assert d.ledger_relative < 1e-10
     g = fv.make_grid((0, case3_sheet.Y0, 0), (case3_sheet.LX, -case3_sheet.Y0, case3_sheet.LZ),
                      (100, 60, 1))
     c = fv.solve_transient(g, 134.0, case3_sheet.RHO_C, {}, case3_sheet.T0, [2.0, 4.0], 0.02,
@@ -83,7 +83,7 @@ def test_dem_moving_source_heats_as_much_as_the_continuum():
     exact = case3_sheet.Q * np.pi * case3_sheet.R_SRC ** 2 * case3_sheet.LZ * 4.0
     assert c.source_energy_j[-1] == pytest.approx(exact, rel=2e-3)
     # the DEM samples the disc with sphere centres: a few % at 1,000 spheres
-    assert d["source_energy_j"] == pytest.approx(c.source_energy_j[-1], rel=0.05)
+    assert d.source_energy_j == pytest.approx(c.source_energy_j[-1], rel=0.05)
 
 
 def test_case2_numbers_are_a_record():

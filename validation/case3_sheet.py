@@ -146,7 +146,39 @@ def probe_sets(packing, conducting):
     return sets
 
 
-def sheet_dem(packing_path, dt: float = 0.01, times=None) -> dict:
+@dataclass(frozen=True, kw_only=True)
+class SheetRun:
+    """One DEM sheet (:func:`sheet_dem`, kept in memory): C_t (held planes, the mean of x and
+    y and each), the output times (s), each check-point's probe temperatures (K, per time),
+    probe centres (m) and probe size, the source's heat (J), the ledger's residual over the
+    stored heat, the steps and the seconds."""
+    packing: str
+    n_particles: int
+    ct: float
+    ct_xy: list
+    times_s: object                     # (K,) array
+    probe_t_k: dict                     # point -> (K,) array
+    probe_xy_m: dict                    # point -> (n, 2) array
+    probe_count: dict[str, int]
+    source_energy_j: float
+    ledger_relative: float
+    steps: int
+    calibration_seconds: float
+    run_seconds: float
+    mean_radius_m: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class PointCompare:
+    """One sheet at one check-point against the continuum: the reference history (K), the
+    error (K), the reference's peak rise (K) and the max |error| over it."""
+    ref: object
+    error: object
+    rise: float
+    max_error_over_rise: float
+
+
+def sheet_dem(packing_path, dt: float = 0.01, times=None) -> SheetRun:
     """One DEM sheet: calibrate C_t in the plane, run the moving source, probe A, B, C."""
     packing_path = str(Path(packing_path).resolve())
     packing = load_sheet(packing_path)
@@ -168,25 +200,25 @@ def sheet_dem(packing_path, dt: float = 0.01, times=None) -> dict:
     probe_t = {k: res.temperature_k[:, v].mean(axis=1) for k, v in sets.items()}
     xy = {k: packing.position[v, :2] + np.array([0.0, Y0]) for k, v in sets.items()}
     ledger = float(np.max(np.abs(res.ledger_residual_j())) / np.max(np.abs(res.stored_energy_j)))
-    return {"packing": packing_path, "n_particles": int(packing.n_particles), "ct": ct,
-            "ct_xy": cts, "times": times, "probe_t": probe_t, "probe_xy": xy,
-            "probe_count": {k: int(v.size) for k, v in sets.items()},
-            "source_energy_j": float(res.source_energy_j[-1]), "ledger_relative": ledger,
-            "steps": int(res.steps), "calibration_seconds": calib_s, "run_seconds": run_s,
-            "mean_radius_m": float(packing.radius.mean())}
+    return SheetRun(packing=packing_path, n_particles=int(packing.n_particles), ct=ct,
+                    ct_xy=cts, times_s=times, probe_t_k=probe_t, probe_xy_m=xy,
+                    probe_count={k: int(v.size) for k, v in sets.items()},
+                    source_energy_j=float(res.source_energy_j[-1]), ledger_relative=ledger,
+                    steps=int(res.steps), calibration_seconds=calib_s, run_seconds=run_s,
+                    mean_radius_m=float(packing.radius.mean()))
 
 
-def compare(dem: dict, times, ref_fields, point_index) -> dict:
+def compare(dem: SheetRun, times, ref_fields, point_index) -> dict[str, PointCompare]:
     """Reference at each check-point (the continuum averaged over the DEM probe's centres) and
     errors relative to the reference's peak rise there."""
     out = {}
     for name in POINTS:
-        idx = point_index[(dem["packing"], name)]
+        idx = point_index[(dem.packing, name)]
         ref = ref_fields[idx].mean(axis=0)                  # (K,)
         rise = float(np.max(ref - T0))
-        err = dem["probe_t"][name] - ref
-        out[name] = {"ref": ref, "error": err, "rise": rise,
-                     "max_error_over_rise": float(np.max(np.abs(err)) / rise)}
+        err = dem.probe_t_k[name] - ref
+        out[name] = PointCompare(ref=ref, error=err, rise=rise,
+                                 max_error_over_rise=float(np.max(np.abs(err)) / rise))
     return out
 
 
@@ -287,8 +319,8 @@ def run(ctx: Context) -> CaseResult:
         for s, path in zip(seeds, paths):
             d = sheet_dem(path)
             dems[(n, s)] = d
-            ctx.progress(f"N {d['n_particles']} seed {s}: C_t {d['ct']:.4f}, "
-                         f"{d['run_seconds']:.1f} s")
+            ctx.progress(f"N {d.n_particles} seed {s}: C_t {d.ct:.4f}, "
+                         f"{d.run_seconds:.1f} s")
     # dt check of the DEM: the first sheet of the largest N at dt / 2
     big = max(sizes)
     dt_check = sheet_dem(sizes[big][0], dt=0.005)
@@ -297,8 +329,8 @@ def run(ctx: Context) -> CaseResult:
     for d in list(dems.values()) + [dt_check]:
         for name in POINTS:
             start = sum(len(p) if p.ndim == 2 else 1 for p in pts)
-            pts.append(d["probe_xy"][name])
-            point_index[(d["packing"], name)] = np.arange(start, start + len(d["probe_xy"][name]))
+            pts.append(d.probe_xy_m[name])
+            point_index[(d.packing, name)] = np.arange(start, start + len(d.probe_xy_m[name]))
     allpts = np.vstack([np.atleast_2d(p) for p in pts])
     ctx.progress(f"continuum reference at {len(allpts)} points on {len(grids)} grids")
     times, fields, cont_s, est = continuum_reference(allpts, grids)
@@ -315,22 +347,22 @@ def _rows_by_n(sizes, seeds, dems, cmp, names):
     for n in sizes:
         points = {}
         for p in names:
-            errs = [cmp[(n, s)][p]["max_error_over_rise"] for s in seeds]
-            temps = np.array([dems[(n, s)]["probe_t"][p] for s in seeds])   # (seeds, K)
-            refs = np.array([cmp[(n, s)][p]["ref"] for s in seeds])
-            rise = float(np.mean([cmp[(n, s)][p]["rise"] for s in seeds]))
+            errs = [cmp[(n, s)][p].max_error_over_rise for s in seeds]
+            temps = np.array([dems[(n, s)].probe_t_k[p] for s in seeds])   # (seeds, K)
+            refs = np.array([cmp[(n, s)][p].ref for s in seeds])
+            rise = float(np.mean([cmp[(n, s)][p].rise for s in seeds]))
             mean_err = float(np.max(np.abs(temps.mean(axis=0) - refs.mean(axis=0))) / rise)
             disp = float(np.mean(temps.std(axis=0, ddof=1)) / rise) if len(seeds) > 1 else 0.0
             points[p] = PointError(err_mean_of_seeds=float(np.mean(errs)),
                                    err_max=float(np.max(errs)), err_of_seed_mean=mean_err,
                                    dispersion=disp, rise_k=rise)
-        energy = [dems[(n, s)]["source_energy_j"] for s in seeds]
+        energy = [dems[(n, s)].source_energy_j for s in seeds]
         row = SheetRow(
-            n=float(np.mean([dems[(n, s)]["n_particles"] for s in seeds])), **points,
+            n=float(np.mean([dems[(n, s)].n_particles for s in seeds])), **points,
             source_energy_ratio=float(np.mean(energy)) / exact,
             source_energy_ratio_range=(float(min(energy) / exact), float(max(energy) / exact)),
-            seconds=float(np.mean([dems[(n, s)]["run_seconds"]
-                                   + dems[(n, s)]["calibration_seconds"] for s in seeds])))
+            seconds=float(np.mean([dems[(n, s)].run_seconds
+                                   + dems[(n, s)].calibration_seconds for s in seeds])))
         table.append(row)
         conv.append((row.n, *[row.at(p).err_mean_of_seeds for p in names],
                      *[row.at(p).dispersion for p in names], row.seconds))
@@ -344,14 +376,14 @@ def _figure_history(ctx, times, ref, sizes, seeds, dems, names):
     for k, t in enumerate(times):
         r = [float(t)] + [float(ref[i, k]) for i in range(3)]
         for n in sizes:
-            r += [float(np.mean([dems[(n, s)]["probe_t"][p][k] for s in seeds])) for p in names]
+            r += [float(np.mean([dems[(n, s)].probe_t_k[p][k] for s in seeds])) for p in names]
         rows.append(tuple(r))
 
     def draw_t(ax):
         for i, p in enumerate(names):
             line, = ax.plot(times, ref[i] - 273.15, lw=1.2, label=f"{p}: continuum")
             for j, n in enumerate(sizes):
-                ax.plot(times, np.mean([dems[(n, s)]["probe_t"][p] for s in seeds], axis=0)
+                ax.plot(times, np.mean([dems[(n, s)].probe_t_k[p] for s in seeds], axis=0)
                         - 273.15, ls=(":", "--", "-.")[j % 3], color=line.get_color(), lw=0.9,
                         label=f"{p}: DEM {n:,}" if i == 0 or j == len(sizes) - 1 else None)
         ax.set_xlabel("t (s)")
@@ -416,8 +448,8 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
                  for f in fields[:-1]]
     cmp = {k: compare(d, times, ref, point_index) for k, d in dems.items()}
     big = max(sizes)
-    dt_err = {p: float(np.max(np.abs(dt_check["probe_t"][p] - dems[(big, seeds[0])]["probe_t"][p]))
-                       / cmp[(big, seeds[0])][p]["rise"]) for p in names}
+    dt_err = {p: float(np.max(np.abs(dt_check.probe_t_k[p] - dems[(big, seeds[0])].probe_t_k[p]))
+                       / cmp[(big, seeds[0])][p].rise) for p in names}
     table, conv = _rows_by_n(sizes, seeds, dems, cmp, names)
     conv = np.array(conv)
     worst = conv[:, 1:4].max(axis=1)
@@ -442,7 +474,7 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
             for p in names) + f" | {row.seconds:.1f} |")
     last = table[-1]
     worst_big = max(last.at(p).err_mean_of_seeds for p in names)
-    cts = [d["ct"] for d in dems.values()]
+    cts = [d.ct for d in dems.values()]
     section = f"""\
 Setup (000 sec. 5.2, Tables 3–5): sheet 50 × 30 × 2 mm (x in [0, 50], y in [−15, 15] mm),
 aluminium (λ 134 W/m/K, ρ 2790 kg/m³, c 880 J/kg/K), 25 °C initially, adiabatic everywhere; a
@@ -532,7 +564,7 @@ cell (0.5 mm).
         continuum_order=float(est.order), continuum_seconds=tuple(cont_s),
         continuum_grid_vs_finest=tuple(tuple(g) for g in grid_diff), dem_dt_error=dt_err,
         rise_k=tuple(rise_pt.tolist()), ct=tuple(cts), worst_error_largest_n=worst_big))
-    thermal_s = sum(d["run_seconds"] + d["calibration_seconds"] for d in dems.values())
+    thermal_s = sum(d.run_seconds + d.calibration_seconds for d in dems.values())
     return CaseResult(
         our_n=" / ".join(f"{row.n:,.0f}" for row in table) + f" × {len(seeds)} seeds",
         our_error=f"at {table[-1].n:,.0f}: A {100 * last.A.err_mean_of_seeds:.1f} %, "
