@@ -15,6 +15,7 @@ import sys
 
 import numpy as np
 import petsc4py
+import scipy.sparse as sp
 
 petsc4py.init([sys.argv[0]])
 from petsc4py import PETSc  # noqa: E402
@@ -47,6 +48,15 @@ def main(scene_path):
     mine = backend.DistributedNetwork(None, built=rb)
     for key in ("indptr", "indices", "data"):
         same(getattr(ref.block, key), getattr(mine.block, key), f"rank {rank}: A.{key}")
+    # and both against A = L + diag(g) made by scipy from the whole network (the small scenes:
+    # dense), its columns in the Morton order; a stored diagonal on every row
+    dense = None
+    if rank == 0:
+        dense = (whole.laplacian + sp.diags(whole.exchange_g_w_k)).toarray()[ref.order][
+            :, ref.order]
+    dense = comm.bcast(dense, root=0)
+    same(mine.block.toarray(), dense[mine.lo:mine.lo + mine.n_local], f"rank {rank}: A")
+    assert mine._diag_pos.size == mine.n_local, rank
     for key in ("capacity", "held", "held_t", "g", "b", "tied", "fixed_local",
                 "fixed_boundary", "ex_local", "ex_g", "ex_t", "ex_b", "ex_held_b"):
         same(getattr(ref, key), getattr(mine, key), f"rank {rank}: {key}")

@@ -42,7 +42,7 @@ _CONTACT_ARRAYS = {"pair": ("contacts/pair", np.int64), "overlap": ("contacts/ov
                    "normal_force": ("contacts/normal_force", None),
                    "branch": ("contacts/branch", None),
                    "contact_radius": ("contacts/contact_radius", None)}
-_HASH_ROWS = 1 << 20
+_HASH_ROWS = 1 << 16
 
 
 def _hash_from_file(h, path, name):

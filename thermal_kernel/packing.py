@@ -145,31 +145,45 @@ def read_packing(path, contacts: bool = True) -> Packing:
     return _read_open(f, path, contacts)
 
 
+CONTACT_BLOCK_ROWS = 1 << 18     # read_contact_rows reads and checks this many rows at a time
+
+
 def read_contact_rows(particles: Packing, start: int, stop: int) -> Packing:
     """Rows ``start:stop`` of the contacts of the file ``particles`` was read from (by
     ``read_packing(path, contacts=False)``), checked as :func:`read_packing` checks every row
     against the particles (indices, i < j, overlaps, forces, branch vectors; duplicates within
-    these rows -- a duplicate across two parts is found by whoever holds both: the rows of a
-    particle, thermal_kernel/rank_build.py); messages name the file's row. ``particles`` with
-    these contacts (``contact_row`` their rows)."""
+    a block of rows -- a duplicate elsewhere is found by whoever holds both: the rows of a
+    particle, thermal_kernel/rank_build.py); messages name the file's row. Read and checked
+    ``CONTACT_BLOCK_ROWS`` rows at a time (the checks' temporaries are a block's). ``particles``
+    with these contacts (``contact_row`` their rows)."""
     import dataclasses
     f, path = _open(particles.path)
-    rows = slice(int(start), int(stop))
+    start, stop = int(start), int(stop)
     m = int(particles.file_contacts)
-    with f:
-        pair = _dataset(f, path, "contacts/pair", "i", (None, 2), rows=rows)
-        overlap = _dataset(f, path, "contacts/overlap", "f", (m,), rows=rows)
-        normal_force = _dataset(f, path, "contacts/normal_force", "f", (m,), rows=rows)
-        branch = _dataset(f, path, "contacts/branch", "f", (m, 3), rows=rows)
-        contact_radius = _dataset(f, path, "contacts/contact_radius", "f", (m,), optional=True,
-                                  rows=rows)
     n = particles.n_particles
-    _check_pairs(path, pair, n, row0=start)
-    _check_contact_rows(path, particles, pair, overlap, normal_force, branch, row0=start)
-    return dataclasses.replace(
-        particles, pair=pair.astype(np.int64), overlap=overlap, normal_force=normal_force,
-        branch=branch, contact_radius=contact_radius,
-        contact_row=np.arange(start, stop, dtype=np.int64))
+    names = (("pair", "contacts/pair", "i", (None, 2)),
+             ("overlap", "contacts/overlap", "f", (m,)),
+             ("normal_force", "contacts/normal_force", "f", (m,)),
+             ("branch", "contacts/branch", "f", (m, 3)),
+             ("contact_radius", "contacts/contact_radius", "f", (m,)))
+    out = {}
+    with f:
+        for b0 in range(start, max(stop, start + 1), CONTACT_BLOCK_ROWS):
+            rows = slice(b0, min(stop, b0 + CONTACT_BLOCK_ROWS))
+            got = {key: _dataset(f, path, name, kind, shape, optional=key == "contact_radius",
+                                 rows=rows) for key, name, kind, shape in names}
+            _check_pairs(path, got["pair"], n, row0=b0)
+            _check_contact_rows(path, particles, got["pair"], got["overlap"],
+                                got["normal_force"], got["branch"], row0=b0)
+            if not out:
+                out = {key: None if a is None else np.empty(
+                    (stop - start,) + a.shape[1:], np.int64 if key == "pair" else a.dtype)
+                    for key, a in got.items()}
+            for key, a in got.items():
+                if a is not None:
+                    out[key][rows.start - start:rows.stop - start] = a
+    return dataclasses.replace(particles, **out,
+                               contact_row=np.arange(start, stop, dtype=np.int64))
 
 
 def _check_tensile(path, normal_force, row0=0):

@@ -93,30 +93,48 @@ def _slice(total: int, rank: int, size: int) -> tuple[int, int]:
 
 def _exchange_contacts(comm, part, owner, rank, size):
     """Every contact of ``part`` (a packing holding some of the file's rows) sent to the ranks
-    owning its particles; the contacts this rank receives, in the file's order."""
+    owning its particles (one Alltoallv a field, numpy buffers: no pickled copies; ``part``'s
+    contact fields are freed as they go); the contacts this rank receives, in the file's
+    order."""
     pair = part.pair
     oi, oj = owner[pair[:, 0]], owner[pair[:, 1]]
     rows = np.concatenate([np.arange(pair.shape[0]), np.flatnonzero(oj != oi)])
     dest = np.concatenate([oi, oj[oj != oi]])
+    del oi, oj
     by = np.argsort(dest, kind="stable")
-    rows, dest = rows[by], dest[by]
-    cut = np.searchsorted(dest, np.arange(size + 1))
-    sends = []
-    for r in range(size):
-        k = rows[cut[r]:cut[r + 1]]
-        sends.append({"row": part.contact_row[k], "pair": pair[k],
-                      **{f: None if getattr(part, f) is None else getattr(part, f)[k]
-                         for f in _CONTACT_FIELDS}})
-    got = comm.alltoall(sends)
-    del sends
-    row = np.concatenate([g["row"] for g in got])
-    order = np.argsort(row, kind="stable")
-    out = {"contact_row": row[order],
-           "pair": np.concatenate([g["pair"] for g in got]).reshape(-1, 2)[order]}
-    for f in _CONTACT_FIELDS:
-        parts = [g[f] for g in got]
-        out[f] = None if parts[0] is None else np.concatenate(parts)[order]
-    return out
+    rows = rows[by]
+    send_n = np.bincount(dest, minlength=size).astype(np.int64)
+    del dest, by
+    recv_n = np.empty(size, dtype=np.int64)
+    comm.Alltoall(send_n, recv_n)
+    total = int(recv_n.sum())
+    fields = {"contact_row": part.contact_row, "pair": pair,
+              **{f: getattr(part, f) for f in _CONTACT_FIELDS}}
+    got = {}
+    del pair
+    for name in list(fields):
+        a = fields.pop(name)
+        setattr(part, name, None)           # the slice's field is freed once it is sent
+        if a is None:
+            got[name] = None
+            continue
+        width = int(np.prod(a.shape[1:], dtype=np.int64))
+        send = np.ascontiguousarray(a[rows])
+        del a
+        recv = np.empty((total,) + send.shape[1:], dtype=send.dtype)
+        comm.Alltoallv([send, (send_n * width, _displs(send_n) * width)],
+                       [recv, (recv_n * width, _displs(recv_n) * width)])
+        got[name] = recv
+        del send
+    order = np.argsort(got["contact_row"], kind="stable")
+    for name in got:                    # one field at a time: one extra copy at most
+        if got[name] is not None:
+            got[name] = got[name][order]
+    return got
+
+
+def _displs(counts):
+    return np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
 
 
 def build_on_ranks(scene, packing_path, comm) -> RankBuild:
@@ -236,19 +254,16 @@ def build_on_ranks(scene, packing_path, comm) -> RankBuild:
     tied_mine = _scatter_whole(comm, tied, order, starts, lo, hi)
 
     # the share of this rank, as petsc_backend._share cuts it from a whole network
-    lap_rows = (sp.csr_matrix((degree, (np.arange(hi - lo), mine)), shape=(hi - lo, n))
-                - adjacency)
-    lap_rows.sort_indices()
     from .solvers.petsc_backend import share_rows
     share = share_rows(
-        lap_rows.tocoo(), mine, lo, np.argsort(order).astype(np.int64), n,
+        adjacency, degree, mine, lo, np.argsort(order).astype(np.int64), n,
         capacity=capacity, held=terms["held"], held_t=terms["held_t"], g=terms["g_p"],
         b=terms["gt_p"] + terms["pw_p"], tied=_whole_from_mine(tied_mine, mine, n),
         fixed_particle=row_data["fixed_particle"], fixed_boundary=row_data["fixed_boundary"],
         exchange_particle=row_data["exchange_particle"], exchange_row_g=row_data["exchange_g"],
         exchange_row_t=row_data["exchange_t"], exchange_boundary=row_data["exchange_boundary"],
         held_boundary=held_boundary)
-    del lap_rows, adjacency
+    del adjacency
     meta = dict(n=n, starts=starts, nb=meta_rows[0], has_source=meta_rows[1], cut=cut,
                 active_contacts=n_active)
     if rank != 0:

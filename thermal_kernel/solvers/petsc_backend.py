@@ -74,7 +74,7 @@ def _share(net, order, new_index, lo, hi) -> dict:
     columns in the new order, a stored diagonal on every row) and the per-particle and
     boundary rows it owns."""
     mine = order[lo:hi]
-    return share_rows(net.laplacian[mine].tocoo(), mine, lo, new_index, net.n,
+    return share_rows(net.adjacency[mine], net.degree_w_k[mine], mine, lo, new_index, net.n,
                       capacity=net.capacity_j_k, held=net.held,
                       held_t=net.held_temperature_k, g=net.exchange_g_w_k,
                       b=net.constant_rhs_w, tied=net.clusters.tied_particle,
@@ -85,22 +85,33 @@ def _share(net, order, new_index, lo, hi) -> dict:
                       exchange_boundary=net.exchange_boundary, held_boundary=net.held_boundary)
 
 
-def share_rows(lap_rows, mine, lo, new_index, n, *, capacity, held, held_t, g, b, tied,
+def share_rows(adj_rows, degree, mine, lo, new_index, n, *, capacity, held, held_t, g, b, tied,
                fixed_particle, fixed_boundary, exchange_particle, exchange_row_g,
                exchange_row_t, exchange_boundary, held_boundary) -> dict:
-    """One rank's share (the keys of :func:`_share_keys`): the rows ``lap_rows`` (COO, row k
-    the particle ``mine[k]``, columns the packing's indices) of L, with g on the diagonal, as a
-    CSR in the new order, and the per-particle and boundary rows of ``mine`` -- from the whole
-    network on rank 0 (:func:`_share`) or built by the rank itself
-    (thermal_kernel/rank_build.py). The per-particle arrays are indexed by particle, whole
-    (``None`` for ``tied`` when it is given already cut to ``mine``)."""
+    """One rank's share (the keys of :func:`_share_keys`): from ``adj_rows`` (CSR, row k the
+    adjacency row of particle ``mine[k]``, columns the packing's indices) and their
+    ``degree``, the rows of A = L + diag(g) as a CSR in the new order -- -H off the diagonal,
+    degree + g on it (stored on every row), columns sorted -- and the per-particle and boundary
+    rows of ``mine``; from the whole network on rank 0 (:func:`_share`) or built by the rank
+    itself (thermal_kernel/rank_build.py). The per-particle arrays are indexed by particle,
+    whole."""
     n_local = mine.size
-    rows = np.concatenate([lap_rows.row, np.arange(n_local)])
-    cols = np.concatenate([new_index[lap_rows.col], np.arange(lo, lo + n_local)])
-    vals = np.concatenate([lap_rows.data, g[mine]])
-    block = sp.csr_matrix((vals, (rows, cols)), shape=(n_local, n))
-    del rows, cols, vals
-    block.sum_duplicates()
+    per_row = np.diff(adj_rows.indptr)
+    indptr = np.concatenate([[0], np.cumsum(per_row + 1)]).astype(np.int64)
+    nnz = int(indptr[-1])
+    idx = np.int32 if n < 2 ** 31 - 1 else np.int64
+    indices = np.empty(nnz, dtype=idx)
+    data = np.empty(nnz)
+    off = np.arange(adj_rows.nnz, dtype=np.int64)       # each row one slot further per row
+    off += np.repeat(np.arange(n_local, dtype=np.int64), per_row)   # before it (diagonals)
+    indices[off] = new_index[adj_rows.indices]
+    data[off] = -adj_rows.data
+    del off
+    diag = indptr[1:] - 1
+    indices[diag] = np.arange(lo, lo + n_local)
+    data[diag] = degree + g[mine]
+    block = sp.csr_matrix((data, indices, indptr.astype(idx)), shape=(n_local, n))
+    block.has_sorted_indices = False
     block.sort_indices()
     local_of = np.full(n, -1, dtype=np.int64)
     local_of[mine] = np.arange(n_local)
