@@ -631,3 +631,22 @@ def test_a_saved_result_is_read_as_its_record(edit, said):
         old["result"].pop(key)
     old["info"].pop("target")
     assert framework.check_record(5, old, path) is old
+
+
+def test_case6_realisations_are_records():
+    """Case 6's statistics over the realisations are Realisations records: the saved ones read
+    back and write back to the same JSON, the judge reads them, and a misspelt field is refused
+    in one line (not a NaN C_t)."""
+    from tdem_post.records import RecordError, to_dict
+    from validation import case6_calibrate as c6
+    numbers = framework.load_result(6)["result"]["numbers"]
+    st = c6.read_realisations(numbers)
+    def text(stats):
+        return json.dumps({k: {v: to_dict(r) for v, r in by.items()} for k, by in stats.items()})
+    assert text(st) == json.dumps(numbers["realisations"])
+    assert text(st) == text(c6.realisation_stats(c6.read_rows(numbers)))     # (NaN sd: text)
+    assert st["1e5"]["z75"].n >= 1 and 0.7 < st["1e5"]["z75"].ct < 0.9
+    bad = json.loads(json.dumps(numbers))
+    bad["realisations"]["1e5"]["z75"]["c_t"] = bad["realisations"]["1e5"]["z75"].pop("ct")
+    with pytest.raises(RecordError, match=r"realisations\.1e5\.z75: ct: missing.*'c_t'"):
+        c6.judge(bad)

@@ -251,9 +251,33 @@ def _family(rows, prefix):
 FAMILIES = (("1e4", "tiled10k_1e4"), ("1e5", "tiled_1e5_box"), ("1e6", "tiled_1e6_box"))
 
 
-def realisation_stats(rows) -> dict:
-    """Per size and variant: the seeds measured, mean, sd, CoV of C_t (domain length; mean over
-    the axes of each realisation), the mean C_t in held planes and the mean gap and bulk Z."""
+@dataclass(frozen=True, kw_only=True)
+class Realisations:
+    """One size and variant over its realisations (the seeds measured): C_t in the paper's
+    measure (domain length; each realisation's mean over the axes) as mean, sd and CoV (NaN
+    with one realisation), the mean C_t in held planes, the mean relative gap and bulk Z, and
+    the seconds of steady solves per realisation."""
+    seeds: tuple[int, ...]
+    n: int
+    n_particles: tuple[int, ...]
+    ct: float
+    sd: float
+    cov: float
+    ct_held: float
+    gap: float
+    z_bulk: float
+    seconds: float
+
+
+def read_realisations(numbers: dict) -> dict[str, dict[str, Realisations]]:
+    """The saved ``realisations`` (size -> variant -> record; RecordError in one line)."""
+    return {size: {v: from_dict(Realisations, r, f"case 6: realisations.{size}.{v}")
+                   for v, r in by_v.items()}
+            for size, by_v in (numbers.get("realisations") or {}).items()}
+
+
+def realisation_stats(rows) -> dict[str, dict[str, Realisations]]:
+    """Per size and variant: the :class:`Realisations` of the rows measured."""
     out = {}
     for size, prefix in FAMILIES:
         fam = [r for r in _family(rows, prefix) if r.seed]
@@ -267,9 +291,9 @@ def realisation_stats(rows) -> dict:
             d = np.array([_mean(r, "ct_domain", v) for r in have])
             h = np.array([_mean(r, "ct_held", v) for r in have])
             sd = float(np.std(d, ddof=1)) if d.size > 1 else float("nan")
-            out[size][v] = dict(
-                seeds=[r.seed for r in have], n=int(d.size),
-                n_particles=[r.n_particles for r in have], ct=float(d.mean()), sd=sd,
+            out[size][v] = Realisations(
+                seeds=tuple(r.seed for r in have), n=int(d.size),
+                n_particles=tuple(r.n_particles for r in have), ct=float(d.mean()), sd=sd,
                 cov=sd / float(d.mean()) if d.size > 1 else float("nan"),
                 ct_held=float(h.mean()),
                 gap=float(np.mean([r.variants[v].gap for r in have])),
@@ -282,7 +306,11 @@ def judge(numbers: dict) -> Judgement:
     """Issue 23's columns: C_t at 1e5 and 1e6 by the paper's measure (domain length, eq. 8) with
     Haddad's Z 7.5 in the bulk, over the realisations (independent seeds of the periodic cell);
     met if both means are inside 0.75-0.84 and both CoV <= 0.2 % over 4 realisations."""
-    st = numbers.get("realisations") or {}
+    return _judge(read_realisations(numbers))
+
+
+def _judge(st: dict[str, dict[str, Realisations]]) -> Judgement:
+    """:func:`judge` on the realisations' records."""
     parts, met = [], True
     for size, paper in (("1e5", 0.806), ("1e6", 0.834)):
         s = st.get(size, {}).get("z75")
@@ -290,11 +318,11 @@ def judge(numbers: dict) -> Judgement:
             parts.append(f"{size}: not measured")
             met = False
             continue
-        cov = (f"CoV {100 * s['cov']:.2f} % over {s['n']} realisations" if s["n"] > 1
+        cov = (f"CoV {100 * s.cov:.2f} % over {s.n} realisations" if s.n > 1
                else "1 realisation")
-        parts.append(f"N {_fmt_n(s['n_particles'][0])}: C_t {s['ct']:.3f} ({cov}; paper {paper},"
-                     f" {_pct(s['ct'] / paper - 1)})")
-        met &= 0.75 <= s["ct"] <= 0.84 and s["n"] >= 4 and s["cov"] <= 0.002
+        parts.append(f"N {_fmt_n(s.n_particles[0])}: C_t {s.ct:.3f} ({cov}; paper {paper},"
+                     f" {_pct(s.ct / paper - 1)})")
+        met &= 0.75 <= s.ct <= 0.84 and s.n >= 4 and s.cov <= 0.002
     at = ("; ".join(parts) + " — bulk Z 7.5 (`[neighbours]`), R_m arithmetic, domain length "
           "(002 eq. 8)")
     extra = []
@@ -303,30 +331,30 @@ def judge(numbers: dict) -> Judgement:
         s6 = st.get("1e6", {}).get(v)
         if s5 or s6:
             extra.append(f"R_m {name}: " + ", ".join(
-                f"{s['ct']:.3f} ({lab})" for s, lab in ((s5, "1e5"), (s6, "1e6")) if s))
+                f"{s.ct:.3f} ({lab})" for s, lab in ((s5, "1e5"), (s6, "1e6")) if s))
     if extra:
         at += "; " + "; ".join(extra)
     s4 = st.get("1e4", {}).get("z75")
     first = None
     for size in ("1e4", "1e5", "1e6"):
         s = st.get(size, {}).get("z75")
-        if s and 0.75 <= s["ct"] <= 0.84:
+        if s and 0.75 <= s.ct <= 0.84:
             first = (size, s)
             break
-    speed = (f"inside 0.75–0.84 from N {_fmt_n(first[1]['n_particles'][0])} ({first[0]}): "
-             f"{first[1]['seconds']:.1f} s of steady solves (3 axes) per realisation, + ~9 min "
+    speed = (f"inside 0.75–0.84 from N {_fmt_n(first[1].n_particles[0])} ({first[0]}): "
+             f"{first[1].seconds:.1f} s of steady solves (3 axes) per realisation, + ~9 min "
              "of YADE for its 10,000-sphere cell" if first else "inside 0.75–0.84 at no N "
              "measured")
     if s4 and first and first[0] != "1e4":
-        speed += f" (1e4: {s4['ct']:.3f})"
+        speed += f" (1e4: {s4.ct:.3f})"
     s5, s6 = (st.get(k, {}).get("z75") for k in ("1e5", "1e6"))
     if met:
         verdict = (f"met: inside 0.75–0.84 at 1e5 and 1e6 with Haddad's bulk Z, CoV ≤ 0.2 % over "
-                   f"4 realisations; below the paper's own values ({_pct(s5['ct'] / 0.806 - 1)} "
-                   f"at 1e5, {_pct(s6['ct'] / 0.834 - 1)} at 1e6), its rise with N not "
+                   f"4 realisations; below the paper's own values ({_pct(s5.ct / 0.806 - 1)} "
+                   f"at 1e5, {_pct(s6.ct / 0.834 - 1)} at 1e6), its rise with N not "
                    "reproduced")
-    elif s5 and s6 and 0.75 <= s5["ct"] <= 0.84 and 0.75 <= s6["ct"] <= 0.84:
-        n_min = min(s5["n"], s6["n"])
+    elif s5 and s6 and 0.75 <= s5.ct <= 0.84 and 0.75 <= s6.ct <= 0.84:
+        n_min = min(s5.n, s6.n)
         verdict = (f"C_t inside 0.75–0.84 at 1e5 and 1e6 with Haddad's bulk Z; CoV over "
                    f"{n_min} realisation(s)" + (" only (4 asked)" if n_min < 4 else
                                                " above 0.2 %"))
@@ -353,8 +381,8 @@ def _figure(ctx: Context, rows: list[dict], stats: dict) -> tuple[str, str]:
     for size, n in (("1e4", 1e4), ("1e5", 1e5), ("1e6", 1e6)):
         for v, (color, _) in styles.items():
             s = stats.get(size, {}).get(v)
-            if s and s["n"] > 1:
-                ax.errorbar([n * 1.15], [s["ct"]], yerr=[s["sd"]], color=color, capsize=3)
+            if s and s.n > 1:
+                ax.errorbar([n * 1.15], [s.ct], yerr=[s.sd], color=color, capsize=3)
     ax.semilogx(list(PAPER), list(PAPER.values()), "k*", ms=10,
                 label="Haddad: 0.806 (1e5), 0.834 (1e6)")
     ax.set_xlabel("N (spheres)")
@@ -405,7 +433,7 @@ def run(ctx: Context) -> CaseResult:
                      + f"; {sum(m.seconds for m in row.variants.values()):.1f} s")
     stats = realisation_stats(rows)
     png, csv_name = _figure(ctx, rows, stats)
-    return judged(_result(rows, stats, png, csv_name), judge(dict(realisations=stats)))
+    return judged(_result(rows, stats, png, csv_name), _judge(stats))
 
 
 def _carry(row: CalibRow, before: CalibRow | None) -> CalibRow:
@@ -455,11 +483,11 @@ def _realisation_table(stats: dict) -> list[str]:
             s = stats.get(size, {}).get(v)
             if not s:
                 continue
-            cov = f"{100 * s['cov']:.2f} %" if s["n"] > 1 else "—"
-            sd = f"{s['sd']:.4f}" if s["n"] > 1 else "—"
-            real.append(f"| {size} | {VARIANT_LABEL[v]} | {', '.join(map(str, s['seeds']))} | "
-                        f"{s['gap']:.4f} | {s['z_bulk']:.3f} | **{s['ct']:.4f}** | {sd} | {cov} | "
-                        f"{s['ct_held']:.4f} | {s['seconds']:.1f} |")
+            cov = f"{100 * s.cov:.2f} %" if s.n > 1 else "—"
+            sd = f"{s.sd:.4f}" if s.n > 1 else "—"
+            real.append(f"| {size} | {VARIANT_LABEL[v]} | {', '.join(map(str, s.seeds))} | "
+                        f"{s.gap:.4f} | {s.z_bulk:.3f} | **{s.ct:.4f}** | {sd} | {cov} | "
+                        f"{s.ct_held:.4f} | {s.seconds:.1f} |")
     return real
 
 
@@ -500,12 +528,12 @@ def _findings(by: dict, stats: dict, n: dict) -> list[str]:
     text = _coordination(b5, b6, n)
     sc = [(k, st["dump"], st["z75"]) for k, st in ((k, stats.get(k, {})) for k in
                                                     ("1e4", "1e5"))
-          if "dump" in st and "z75" in st and st["z75"]["n"] > 1]
+          if "dump" in st and "z75" in st and st["z75"].n > 1]
     if sc:
         text.append("*Scatter between realisations.* Through every dumped pair the seeds differ "
-                    "in C_t by CoV " + ", ".join(f"{100 * d['cov']:.2f} % ({k})" for k, d, _ in sc)
+                    "in C_t by CoV " + ", ".join(f"{100 * d.cov:.2f} % ({k})" for k, d, _ in sc)
                     + "; with the bulk criterion " + ", ".join(
-                        f"{100 * z['cov']:.2f} % ({k})" for k, _, z in sc)
+                        f"{100 * z.cov:.2f} % ({k})" for k, _, z in sc)
                     + ": the criterion gives every realisation the same bulk Z (its gap moves "
                     "instead), which removes most of the seed-to-seed scatter of the cells' "
                     "coordination with gaps.")
@@ -513,8 +541,8 @@ def _findings(by: dict, stats: dict, n: dict) -> list[str]:
     for size in ("1e5", "1e6"):
         st = stats.get(size, {})
         if "z75" in st and "z75_geometric" in st and "z75_harmonic" in st:
-            base = st["z75"]["ct"]
-            g, h = st["z75_geometric"]["ct"], st["z75_harmonic"]["ct"]
+            base = st["z75"].ct
+            g, h = st["z75_geometric"].ct, st["z75_harmonic"].ct
             rm.append(f"at {size} geometric {g:.3f} ({_pct(g / base - 1)}), harmonic {h:.3f} "
                       f"({_pct(h / base - 1)}) against arithmetic {base:.3f}")
     if rm:
@@ -522,9 +550,9 @@ def _findings(by: dict, stats: dict, n: dict) -> list[str]:
         h6 = stats.get("1e6", {}).get("z75_harmonic")
         vs = ""
         if h5 and h6:
-            vs = (f" The harmonic reading meets the paper at 1e5 ({h5['ct']:.3f} against 0.806, "
-                  f"{_pct(h5['ct'] / 0.806 - 1)}) but not at 1e6 ({h6['ct']:.3f} against 0.834, "
-                  f"{_pct(h6['ct'] / 0.834 - 1)}): no reading of R_m gives the paper's rise with "
+            vs = (f" The harmonic reading meets the paper at 1e5 ({h5.ct:.3f} against 0.806, "
+                  f"{_pct(h5.ct / 0.806 - 1)}) but not at 1e6 ({h6.ct:.3f} against 0.834, "
+                  f"{_pct(h6.ct / 0.834 - 1)}): no reading of R_m gives the paper's rise with "
                   "N, so none is singled out by it.")
         text.append("*R_m.* 002 does not say which mean radius R_m of eq. 7 is; the haddad law's "
                     "`mean_radius` offers the three (docs/laws.md). With bulk Z 7.5: "
@@ -533,16 +561,16 @@ def _findings(by: dict, stats: dict, n: dict) -> list[str]:
                     "C_t larger." + vs + " The default stays arithmetic, the plain reading of "
                     "\"mean radius\"" + (
                         "; all three readings put C_t inside 0.75–0.84 at 1e5 and 1e6."
-                        if all(0.75 <= stats.get(k, {}).get(v, {}).get("ct", 0) <= 0.84
+                        if all(0.75 <= getattr(stats.get(k, {}).get(v), "ct", 0) <= 0.84
                                for k in ("1e5", "1e6") for v in ("z75", "z75_geometric",
                                                                  "z75_harmonic"))
                         else "."))
     if "z75" in s5 and "z75" in s6:
         a, b = s5["z75"], s6["z75"]
-        trend = "falls" if b["ct"] < a["ct"] else "rises"
-        text.append(f"*Trend with N.* With the same criterion C_t {trend} from {a['ct']:.3f} "
-                    f"(1e5) to {b['ct']:.3f} (1e6) in the paper's measure (domain length), and "
-                    f"{a['ct_held']:.3f} → {b['ct_held']:.3f} in held planes: the paper's rise "
+        trend = "falls" if b.ct < a.ct else "rises"
+        text.append(f"*Trend with N.* With the same criterion C_t {trend} from {a.ct:.3f} "
+                    f"(1e5) to {b.ct:.3f} (1e6) in the paper's measure (domain length), and "
+                    f"{a.ct_held:.3f} → {b.ct_held:.3f} in held planes: the paper's rise "
                     "(0.806 → 0.834) is not reproduced; its flux boundary (a flux imposed on one "
                     "face, ΔT read there, 002 Fig. 2) differs from our two held faces, and the "
                     "faces of our cubes are cut surfaces of a periodic packing.")
@@ -580,7 +608,8 @@ def _result(rows: list[CalibRow], stats: dict, png: str, csv_name: str) -> CaseR
                     "only; bulk there: centres 3 mean radii from the faces): those packings are "
                     "not on this machine; `TDEM_VALIDATE_ALL_PACKINGS=1 tdem validate 6 --force` "
                     "builds and measures them again (hours of YADE)." if carried else "")
-    n = dict(rows=[to_dict(r) for r in rows], realisations=stats)
+    n = dict(rows=[to_dict(r) for r in rows],
+             realisations={k: {v: to_dict(r) for v, r in st.items()} for k, st in stats.items()})
 
     real = _realisation_table(stats)
 
@@ -627,15 +656,15 @@ Times: the steady solves of every variant, one thread, shared machine.){carried_
 
 {chr(10).join(f"- {t}" for t in text)}"""
     s5z, s6z = s5.get("z75"), s6.get("z75")
-    our_error = ("; ".join(f"{s['ct']:.3f} at {k} (CoV {100 * s['cov']:.2f} %, {s['n']} "
-                           "realisations)" if s["n"] > 1 else f"{s['ct']:.3f} at {k}"
+    our_error = ("; ".join(f"{s.ct:.3f} at {k} (CoV {100 * s.cov:.2f} %, {s.n} "
+                           "realisations)" if s.n > 1 else f"{s.ct:.3f} at {k}"
                            for k, s in (("1e5", s5z), ("1e6", s6z)) if s)
                  + " with bulk Z 7.5 (domain length)")
     dumps = [r for r in (b5, b6) if r and "dump" in r.variants]
     if dumps:
         our_error += "; every dumped pair: " + ", ".join(
             f"{_mean(r, 'ct_domain', 'dump'):.3f}" for r in dumps)
-    times = "; ".join(f"{k}: {s['seconds']:.0f} s" for k, s in
+    times = "; ".join(f"{k}: {s.seconds:.0f} s" for k, s in
                       (("1e5", s5z), ("1e6", s6z)) if s)
     return CaseResult(
         our_n=f"{_fmt_n(min(r.n_particles for r in rows))} … "
@@ -660,7 +689,7 @@ def _rebuild(ctx: Context) -> None:
         rows = read_rows(numbers)
         stats = realisation_stats(rows)
         png, csv_name = _figure(ctx, rows, stats)
-        return judged(_result(rows, stats, png, csv_name), judge(dict(realisations=stats)))
+        return judged(_result(rows, stats, png, csv_name), _judge(stats))
     print(rebuild_saved(CASE, build))
 
 
