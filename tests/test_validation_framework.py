@@ -650,3 +650,27 @@ def test_case6_realisations_are_records():
     bad["realisations"]["1e5"]["z75"]["c_t"] = bad["realisations"]["1e5"]["z75"].pop("ct")
     with pytest.raises(RecordError, match=r"realisations\.1e5\.z75: ct: missing.*'c_t'"):
         c6.judge(bad)
+
+
+def test_case10_realisations_and_bridges_are_records():
+    """Case 10's realisations (the inclusions and their FFT reference) and its bridge test are
+    records: the saved ones read back and write back to the same JSON (centres as arrays in
+    memory), and a misspelt field is refused in one line, by the judge too for the bridges."""
+    from tdem_post.records import RecordError, to_dict
+    from validation import case10_dispersion as c10
+    numbers = framework.load_result(10)["result"]["numbers"]
+    reals = c10.read_realisations(numbers)
+    assert sorted(reals) == [float(f) for f in numbers["realisations"]]
+    assert all(r.centres.shape == (r.count, 3) for r in reals.values())
+    assert json.dumps({str(f): to_dict(dataclasses.replace(r, centres=r.centres.tolist()))
+                       for f, r in reals.items()}) == json.dumps(numbers["realisations"])
+    bridges = c10.read_bridges(numbers)
+    assert bridges and [to_dict(b) for b in bridges] == numbers["bridge_test"]
+    bad = json.loads(json.dumps(numbers))
+    bad["realisations"]["0.3"]["ref_uncertainty"] = bad["realisations"]["0.3"].pop("ref_unc")
+    with pytest.raises(RecordError, match=r"realisations\.0\.3: ref_unc: missing"):
+        c10.read_realisations(bad)
+    bad = json.loads(json.dumps(numbers))
+    del bad["bridge_test"][0]["bridges"]
+    with pytest.raises(RecordError, match=r"bridge_test\[0\]: bridges: missing"):
+        c10.judge(bad)

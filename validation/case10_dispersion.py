@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import time
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -97,7 +98,61 @@ BRIDGE_BOXES = ("box_1e5", "box_1e6")
 BRIDGE_FRACTIONS = (0.4, 0.5)
 
 
-def bridge_test(ctx: Context, reals: dict, runs: list) -> list[dict]:
+@dataclass(frozen=True, kw_only=True)
+class Realisation:
+    """The inclusions of one nominal f and their FFT reference: centres in the unit cube (an
+    array in memory, a list when saved) and radius over the side, how they were placed (RSA or
+    compression: the RSA jam's f or None, the compression's sweeps), the FFT grids (voxels a
+    side), the realised f and count, k_eff/k_m of the cube with faces (value, uncertainty, how)
+    and its grid series ([n, k, CG iterations, seconds] per grid), the periodic reading
+    likewise, and the seconds this took."""
+    centres: object
+    radius: float
+    method: str
+    jam: float | None
+    sweeps: int
+    grids: tuple[int, ...]
+    f: float
+    count: int
+    ref: float
+    ref_unc: float
+    ref_how: str
+    fft_faces: list
+    periodic: float
+    periodic_unc: float
+    periodic_how: str
+    fft_periodic: list
+    seconds: float
+
+
+def read_realisations(numbers: dict) -> dict[float, Realisation]:
+    """The saved realisations by f (their centres as arrays); RecordError in one line."""
+    out = {}
+    for f, rl in numbers["realisations"].items():
+        r = from_dict(Realisation, rl, f"case 10: realisations.{f}")
+        out[float(f)] = dataclasses.replace(r, centres=np.asarray(r.centres))
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class BridgeTest:
+    """One box and f of :func:`bridge_test`: the bridging contacts, the error against the FFT
+    reference with 002's rule and with those contacts at the interface conductivity."""
+    name: str
+    n: int
+    f: float
+    bridges: int
+    err_ref: float
+    err_ref_bridges_interface: float
+
+
+def read_bridges(numbers: dict) -> list[BridgeTest]:
+    """The saved bridge_test rows as records (RecordError in one line)."""
+    return [from_dict(BridgeTest, b, f"case 10: bridge_test[{k}]")
+            for k, b in enumerate(numbers.get("bridge_test", []))]
+
+
+def bridge_test(ctx: Context, reals: dict, runs: list) -> list[BridgeTest]:
     """The share of the error due to the bridging contacts (bridging_mask), measured: the
     flux test again with those contacts at the harmonic interface conductivity 2c/(1 + c)
     (002 eq. 24, as if each crossed an inclusion/matrix interface - it crosses the matrix gap
@@ -113,18 +168,18 @@ def bridge_test(ctx: Context, reals: dict, runs: list) -> list[dict]:
             rl = reals[f]
             if not any(abs(f - x) < 0.02 for x in BRIDGE_FRACTIONS):
                 continue
-            cen = pk.domain_lo + rl["centres"] * size
-            owner = I.owner_of(pk, cen, rl["radius"] * float(size.min()))
+            cen = pk.domain_lo + rl.centres * size
+            owner = I.owner_of(pk, cen, rl.radius * float(size.min()))
             bridge = bridging_mask(pk, owner)
             factor = np.where(bridge, 2.0 / (1.0 + CONTRAST), 1.0)   # (2c/(1+c)) / c
             k1 = I.flux_test(scene, pk, (owner >= 0).astype(np.int32), CONTRAST,
                              factor=factor).k_eff / k_m.k_eff
-            out.append(dict(name=run_["name"], n=int(pk.n_particles), f=rl["f"],
-                            bridges=int(bridge.sum()), err_ref=row["err_ref"],
-                            err_ref_bridges_interface=k1 / rl["ref"] - 1))
-            ctx.progress(f"{run_['name']} f {rl['f']:.3f}: {out[-1]['bridges']} bridges, error "
-                         f"{100 * out[-1]['err_ref']:+.2f} % -> "
-                         f"{100 * out[-1]['err_ref_bridges_interface']:+.2f} % with them at the "
+            out.append(BridgeTest(name=run_["name"], n=int(pk.n_particles), f=rl.f,
+                                  bridges=int(bridge.sum()), err_ref=row["err_ref"],
+                                  err_ref_bridges_interface=k1 / rl.ref - 1))
+            ctx.progress(f"{run_['name']} f {rl.f:.3f}: {out[-1].bridges} bridges, error "
+                         f"{100 * out[-1].err_ref:+.2f} % -> "
+                         f"{100 * out[-1].err_ref_bridges_interface:+.2f} % with them at the "
                          "interface conductivity")
     return out
 
@@ -198,12 +253,12 @@ def realisations(ctx: Context, fractions, grids, periodic_grids) -> dict:
             write_text_atomic(cache_path, json.dumps(cache))
         ref, unc, how = reference(faces)
         per, per_unc, per_how = reference(periodic)
-        reals[f] = dict(centres=centres, radius=r, method=method, jam=jam, sweeps=sweeps,
-                        grids=list(f_grids), f=f_real, count=len(centres), ref=ref, ref_unc=unc,
-                        ref_how=how, fft_faces=[list(x) for x in faces],
-                        periodic=per, periodic_unc=per_unc, periodic_how=per_how,
-                        fft_periodic=[list(x) for x in periodic],
-                        seconds=time.perf_counter() - t0)
+        reals[f] = Realisation(
+            centres=centres, radius=r, method=method, jam=jam, sweeps=sweeps,
+            grids=tuple(f_grids), f=f_real, count=len(centres), ref=ref, ref_unc=unc,
+            ref_how=how, fft_faces=[list(x) for x in faces], periodic=per, periodic_unc=per_unc,
+            periodic_how=per_how, fft_periodic=[list(x) for x in periodic],
+            seconds=time.perf_counter() - t0)
         ctx.progress(f"f {f}: {len(centres)} inclusions by {method} (f {f_real:.4f}), FFT "
                      f"reference {ref:.5f} ± {unc:.5f} ({how}; grids "
                      + " / ".join(f"{x[1]:.5f}" for x in faces)
@@ -220,21 +275,21 @@ def dem_run(ctx: Context, name: str, path, reals: dict, fractions) -> dict:
     rows = []
     for f in fractions:
         rl = reals[f]
-        cen = pk.domain_lo + rl["centres"] * size
-        owner = I.owner_of(pk, cen, rl["radius"] * float(size.min()))
+        cen = pk.domain_lo + rl.centres * size
+        owner = I.owner_of(pk, cen, rl.radius * float(size.min()))
         phase = (owner >= 0).astype(np.int32)
         bridges = int(bridging_mask(pk, owner).sum())
         res = I.flux_test(scene, pk, phase, CONTRAST)
         k = res.k_eff / k_m.k_eff
-        fr = rl["f"]
+        fr = rl.f
         low, high = (float(v) for v in hashin_shtrikman(1.0, CONTRAST, fr))
-        rows.append(dict(f=fr, k=k, ref=rl["ref"], err_ref=k / rl["ref"] - 1,
+        rows.append(dict(f=fr, k=k, ref=rl.ref, err_ref=k / rl.ref - 1,
                          maxwell=float(maxwell(1.0, CONTRAST, fr)),
                          bruggeman=float(bruggeman(1.0, CONTRAST, fr)), hs_low=low,
                          hs_high=high, f_particles=I.particle_fraction(pk, phase),
                          inclusion_particles=int(phase.sum()), bridges=bridges,
                          seconds=res.seconds))
-        ctx.progress(f"{name} f {fr:.3f}: k/k_m {k:.4f}, FFT {rl['ref']:.4f} "
+        ctx.progress(f"{name} f {fr:.3f}: k/k_m {k:.4f}, FFT {rl.ref:.4f} "
                      f"({100 * rows[-1]['err_ref']:+.2f} %), Maxwell {rows[-1]['maxwell']:.4f}"
                      f" ({res.seconds:.1f} s)")
     return dict(name=name, n=pk.n_particles, rows=rows,
@@ -298,7 +353,7 @@ def _carried_over(reals, fractions) -> list:
     run = dict(old[0], carried_over=old[0].get("carried_over", record["finished"][:10]))
     rows = []
     for x, f in zip(run["rows"], fractions):
-        rows.append(dict(x, ref=reals[f]["ref"], err_ref=x["k"] / reals[f]["ref"] - 1))
+        rows.append(dict(x, ref=reals[f].ref, err_ref=x["k"] / reals[f].ref - 1))
     run["rows"] = rows
     return [run]
 
@@ -352,18 +407,18 @@ def finish(ctx: Context, reals: dict, runs: list, total: float,
     used to rebuild them from a saved result)."""
     runs = read_runs(runs)
     fractions = sorted(reals)
-    grids = reals[fractions[0]]["grids"]
+    grids = reals[fractions[0]].grids
     orders = _plots(ctx, runs, reals)
     rs = sorted(runs, key=lambda r: r.n)
     big = rs[-1]
     max_err = max(abs(r.err_ref) for r in big.rows)
-    ref_unc = max(reals[f]["ref_unc"] / reals[f]["ref"] for f in fractions)
+    ref_unc = max(reals[f].ref_unc / reals[f].ref for f in fractions)
     numbers = dict(contrast=CONTRAST, fractions=list(fractions), grids=list(grids),
                    order=orders, max_error_vs_ref=max_err, reference_uncertainty=ref_unc,
-                   realisations={str(f): {k: (v.tolist() if isinstance(v, np.ndarray) else v)
-                                          for k, v in rl.items()}
-                                 for f, rl in reals.items()},
-                   runs=[to_dict(r) for r in runs], bridge_test=bridges or [])
+                   realisations={str(f): to_dict(dataclasses.replace(
+                       rl, centres=rl.centres.tolist())) for f, rl in reals.items()},
+                   runs=[to_dict(r) for r in runs],
+                   bridge_test=[to_dict(b) for b in bridges or []])
     section = _section(runs, reals, grids, orders) + _bridge_text(bridges or [])
     pack = ", ".join(f"{r.name} {r.pack_s:.0f} s" for r in runs if r.pack_s)
     f_text = f"f {min(fractions)}–{max(fractions)}"
@@ -413,14 +468,14 @@ def judge(numbers: dict) -> framework.Judgement:
                      f"{max(x.f for x in big.rows if abs(x.err_ref) <= PAPER_TARGET):.1f}"
                      if len(missed) < len(big.rows) else ""))
                + ("" if at_8e6 else " (the paper's N 8e6 not run)"))
-    bt = [b for b in numbers.get("bridge_test", []) if b["f"] > 0.45]
+    bt = [b for b in read_bridges(numbers) if b.f > 0.45]
     if bt and missed:
-        b = max(bt, key=lambda b: b["n"])
-        verdict += (f"; cause measured at N {b['n']:,}, f {b['f']:.2f}: the {b['bridges']:,} "
+        b = max(bt, key=lambda b: b.n)
+        verdict += (f"; cause measured at N {b.n:,}, f {b.f:.2f}: the {b.bridges:,} "
                     "contacts joining two inclusions across the matrix gap carry "
-                    f"{100 * (b['err_ref'] - b['err_ref_bridges_interface']):.2f} of its "
-                    f"{100 * b['err_ref']:.2f} points (at the interface conductivity the error "
-                    f"is {100 * b['err_ref_bridges_interface']:+.2f} %)")
+                    f"{100 * (b.err_ref - b.err_ref_bridges_interface):.2f} of its "
+                    f"{100 * b.err_ref:.2f} points (at the interface conductivity the error "
+                    f"is {100 * b.err_ref_bridges_interface:+.2f} %)")
     return framework.Judgement(at_paper_n, _speed_vs_error(rs), met, verdict)
 
 
@@ -485,10 +540,10 @@ def _figure_fraction(ctx, runs, reals) -> None:
     ax.plot(f_line, maxwell(1.0, CONTRAST, f_line), "k-", label="Maxwell (= HS lower)")
     ax.plot(f_line, bruggeman(1.0, CONTRAST, f_line), "k:", label="Bruggeman")
     fs = sorted(reals)
-    ax.errorbar([reals[f]["f"] for f in fs], [reals[f]["ref"] for f in fs],
-                yerr=[reals[f]["ref_unc"] for f in fs], fmt="D", color="k", mfc="none",
+    ax.errorbar([reals[f].f for f in fs], [reals[f].ref for f in fs],
+                yerr=[reals[f].ref_unc for f in fs], fmt="D", color="k", mfc="none",
                 label="FFT, same cube and faces (h -> 0)")
-    ax.plot([reals[f]["f"] for f in fs], [reals[f]["periodic"] for f in fs], "x", color="0.4",
+    ax.plot([reals[f].f for f in fs], [reals[f].periodic for f in fs], "x", color="0.4",
             label="FFT, the cube as a periodic cell")
     csv = []
     for k, r in enumerate(sorted(runs, key=lambda r: r.n)):
@@ -498,10 +553,10 @@ def _figure_fraction(ctx, runs, reals) -> None:
         bx.plot([x.f for x in r.rows], [100 * x.err_ref for x in r.rows], "o-",
                 color=col, label=f"{r.n:,} spheres")
         for x, f in zip(r.rows, fs):
-            csv.append((r.n, x.f, x.k, x.ref, reals[f]["ref_unc"],
-                        reals[f]["periodic"], x.maxwell, x.bruggeman, x.hs_low,
+            csv.append((r.n, x.f, x.k, x.ref, reals[f].ref_unc,
+                        reals[f].periodic, x.maxwell, x.bruggeman, x.hs_low,
                         x.hs_high, x.err_ref))
-    jams = [reals[f]["jam"] for f in fs if reals[f]["jam"] is not None]
+    jams = [reals[f].jam for f in fs if reals[f].jam is not None]
     if jams:
         ax.axvline(jams[0], color="C1", ls="--", lw=0.8, label=f"RSA jams (f {jams[0]:.3f})")
     ax.set_xlabel("inclusion volume fraction f")
@@ -531,7 +586,7 @@ def _figure_convergence(ctx, runs, reals) -> float:
     ax.loglog(n, 100 * e, "o-", label=f"max over f of |error| (N^{p:.2f})")
     for j, f in enumerate(fs):
         ax.loglog(n, [100 * abs(r.rows[j].err_ref) for r in rs], ".:", lw=0.8,
-                  label=f"f {reals[f]['f']:.2f}")
+                  label=f"f {reals[f].f:.2f}")
     ax.axhline(0.5, color="C1", ls="--", lw=0.8, label="002: 0.5 % at 8e6")
     ax.set_xlabel("N (spheres)")
     ax.set_ylabel("|k / k_FFT - 1|, %")
@@ -545,7 +600,7 @@ def _figure_convergence(ctx, runs, reals) -> float:
     path = ctx.figure("convergence")
     save_figure(fig, path)
     I.write_csv(path, ("n", "max_abs_rel_error", "seconds_per_solve",
-                       *[f"err_f{reals[f]['f']:.3f}" for f in fs]),
+                       *[f"err_f{reals[f].f:.3f}" for f in fs]),
                 [(r.n, ee, tt, *[x.err_ref for x in r.rows])
                  for r, ee, tt in zip(rs, e, t)])
     return p
@@ -558,16 +613,16 @@ def _figure_fft(ctx, reals) -> None:
     csv = []
     for j, f in enumerate(fs):
         rl = reals[f]
-        ser = np.array(rl["fft_faces"], float)
+        ser = np.array(rl.fft_faces, float)
         h = 1.0 / ser[:, 0]
-        ax.loglog(h, 100 * np.abs(ser[:, 1] / rl["ref"] - 1) + 1e-6, "o-", color=f"C{j}",
-                  label=f"f {rl['f']:.2f}: {rl['ref_how']}")
+        ax.loglog(h, 100 * np.abs(ser[:, 1] / rl.ref - 1) + 1e-6, "o-", color=f"C{j}",
+                  label=f"f {rl.f:.2f}: {rl.ref_how}")
         for row in ser:
-            csv.append((rl["f"], "faces", int(row[0]), row[1], int(row[2]), row[3], rl["ref"],
-                        rl["ref_unc"]))
-        for row in np.array(rl["fft_periodic"], float):
-            csv.append((rl["f"], "periodic", int(row[0]), row[1], int(row[2]), row[3],
-                        rl["periodic"], rl["periodic_unc"]))
+            csv.append((rl.f, "faces", int(row[0]), row[1], int(row[2]), row[3], rl.ref,
+                        rl.ref_unc))
+        for row in np.array(rl.fft_periodic, float):
+            csv.append((rl.f, "periodic", int(row[0]), row[1], int(row[2]), row[3],
+                        rl.periodic, rl.periodic_unc))
     hh = np.array([1 / 48, 1 / 128])
     ax.loglog(hh, 0.3 * (hh / hh[0]) ** 2, "k--", lw=0.7, label="h^2")
     ax.axhline(0.1, color="C3", ls=":", lw=0.8, label="0.1 %")
@@ -585,17 +640,17 @@ def _section(runs, reals, grids, order):
     fs = sorted(reals)
     rs = sorted(runs, key=lambda r: r.n)
     real_lines = "\n".join(
-        f"| {f:g} | {reals[f]['count']} | {reals[f]['method']}"
-        + (f" ({reals[f]['sweeps']} sweeps)" if reals[f]["sweeps"] else "")
-        + f" | {reals[f]['f']:.4f} | "
-        + ", ".join(f"{x[0]}³ {x[1]:.5f}" for x in reals[f]["fft_faces"])
-        + f" | **{reals[f]['ref']:.5f} ± {reals[f]['ref_unc']:.5f}** "
-          f"({100 * reals[f]['ref_unc'] / reals[f]['ref']:.3f} %; {reals[f]['ref_how']}) | "
-        + f"{reals[f]['periodic']:.5f} ({100 * (reals[f]['periodic'] / reals[f]['ref'] - 1):+.2f}"
+        f"| {f:g} | {reals[f].count} | {reals[f].method}"
+        + (f" ({reals[f].sweeps} sweeps)" if reals[f].sweeps else "")
+        + f" | {reals[f].f:.4f} | "
+        + ", ".join(f"{x[0]}³ {x[1]:.5f}" for x in reals[f].fft_faces)
+        + f" | **{reals[f].ref:.5f} ± {reals[f].ref_unc:.5f}** "
+          f"({100 * reals[f].ref_unc / reals[f].ref:.3f} %; {reals[f].ref_how}) | "
+        + f"{reals[f].periodic:.5f} ({100 * (reals[f].periodic / reals[f].ref - 1):+.2f}"
           " %) |"
         for f in fs)
     head = "| N | inclusion radius / r̄ | " + " | ".join(
-        f"f {reals[f]['f']:.3f}" for f in fs) + " | s / solve |"
+        f"f {reals[f].f:.3f}" for f in fs) + " | s / solve |"
     lines = [head, "|" + "---|" * (len(fs) + 3)]
     for r in rs:
         lines.append(f"| {r.n:,} | {r.a_over_r:.1f} | " + " | ".join(
@@ -605,13 +660,13 @@ def _section(runs, reals, grids, order):
     mx = "\n".join(f"| {x.f:.3f} | {x.k:.4f} | {x.ref:.4f} | {x.maxwell:.4f} | "
                    f"{x.bruggeman:.4f} | {x.hs_low:.4f} – {x.hs_high:.4f} |"
                    for x in big.rows)
-    jam = next((reals[f]["jam"] for f in fs if reals[f]["jam"] is not None), None)
+    jam = next((reals[f].jam for f in fs if reals[f].jam is not None), None)
     jam_text = (f"RSA (seed {SEED}) jams at f = {jam:.3f} "
                 f"({int(round(jam / (4 / 3 * math.pi * RADIUS ** 3)))} "
                 f"spheres of d = L/6 wholly inside the cube, exclusion radius {1 + GAP:g} R; "
                 "50,000 further trials fail; without the gap it jams at 0.281, 116 spheres)"
                 if jam else "RSA did not jam at these fractions")
-    t_fft = sum(reals[f]["fft_faces"][-1][3] for f in fs) / len(fs)
+    t_fft = sum(reals[f].fft_faces[-1][3] for f in fs) / len(fs)
     return f"""**Setup.** 002 sec. 5.1: monodisperse spherical inclusions of diameter L/6 in a cube,
 contrast {CONTRAST:.2f} (silica 1.5 / epoxy 0.195 W/m/K), one realisation per fraction (seed
 {SEED}), scaled to each packing; no two inclusions closer than {2 * GAP:g} R ({2 * GAP_DENSE:g} R \
@@ -672,7 +727,7 @@ At N = {big.n:,}, against the estimates (Maxwell = the Hashin–Shtrikman lower 
 def _limits(rs, reals):
     big = rs[-1]
     worst = max(big.rows, key=lambda x: abs(x.err_ref))
-    unc = max(reals[f]["ref_unc"] / reals[f]["ref"] for f in reals)
+    unc = max(reals[f].ref_unc / reals[f].ref for f in reals)
     per = ", ".join(f"{r.n:,}: {100 * max(abs(x.err_ref) for x in r.rows):.2f} %"
                     for r in rs)
     return (f"**What limits us.** The largest error at N = {big.n:,} is "
@@ -696,9 +751,9 @@ def _limits(rs, reals):
 def _bridge_text(bridges: list) -> str:
     if not bridges:
         return ""
-    rows = "\n".join(f"| {b['n']:,} | {b['f']:.3f} | {b['bridges']:,} | "
-                      f"{100 * b['err_ref']:+.2f} % | "
-                      f"{100 * b['err_ref_bridges_interface']:+.2f} % |" for b in bridges)
+    rows = "\n".join(f"| {b.n:,} | {b.f:.3f} | {b.bridges:,} | "
+                      f"{100 * b.err_ref:+.2f} % | "
+                      f"{100 * b.err_ref_bridges_interface:+.2f} % |" for b in bridges)
     return f"""
 
 **The bridging contacts, measured** (`bridge_test`): the same flux test with the contacts that
@@ -715,13 +770,10 @@ def rebuild(bridges: list | None = None) -> None:
     """Figures, section and row again from validation/results/case10.json (no solve)."""
     record = framework.load_result(10)
     numbers = record["result"]["numbers"]
-    reals = {}
-    for f, rl in numbers["realisations"].items():
-        rl = dict(rl, centres=np.asarray(rl["centres"]))
-        reals[float(f)] = rl
+    reals = read_realisations(numbers)
     runs = numbers["runs"]
     if bridges is None:
-        bridges = numbers.get("bridge_test", [])
+        bridges = read_bridges(numbers)
     result = finish(Context(10), reals, runs, record["run_seconds"], bridges)
     print(framework.save_result(CASE, result, record["run_seconds"]))
 
