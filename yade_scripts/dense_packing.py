@@ -514,6 +514,24 @@ def shell_radius_factor(p, young):
                                             hertz_overlap(p, p["young_pa"]))
 
 
+def release_band(released, free_ids, collider):
+    """Frozen spheres made free (shell_release_diameters), at rest. With density scaling a body
+    made dynamic keeps densityScaling 1 (its real mass) until the time stepper's next update, and
+    the step of 1 the scaled masses allow then throws it out of the box (seed 2 at 2,000, also
+    when blocked for a step: the stepper skips blocked bodies); it starts with the smallest
+    scaling of the free spheres (the heaviest), which the stepper raises at its next update."""
+    scaling = min(O.bodies[b].state.densityScaling for b in free_ids)
+    for b in released:
+        body = O.bodies[b]
+        body.dynamic = True
+        body.groupMask = SHELL_MASK
+        body.state.vel = Vector3(0, 0, 0)
+        body.state.angVel = Vector3(0, 0, 0)
+        body.state.densityScaling = scaling
+    collider.doSort = True
+    log(f"shell: {len(released)} spheres of the frozen band released")
+
+
 def press_shell(p, box, centres, radii, frozen, shell_m, start_factor=None, release=None):
     """method = "shell": the free shell and its frozen band in YADE, the walls on the carved
     surface pressed onto the shell until each carries the confining pressure (a servo per wall,
@@ -583,11 +601,8 @@ def press_shell(p, box, centres, radii, frozen, shell_m, start_factor=None, rele
     schedule = list(enumerate(stages)) + ([(len(stages) - 1, stages[-1])] if released else [])
     for n_stage, (k, young) in enumerate(schedule):
         if n_stage == len(stages):
-            for b in released:
-                O.bodies[b].dynamic = True
-                O.bodies[b].groupMask = SHELL_MASK
-            collider.doSort = True
-            log(f"shell: {len(released)} spheres of the frozen band released")
+            release_band(released, [int(b) for k, b in enumerate(sphere_ids) if not frozen[k]],
+                         collider)
         if young != young_now:
             set_young(mats, young, young_now)
             if young == p["young_pa"]:
