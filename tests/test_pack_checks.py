@@ -52,10 +52,6 @@ DENSE = [
     ('method = "shell"\nshape = "sphere"\nn_particles = 50000', "method"),
     # issue 24: the cloud must leave free shell behind it (not reach the frozen band)
     ('method = "shell"\nn_particles = 50000\nshell_cloud_diameters = 5.5', "shell_cloud_diameters"),
-    # a seam needs a cloud, and the two together must leave free shell before the frozen band
-    ('method = "shell"\nn_particles = 50000\nshell_seam_diameters = 1', "shell_seam_diameters"),
-    ('method = "shell"\nn_particles = 50000\nshell_cloud_diameters = 3\n'
-     'shell_seam_diameters = 2.5', "shell_seam_diameters"),
     # facets sagging more than the smallest cloud sphere: one would start outside them
     ('shape = "sphere"\nsphere_facet_level = 1', "sphere_facet_level"),
 ]

@@ -177,15 +177,3 @@ def test_cloud_layer_puts_the_outer_layer_back_loose_without_overlaps():
     np.testing.assert_array_equal(again, position)
 
 
-
-def test_seam_shrink_fades_from_the_cloud_to_the_carved_interior():
-    """shell_seam_diameters: the cloud starts at CLOUD_SHRINK, the seam rises linearly to 1
-    across its width, deeper spheres are not shrunk; no seam: a step at the cloud's depth."""
-    cloud_m, seam_m = 3.0, 1.5
-    depth = np.array([0.0, 2.999, 3.0, 3.75, 4.5, 6.0])
-    got = shell.seam_shrink(depth, cloud_m, seam_m)
-    s = shell.CLOUD_SHRINK
-    np.testing.assert_allclose(got, [s, s, s, s + 0.5 * (1 - s), 1.0, 1.0])
-    assert np.all(np.diff(shell.seam_shrink(np.linspace(0, 6, 601), cloud_m, seam_m)) >= 0)
-    np.testing.assert_array_equal(shell.seam_shrink(depth, cloud_m, 0.0),
-                                  [s, s, 1.0, 1.0, 1.0, 1.0])

@@ -82,12 +82,6 @@ PARAMS = {
                                        "walls before the stages (0: the walls are pressed onto "
                                        "the carved faces; 3: the direct box's wall layer, "
                                        "docs/packings.md)"),
-    "shell_seam_diameters": dict(kind="float", default=0.0, minimum=0.0,
-                                 help="shell, with shell_cloud_diameters > 0: the carved spheres "
-                                      "in the next this many mean diameters inward are shrunk "
-                                      "too, less with depth (from the cloud's shrink to none), "
-                                      "and grow back with the cloud, so that the grown layer "
-                                      "does not meet a jammed carved surface"),
     "shell_release_diameters": dict(kind="float", default=0.0, minimum=0.0,
                                     help="shell: the frozen band is this many mean diameters "
                                          "thicker, and its outer part is freed for one more "
@@ -98,11 +92,6 @@ PARAMS = {
                                    help="shell: the unbalanced-force ratio that ends each stage "
                                         "before the last (the last ends at "
                                         "unbalanced_force_target; 1e-2 as the direct path)"),
-    "shell_overlap_gain": dict(kind="float", default=0.5, minimum=0.05, maximum=10.0,
-                               help="shell: the mean overlap / (r_i + r_j) of the contacts over "
-                                    "Hertz's (p / E*)^(2/3); each stage's radii carry it (0.5: "
-                                    "before 2026-12-02; the direct boxes' force-weighted "
-                                    "mean is 1.61-1.65)"),
     "cell_particles": dict(kind="int", default=10000, minimum=20,
                            help="tiled, shell: spheres in the periodic cell that is copied"),
     "cell_packing": dict(kind="str", default="",
@@ -181,13 +170,6 @@ def check(p):
         raise ValueError(f"shell_cloud_diameters: expected at most shell_diameters - 1 "
                          f"({p['shell_diameters'] - 1.0:g}: the cloud is pressed against the "
                          f"free shell, not the frozen band), got {p['shell_cloud_diameters']:g}")
-    if p["method"] == "shell" and p["shell_seam_diameters"] > 0 and (
-            p["shell_cloud_diameters"] == 0 or
-            p["shell_cloud_diameters"] + p["shell_seam_diameters"] > p["shell_diameters"] - 1.0):
-        raise ValueError(f"shell_seam_diameters: expected a cloud (shell_cloud_diameters > 0) "
-                         f"and shell_cloud_diameters + shell_seam_diameters at most "
-                         f"shell_diameters - 1 ({p['shell_diameters'] - 1.0:g}), got "
-                         f"{p['shell_seam_diameters']:g}")
     if tiled and not p["cell_packing"] and p["n_particles"] < p["cell_particles"]:
         raise ValueError(f"cell_particles: expected at most n_particles ({p['n_particles']}) for "
                          f"method = \"{p['method']}\", got {p['cell_particles']}")

@@ -129,15 +129,6 @@ def layer_solid_fraction(bulk_solid_fraction, layer_diameters):
 CLOUD_SHRINK = 0.75
 
 
-def seam_shrink(depth_m, cloud_m, seam_m, shrink=CLOUD_SHRINK):
-    """The radius factor each sphere starts at (shell_seam_diameters): ``shrink`` in the cloud
-    (depth below cloud_m), rising linearly to 1 across the seam (cloud_m to cloud_m + seam_m),
-    1 deeper. With seam_m = 0 only the cloud is shrunk."""
-    depth_m = np.asarray(depth_m, dtype=float)
-    if seam_m <= 0:
-        return np.where(depth_m < cloud_m, shrink, 1.0)
-    across = np.clip((depth_m - cloud_m) / seam_m, 0.0, 1.0)
-    return shrink + (1.0 - shrink) * across
 # candidates in the layer per sphere before the placement gives up
 CLOUD_TRIES = 20_000
 def cloud_layer(box, position, radius, layer_m, seed, solid_fraction, shrink=1.0):
