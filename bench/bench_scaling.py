@@ -374,10 +374,64 @@ LARGEST_CMD = ("bench/bench_scaling.py --n 8e6 --solvers steady --ranks 2 --pcs 
                "--no-inprocess --json bench/results/scaling_largest.json")
 
 
+BUILD = ROOT / "bench/results/rank_build_memory.json"
+
+
+def build_fit(build):
+    """Peak RSS per rank of the explicit runs against N and R: after (each rank builds its
+    rows; the largest rank) a + c N + b N / R, before (rank 0 builds the whole network; rank
+    0) a + w N + b0 N / R; least squares, bytes."""
+    out = {}
+    for which, pick in (("after", max), ("before", lambda v: v[0])):
+        rows = [r for r in build["rows"] if r["solver"] == "explicit"]
+        A = np.array([[1.0, r["n"], r["n"] / r["ranks"]] for r in rows])
+        y = np.array([pick(r[f"rss_{which}_gb"]) * 1e9 for r in rows])
+        out[which] = dict(zip(("a", "whole", "divided"), np.linalg.lstsq(A, y, rcond=None)[0]))
+    return out
+
+
+def build_memory_section(build) -> str:
+    fit = build_fit(build)
+    a, b = fit["after"], fit["before"]
+    L = ["### Memory of the build on the ranks\n",
+         f"Peak RSS of every rank over a whole `tdem run` on the ranks ({build['date']}; "
+         "`bench/bench_rank_build.py`, not part of `make bench-scaling`; memory only: RSS "
+         "figures measured on this machine under load (load "
+         f"{' / '.join(' '.join(x) for x in build['load'])}, other agents' YADE runs), which "
+         "the load does not change; no wall time is recorded). Before: the code of "
+         f"{build['before']}, rank 0 reading the packing and building the whole network; "
+         f"after: {build['after']}, each rank building its own rows. Haddad's law, every dumped "
+         "row conducting, two held faces; libraries included (~0.16 GB a rank before any "
+         "array).\n",
+         "| packing | N | contacts | solver | ranks | before: rank 0 GB | before: other ranks "
+         "GB | after: rank 0 GB | after: other ranks GB | sum over ranks before / after GB |",
+         "|---|---|---|---|---|---|---|---|---|---|"]
+    def others(v):
+        return " / ".join(f"{x:.2f}" for x in v[1:]) or "-"
+
+    for r in build["rows"]:
+        bf, af = r["rss_before_gb"], r["rss_after_gb"]
+        L.append(f"| {r['packing']} | {r['n']} | {r['contacts']} | {r['solver']} | "
+                 f"{r['ranks']} | {bf[0]:.2f} | {others(bf)} | {af[0]:.2f} | {others(af)} | "
+                 f"{sum(bf):.2f} / {sum(af):.2f} |")
+    L.append("")
+    L.append(f"Fitted on the explicit rows (the build dominates their peak): before, rank 0 "
+             f"needed {b['whole']:.0f} B per particle not divided by the ranks (the whole "
+             f"network) + {b['divided']:.0f} B per particle / R; after, the largest rank needs "
+             f"{a['whole']:.0f} B per particle on every rank (the per-particle arrays still "
+             f"whole) + {a['divided']:.0f} B per particle / R (its contacts, the law's inputs "
+             f"on them, its rows), about {a['a'] / 1e9:.2f} GB of libraries apart. The "
+             "steady rows add the solver's share (and, on rank 0, the gathered temperatures "
+             "and the output).\n")
+    return "\n".join(L) + "\n"
+
+
 def document(data) -> str:
     rows = data["rows"]
     model, proj = projection(data)
     largest = json.loads(LARGEST.read_text()) if LARGEST.exists() else None
+    build = json.loads(BUILD.read_text()) if BUILD.exists() else None
+    bfit = build_fit(build) if build else None
     L = []
     w = L.append
     w("# Scaling: the PETSc backend on MPI ranks (issue 25)\n")
@@ -389,12 +443,21 @@ def document(data) -> str:
       "PETSC_OPTIONS=\"-pc_type hypre\" tdem run SCENE --ranks 2   # BoomerAMG, not GAMG\n"
       "```\n")
     w("`tdem run --ranks N` starts `mpirun -n N .venv-mpi/bin/python -m thermal_kernel.mpi_run "
-      "SCENE` (`thermal_kernel/solvers/mpi_launch.py`). Rank 0 reads the packing, builds the "
-      "problem with the one law registry and the boundary kinds and assembles the network "
-      "(the in-process clusters, bound and flags); it orders the particles along a Morton "
-      "curve of their centres, cuts the order into equal blocks "
-      "(`thermal_kernel/solvers/partition.py`) and sends each rank only its rows, which the "
-      "rank puts into a PETSc MPIAIJ matrix. The explicit step is a distributed mat-vec with "
+      "SCENE` (`thermal_kernel/solvers/mpi_launch.py`). The particles are ordered along a "
+      "Morton curve of their centres and the order cut into equal blocks "
+      "(`thermal_kernel/solvers/partition.py`); each rank builds its own rows "
+      "(`thermal_kernel/rank_build.py`): rank r reads the r-th slice of the packing's contact "
+      "rows (checked as the in-process reader checks them) and sends each contact to the "
+      "ranks owning its two particles, evaluates the scene's law (the one registry) on the "
+      "contacts it then holds and puts its rows into a PETSc MPIAIJ matrix; rank 0 runs the "
+      "boundary kinds (the one registry: what they read is per particle and per wall) and "
+      "sends their rows, and joins the ranks' cluster labels into the in-process clusters. "
+      "Each rank's rows, rank 0's degrees, clusters, bound and flags equal the whole build's "
+      "bit for bit (`tests/mpi_rank_build_check.py`, 2 and 3 ranks). A scene with a "
+      "`[neighbours]` criterion (a gap chosen over every bulk contact) is still built whole "
+      "on rank 0, which sends each rank its rows, and so is any scene given `--whole-build` "
+      "(`thermal_kernel.mpi_run`'s option: less memory in all when a node runs many ranks, "
+      "the cost model below). The explicit step is a distributed mat-vec with "
       "the in-process dt and bound; the implicit schemes (theta, Rannacher, TR-BDF2) and the "
       "steady solve use CG with GAMG (default) or hypre BoomerAMG to a relative true residual "
       "of 1e-12. Rank 0 writes the ordinary `thermal.h5` (the in-process attributes, flags and "
@@ -408,16 +471,18 @@ def document(data) -> str:
       "`make test`): explicit within 1e-12 of the temperature change, implicit and steady "
       "within 1e-10, boundary flows and ledger alike, flags identical; the last column of the "
       "table below is the same comparison at bench scale (relative to max abs(T)).\n")
-    w("**Still whole on rank 0** (what is left of issue 25): the packing (read whole), the "
-      "problem and the assembled network (`build_problem`, `assemble`: the laws, the boundary "
-      "kinds, the clusters and the explicit bound are computed whole), a source's powers (a "
-      "function of the whole packing, evaluated there and scattered each step), and the "
-      "temperatures at the output times (gathered there and written by it). The other ranks "
-      "hold only their rows. So rank 0 needs the in-process run's memory for the network plus "
-      "its share of the solver; the others their share only (the RSS columns below give both). "
-      "Per-rank reading (parallel HDF5 by blocks of the Morton order, each contact sent to "
-      "its owners, the boundary kinds on a block), a distributed cluster search and parallel "
-      "output are the next step; the cost model states what they change.\n")
+    w("**Still whole** (what is left of issue 25): on every rank, the packing's per-particle "
+      "arrays (centres, radii, phases, the Morton order, the law's particle inputs and the "
+      "boundary terms: each rank reads and sorts all the centres, and a contact's law needs "
+      "its partner's radius and neighbour count); on rank 0, the network's per-particle "
+      "arrays and boundary rows, a source's powers (a function of the whole packing, "
+      "evaluated there and scattered each step) and the temperatures at the output times "
+      "(gathered there and written by it). No rank holds the whole contact list or evaluates "
+      "the law on every contact any more: rank 0's extra memory for the network is gone, "
+      "every rank carries the per-particle part (the table 'Memory of the build on the "
+      "ranks' below). Next: each rank reading only its block of particles and its contacts' "
+      "partners (a packing written in the Morton order, or a parallel sort of the centres), "
+      "the `[neighbours]` criterion on the ranks, and parallel output.\n")
     w("As in-process: `--checkpoint-every K` and `--resume` (rank 0 gathers the state after "
       "every K output times and writes the in-process checkpoint; either kind resumes on "
       "either), rank 0 shows the in-process progress bar, and `tdem campaign` runs each case "
@@ -446,8 +511,10 @@ def document(data) -> str:
       f"steps at {IMPLICIT_DT_OVER_BOUND:g} x the bound (implicit; in-process: pyamg AMG-CG), "
       "the solve (steady; in-process: pyamg AMG-CG to 1e-12). CPU: the solve call's CPU "
       "seconds on its busiest rank (waiting ranks poll, so it counts some waiting). RSS: "
-      "peak per process; rank 0 holds the whole network, the others their rows; solve+: what "
-      "the solve added to the largest (the part ranks divide).\n")
+      "peak per process; the bench's network is made in memory (no packing file), so rank 0 "
+      "holds it whole and sends the others their rows (the path of a `[neighbours]` scene; a "
+      "packing file's run is built on the ranks: the next table); solve+: what the solve "
+      "added to the largest (the part ranks divide).\n")
     w("| N | solver | backend | threads / pc | ranks | wall s | vs 1 rank | CPU s (busiest "
       "rank) | iterations | peak RSS rank 0 GB | peak RSS other ranks GB | solve+ GB | "
       "B / particle / rank (solve part) | cut contacts | max abs(T - T_in-process) / max "
@@ -481,6 +548,8 @@ def document(data) -> str:
               f"{r['cpu_s']:.3g} | {r['iterations']} | {r['rss_ranks_gb'][0]:.2f} | "
               f"{max(r['rss_ranks_gb'][1:], default=float('nan')):.2f} |")
         w("")
+    if build:
+        w(build_memory_section(build))
     w("### Contacts cut by the ranks' blocks\n")
     w("Each cut contact is a value the mat-vec sends between two ranks, every step. The "
       "packing's own order against the Morton order (`partition.py`):\n")
@@ -512,8 +581,8 @@ def document(data) -> str:
         w(f"- {solver}: {m['s_per_particle'] * 1e9:.3g} ns {unit}"
           + (f" ({m['its']} CG iterations)" if m["its"] else "")
           + f"; solver memory {m['solve_bytes_per_particle']:.0f} B per particle (divided by "
-          f"the ranks); the whole network rank 0 holds today (with the Python, numba and PETSc "
-          f"libraries, ~0.2 GB) "
+          f"the ranks); the whole network rank 0 holds when it builds it (the bench's path; "
+          f"with the Python, numba and PETSc libraries, ~0.2 GB) "
           f"{m['whole_bytes_per_particle']:.0f} B per particle (not divided); measured here "
           f"on 2 ranks: wall {m['speedup_2']:.2f}x, CPU of the busiest rank "
           f"{m['cpu_ratio_2']:.2f}x of 1 rank's.")
@@ -521,10 +590,14 @@ def document(data) -> str:
     st = model.get("steady")
     if st:
         per = st["whole_bytes_per_particle"] + st["solve_bytes_per_particle"]
-        w(f"On this 24 GB machine (all ranks on it), a steady solve needs ~{per:.0f} B per "
-          f"particle in all (rank 0's whole network + the solver, whatever the ranks): the "
-          f"largest it holds with 10 % to spare is ~{0.9 * 24e9 / per:.1e} particles"
-          + (" (the measured row above: its peaks)." if largest else ".") + "\n")
+        w(f"On this 24 GB machine (all ranks on it), a steady solve with rank 0 building the "
+          f"whole network needs ~{per:.0f} B per particle in all (rank 0's whole network + the "
+          f"solver, whatever the ranks): the largest it holds with 10 % to spare is "
+          f"~{0.9 * 24e9 / per:.1e} particles"
+          + (" (the measured row above: its peaks; it ran before the per-rank build)."
+             if largest else ".")
+          + (" Built on the ranks, the sum of the ranks' peaks is lower (the table 'Memory of "
+             "the build on the ranks': 1e6 steady on 2 ranks)." if build else "") + "\n")
     kappa = proj[0]["kappa"] if proj else float("nan")
     w(f"Model: time per step or per CG iteration on R ranks = a N / R + halo, with halo = "
       f"26 latencies + 8 B x h / bandwidth, h = {kappa:.2f} (N/R)^(2/3) values per rank (the "
@@ -533,28 +606,39 @@ def document(data) -> str:
       f"{NODE_GB:g} GB, {LINK_GB_S:g} GB/s per node, {LATENCY_S * 1e6:g} us latency, one rank "
       "per core; GAMG iterations extrapolated log-linearly in N from the two largest N "
       "measured.\n")
+    per_rank = bfit["after"]["whole"] if build else float("nan")
     w("| N | solver | nodes (64 cores) | solver memory, all ranks | + whole network on rank 0 "
-      "today | time |")
-    w("|---|---|---|---|---|---|")
+      "(whole build) | + per-particle arrays on every rank (per-rank build) | time |")
+    w("|---|---|---|---|---|---|---|")
     for p in proj:
         w(f"| {p['n']:.0e} | {p['solver']} | {p['nodes']} ({p['ranks']} ranks) | "
-          f"{p['solve_gb_total']:.0f} GB | {p['whole_gb_rank']:.0f} GB | {p['what']}"
-          + (f"; {p['extra']}" if p["extra"] else "") + " |")
+          f"{p['solve_gb_total']:.0f} GB | {p['whole_gb_rank']:.0f} GB | "
+          f"{per_rank * p['n'] / 1e9:.0f} GB a rank, {per_rank * p['n'] * NODE_CORES / 1e9:.0f} "
+          f"GB a node | {p['what']}" + (f"; {p['extra']}" if p["extra"] else "") + " |")
     w("")
     if proj:
         top = {(p["n"], p["solver"]): p for p in proj}
         s8 = top.get((1e8, "steady"))
         s9 = top.get((1e9, "steady"))
-        if s8 and s9:
+        if s8 and s9 and bfit:
             w(f"Read: the distributed part of a steady solve needs {s8['solve_gb_total']:.0f} GB "
               f"in all at 1e8 ({s8['nodes']} node(s)) and {s9['solve_gb_total']:.0f} GB at 1e9 "
-              f"({s9['nodes']} nodes); but as long as rank 0 reads the packing and builds the "
-              f"whole network (the column 'whole network on rank 0 today': "
-              f"{s8['whole_gb_rank']:.0f} GB at 1e8, {s9['whole_gb_rank']:.0f} GB at 1e9), rank "
-              "0's node must also hold that on its own: a few 1e7 particles on this 24 GB "
-              "machine, a few 1e8 on a 256 GB node, not 1e9. Per-rank reading and assembly "
-              "(issue 25's remaining part) removes that column. Until then the backend's gain "
-              "is the solver's speed and the other ranks' memory.\n")
+              f"({s9['nodes']} nodes). Built whole on rank 0, rank 0's node must also hold the "
+              f"whole network on its own ({s8['whole_gb_rank']:.0f} GB at 1e8, "
+              f"{s9['whole_gb_rank']:.0f} GB at 1e9): a few 1e8 particles on a 256 GB node, "
+              "not 1e9. Built on the ranks (a packing file without a `[neighbours]` criterion), "
+              "that column is gone, but every rank still holds the per-particle arrays of the "
+              "whole packing (the last-but-one column, fitted on the build's measured peaks), "
+              "so a node holds it once per rank: with a rank on each of a node's 64 cores that "
+              "is more than the node holds at 1e8 already, where the whole build (rank 0's "
+              "network once, `mpi_run --whole-build`) still fits. The per-rank build is the "
+              "lighter one while a node runs fewer ranks than the whole network's bytes per "
+              "particle over the per-particle arrays' (here ~"
+              f"{bfit['before']['whole'] / bfit['after']['whole']:.0f}); on one machine (this "
+              "one) it is (the table 'Memory of the build on the ranks'). Reading per rank "
+              "only its block of particles and its contacts' partners (a packing written in "
+              "the Morton order, or a parallel sort of the centres: issue 25's next step) "
+              "divides that column by the ranks too; until then neither build reaches 1e9.\n")
     return "\n".join(L) + "\n"
 
 

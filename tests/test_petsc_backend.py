@@ -212,6 +212,22 @@ def test_each_rank_builds_its_own_rows_as_the_whole_build_does(tmp_path, ranks):
         assert f"rank_build OK {ranks} " in done.stdout, (name, done.stdout[-3000:])
 
 
+def test_the_whole_build_on_rank_0_gives_the_same_temperatures(bed_runs):
+    """mpi_run --whole-build (rank 0 builds the whole network and sends the rows): the same
+    matrix as the per-rank build, so the same steady temperatures, bit for bit."""
+    import subprocess
+
+    from thermal_kernel.solvers.mpi_launch import command, mpi_env
+    tmp, runs = bed_runs
+    scene, _, per_rank = runs["steady"]
+    out = tmp / "steady_whole_r2"
+    cmd = command(scene, 2, out=out, quiet=True) + ["--whole-build"]
+    subprocess.run(cmd, env=mpi_env(), check=True, cwd=tmp)
+    whole = _read(out / "thermal.h5")
+    assert np.array_equal(whole["T"], per_rank["T"])
+    assert whole["attrs"]["cut_contacts"] == per_rank["attrs"]["cut_contacts"]
+
+
 def test_a_bad_contact_row_read_by_the_last_rank_is_one_line(tmp_path, capsys):
     """The last rank reads the last contact rows: a tensile force there is rank 0's one line
     (the file, the field, the file's row), exit 2, as the in-process reader says it."""

@@ -2,7 +2,7 @@
 
     mpirun -n N .venv-mpi/bin/python -m thermal_kernel.mpi_run SCENE [--packing P]
         [--out DIR] [--pc gamg|hypre] [--quiet] [--checkpoint-every K] [--resume]
-        [--status FILE] [--run-args JSON] [--scene-data JSON]
+        [--whole-build] [--status FILE] [--run-args JSON] [--scene-data JSON]
 
 This is the command a user runs on a cluster (with ``--hostfile``; docs/scaling.md).
 ``tdem run --ranks N`` (:mod:`.solvers.mpi_launch`) starts it from the project's venv. It lives
@@ -11,10 +11,11 @@ beside :mod:`.run` (not in ``solvers/``, which never import the scene or the pro
 builds its own rows (:mod:`.rank_build`: its slice of the packing's contacts, sent to the ranks
 owning their particles; the law evaluated on each rank's contacts; the boundary kinds on rank 0,
 their rows sent to every rank; the clusters joined on rank 0); with a ``[neighbours]`` criterion
-rank 0 alone reads the packing, builds the problem with the one law registry and the boundary
-kinds (:func:`~thermal_kernel.problem.build_problem`) and assembles the network, then sends each
-rank its rows (:class:`~thermal_kernel.solvers.petsc_backend.DistributedNetwork`); the solve is
-distributed (:mod:`.solvers.petsc_backend`); rank 0 checks the physics (the in-process
+or ``--whole-build`` rank 0 alone reads the packing, builds the problem with the one law
+registry and the boundary kinds (:func:`~thermal_kernel.problem.build_problem`) and assembles
+the network, then sends each rank its rows
+(:class:`~thermal_kernel.solvers.petsc_backend.DistributedNetwork`); the solve is distributed
+(:mod:`.solvers.petsc_backend`); rank 0 checks the physics (the in-process
 :func:`~thermal_kernel.solvers.check_physics`) and writes the ordinary ``thermal.h5`` with the
 in-process run's attributes, plus ``backend``, ``ranks``, ``cut_contacts``, ``linear_solver``
 and ``run_seconds``. Transient runs go through the in-process chunk loop
@@ -50,6 +51,10 @@ def _args(argv):
                    help="continue from the checkpoint (in-process or ranks made)")
     p.add_argument("--scene-data", help="JSON file: the scene's tables, parsed (a campaign's "
                                         "case: the campaign file's tables, law and packing set)")
+    p.add_argument("--whole-build", action="store_true",
+                   help="rank 0 reads the packing and builds the whole network, then sends "
+                        "each rank its rows (less memory in all than every rank's copy of the "
+                        "per-particle arrays when a node runs many ranks: docs/scaling.md)")
     p.add_argument("--status", help="file to write the one-line error to (the launcher's)")
     p.add_argument("--run-args", default="{}", help="the CLI's arguments (JSON), stored")
     return p.parse_args(argv)
@@ -119,7 +124,7 @@ def _run(args, rank, held):
         return str(packing_path)
 
     packing_path = Path(backend.on_root(comm, lock))
-    per_rank = scene.neighbours is None
+    per_rank = scene.neighbours is None and not args.whole_build
     t0 = time.perf_counter()
     if per_rank:            # each rank reads and builds its own rows (rank_build.py)
         rb = build_on_ranks(scene, packing_path, comm)

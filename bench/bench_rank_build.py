@@ -1,0 +1,149 @@
+"""Peak memory of each rank with the per-rank build against rank 0 building the whole network
+(issue 25; the table "Memory of the build on the ranks" of docs/scaling.md).
+
+    .venv/bin/python bench/bench_rank_build.py [--before COMMIT] [--json PATH]
+
+Memory only: every rank's peak RSS (``ru_maxrss``, libraries included) over a whole `tdem run`
+on the ranks (``python -m thermal_kernel.mpi_run``, as ``tdem run --ranks`` starts it), which
+does not depend on the machine's load; the wall times of a loaded machine are not recorded.
+"before" runs the code of ``--before`` (default cc9da6d, the last commit where rank 0 read the
+packing and built the whole network), extracted with ``git archive`` and put first on the
+ranks' PYTHONPATH; "after" the checkout's own. The packings: the committed dense box of 1e5
+spheres (runs/out/dense_box_1e5/packing.h5, `tdem pack runs/dense_box_1e5.toml`) and a 1e6
+tiled box made from the same relaxed cell (`tdem pack`, ~20 s when that cell exists, else the
+cell is relaxed first), each between two held faces, haddad's law with every dumped row
+conducting (no [neighbours] criterion: a scene with one still builds whole on rank 0).
+``bench/bench_scaling.py --from-json --write docs/scaling.md`` puts the rows into the doc.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+BEFORE = "cc9da6d"
+OUT = ROOT / "bench/out/rank_build"
+P1E5 = ROOT / "runs/out/dense_box_1e5/packing.h5"
+CELL = ROOT / "runs/out/dense_box_1e5/cell.h5"
+JSON = ROOT / "bench/results/rank_build_memory.json"
+# (N label, packing, solver, ranks)
+CASES = [("1e5", "explicit", 2), ("1e5", "steady", 2),
+         ("1e6", "explicit", 1), ("1e6", "explicit", 2), ("1e6", "explicit", 3),
+         ("1e6", "steady", 2)]
+
+THERMAL = '''law = "haddad"
+[law_params]
+ct = 0.806
+[material]
+conductivity = 33.0
+density = 7800.0
+heat_capacity = 460.0
+[initial]
+temperature = 298.15
+[[boundary]]
+kind = "temperature"
+on = "xmin"
+value = 308.15
+[[boundary]]
+kind = "temperature"
+on = "xmax"
+value = 298.15
+[solver]
+'''
+SOLVER = {"steady": 'method = "steady"\n',
+          "explicit": 'method = "explicit"\nend_time = 0.02\noutput_times = [0.02]\n'}
+# each rank reports its peak at exit
+RSS = '''import atexit, os, resource, runpy, sys
+atexit.register(lambda: os.write(2, (f"RSS_PEAK {os.environ.get('OMPI_COMM_WORLD_RANK')} "
+                                     f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}\\n")
+                                    .encode()))     # one write: the ranks' lines do not mix
+sys.argv = ["thermal_kernel.mpi_run"] + sys.argv[1:]
+runpy.run_module("thermal_kernel.mpi_run", run_name="__main__", alter_sys=True)
+'''
+
+
+def packing_1e6() -> Path:
+    """The 1e6 tiled box (bench/out/rank_build/box1e6/packing.h5), made once by tdem pack."""
+    out = OUT / "box1e6"
+    if (out / "packing.h5").exists():
+        return out / "packing.h5"
+    scene = (ROOT / "runs/dense_box_1e5.toml").read_text()
+    scene = scene.replace("n_particles = 100000", "n_particles = 1000000")
+    start = scene.index("[neighbours]")
+    scene = scene[:start] + scene[scene.index("[pack]"):]      # every dumped row conducts
+    if CELL.exists():
+        scene = scene.replace("cell_particles = 10000",
+                              f'cell_particles = 10000\ncell_packing = "{CELL}"')
+    path = OUT / "box1e6.toml"
+    path.write_text(scene)
+    subprocess.run([sys.executable, "-m", "tdem.cli", "pack", str(path), "--out", str(out),
+                    "--quiet"], check=True, cwd=ROOT)
+    return out / "packing.h5"
+
+
+def run(code_root: Path, packing: Path, solver: str, ranks: int, tag: str) -> list[float]:
+    from thermal_kernel.solvers.mpi_launch import MPIRUN_LOCAL, mpi_env, mpi_python
+    scene = OUT / f"{tag}.toml"
+    scene.write_text(f'packing = "{packing}"\n{THERMAL}{SOLVER[solver]}')
+    wrapper = OUT / "rss_wrapper.py"
+    wrapper.write_text(RSS)
+    env = dict(mpi_env(), PYTHONPATH=str(code_root))
+    done = subprocess.run(
+        ["mpirun", "-n", str(ranks), *MPIRUN_LOCAL, "-x", "PYTHONPATH", "-x", "OMP_NUM_THREADS",
+         "-x", "NUMBA_NUM_THREADS", str(mpi_python()), str(wrapper), str(scene), "--out",
+         str(OUT / tag), "--quiet"], env=env, capture_output=True, text=True, cwd=OUT)
+    peaks = {int(rank): int(kb) * 1024 / 1e9
+             for rank, kb in re.findall(r"RSS_PEAK (\d+) (\d+)", done.stderr)}
+    if done.returncode or len(peaks) != ranks:
+        raise SystemExit(f"{tag}: mpirun exited with {done.returncode}: {done.stderr[-2000:]}")
+    return [peaks[r] for r in range(ranks)]
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--before", default=BEFORE)
+    ap.add_argument("--json", default=str(JSON))
+    a = ap.parse_args()
+    OUT.mkdir(parents=True, exist_ok=True)
+    packings = {"1e5": P1E5, "1e6": packing_1e6()}
+    from thermal_kernel.packing import read_packing
+    sizes = {}
+    for label, path in packings.items():
+        p = read_packing(path, contacts=False)
+        sizes[label] = dict(packing=str(path.relative_to(ROOT)), n=p.n_particles,
+                            contacts=p.file_contacts)
+    load = [open("/proc/loadavg").read().split()[:3]]
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="tdem-before-") as tmp:
+        archive = Path(tmp) / "before.tar"
+        subprocess.run(["git", "archive", "-o", str(archive), a.before, "thermal_kernel"],
+                       check=True, cwd=ROOT)
+        with tarfile.open(archive) as t:
+            t.extractall(tmp)
+        for label, solver, ranks in CASES:
+            row = dict(sizes[label], solver=solver, ranks=ranks)
+            for which, code in (("before", Path(tmp)), ("after", ROOT)):
+                row[f"rss_{which}_gb"] = run(code, packings[label], solver, ranks,
+                                             f"{which}_{label}_{solver}_{ranks}")
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    load.append(open("/proc/loadavg").read().split()[:3])
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True, cwd=ROOT).stdout.strip()
+    data = dict(rows=rows, before=a.before, after=commit, load=load,
+                date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()))
+    Path(a.json).write_text(json.dumps(data, indent=1))
+    print(f"wrote {a.json}")
+
+
+if __name__ == "__main__":
+    main()
