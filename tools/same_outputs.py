@@ -3,7 +3,7 @@ validation write, then diff two snapshots.
 
     python tools/same_outputs.py snap DIR [small] [seeds] [campaign_7500] [validation]
                                           [validation_quick[=1,2,11]]
-                                          [validation_full=5,7]
+                                          [validation_full=5,7] [validation_rebuild=4,6,8,10]
     python tools/same_outputs.py diff DIR_BEFORE DIR_AFTER            (exit 1 when they differ)
 
 ``snap`` writes into DIR, for each instance asked (the campaign's three by default):
@@ -39,6 +39,11 @@ Validation (docs/validation.md, ``tdem validate``):
   but from the runs cached under validation/out/caseN (nothing measured when every run is
   cached there and every packing built; otherwise it measures): its result (judged) and its
   figures with their CSVs, the figures written into the snapshot instead of docs/img.
+- ``validation_rebuild=N,N,...``: each case's ``--action rebuild`` (nothing measured: the
+  section, figures and summary made again from its saved result) run on a copy of
+  validation/results, with the figures written into the snapshot instead of docs/img: the
+  rebuilt caseN.json (``finished`` masked), the figures (PNG bytes) and their CSVs. Nothing
+  committed is rewritten.
 """
 from __future__ import annotations
 
@@ -219,6 +224,31 @@ def _validation_quick(dest: Path, numbers, quick: bool = True) -> None:
         shutil.rmtree(figures)
 
 
+def _validation_rebuild(dest: Path, numbers) -> None:
+    """Each case's ``rebuild`` action on a copy of validation/results, figures into ``dest``."""
+    from validation import framework as fw
+    from validation import run as vrun
+    dest.mkdir(parents=True)
+    cases = vrun.discover()
+    # fixed folders: the rebuilt sections link the figures by path
+    work = Path(tempfile.gettempdir()) / "tdem_same_outputs_rebuild"
+    shutil.rmtree(work, ignore_errors=True)
+    shutil.copytree(fw.RESULTS, work / "results")
+    results, img = fw.RESULTS, fw.IMG
+    fw.RESULTS, fw.IMG = work / "results", work / "figures"
+    try:
+        for n in numbers:
+            cases[n].ACTIONS["rebuild"].step(fw.Context(number=n))
+            rec = json.loads((fw.RESULTS / f"case{n}.json").read_text())
+            rec["finished"] = "X"
+            (dest / f"case{n}_rebuilt.json").write_text(json.dumps(rec, indent=1))
+    finally:
+        fw.RESULTS, fw.IMG = results, img
+    if (work / "figures").exists():
+        shutil.copytree(work / "figures", dest / "figures")
+    shutil.rmtree(work)
+
+
 def snap(dest: Path, instances) -> None:
     dest = Path(dest)
     if dest.exists():
@@ -226,6 +256,9 @@ def snap(dest: Path, instances) -> None:
     for name in [i for i in instances if i.startswith("validation")]:
         if name == "validation":
             _validation(dest / name)
+        elif name.startswith("validation_rebuild="):
+            _validation_rebuild(dest / "validation_rebuild",
+                                [int(x) for x in name.partition("=")[2].split(",")])
         elif name.startswith("validation_full="):
             _validation_quick(dest / "validation_full",
                               [int(x) for x in name.partition("=")[2].split(",")], quick=False)
