@@ -7,7 +7,8 @@ the same ranks:
 - rank 0's Network: degrees, cluster labels and counts, the explicit bound and its particle,
   the conducting and zero-H contacts, the flags, the held and untied particles' adjacency rows
   (bit for bit), dt_paper (its mean H summed in another order: 1e-14);
-- the steady temperatures of the backend on both builds (the same matrix: bit for bit).
+- the steady temperatures of the backend on both builds (the same matrix: within 1e-12 of the
+  change; PETSc's reductions on 3 ranks do not always sum in the same order).
 
 Prints "rank_build OK <ranks> <contacts cut>" on rank 0 when every check passed.
 """
@@ -87,7 +88,13 @@ def main(scene_path):
     r1 = backend.solve_steady(ref, np.full(ref.n, 300.0) if rank == 0 else None)
     r2 = backend.solve_steady(mine, np.full(ref.n, 300.0) if rank == 0 else None)
     if rank == 0:
-        same(r1.temperature_k, r2.temperature_k, "steady temperatures")
+        # the same matrix and right-hand side; PETSc's reductions on 3 ranks need not sum in
+        # the same order from one solve to the next (two solves of the whole build differ
+        # alike), so the temperatures agree to round-off, not always to the bit
+        t0 = 300.0
+        diff = float(np.abs(r1.temperature_k - r2.temperature_k).max())
+        change = float(np.abs(r1.temperature_k - t0).max())
+        assert diff <= 1e-12 * change, ("steady temperatures", diff, change)
         print(f"rank_build OK {comm.Get_size()} {mine.cut}", flush=True)
 
 

@@ -192,8 +192,9 @@ def test_a_bad_scene_on_the_ranks_is_one_line_and_exit_2(tmp_path, capsys):
 def test_each_rank_builds_its_own_rows_as_the_whole_build_does(tmp_path, ranks):
     """thermal_kernel/rank_build.py against the whole build on rank 0 (tests/
     mpi_rank_build_check.py, under mpirun): each rank's rows of the matrix and of the boundary
-    terms, rank 0's network (degrees, clusters, bounds, flags, the held rows) and the steady
-    temperatures bit for bit, on the bed (rattlers) and the dense box (every row kind).
+    terms, rank 0's network (degrees, clusters, bounds, flags, the held rows) bit for bit, and
+    the steady temperatures within 1e-12 of the change, on the bed (rattlers) and the dense box
+    (every row kind). Since the build reads per rank, no rank but 0 holds the whole packing.
     What could fail: a contact lost or counted twice between the slices and the owners, the
     law given other neighbour counts, a diagonal summed in another order, clusters numbered
     otherwise than in-process."""
@@ -214,7 +215,8 @@ def test_each_rank_builds_its_own_rows_as_the_whole_build_does(tmp_path, ranks):
 
 def test_the_whole_build_on_rank_0_gives_the_same_temperatures(bed_runs):
     """mpi_run --whole-build (rank 0 builds the whole network and sends the rows): the same
-    matrix as the per-rank build, so the same steady temperatures, bit for bit."""
+    matrix as the per-rank build, so the same steady temperatures (to round-off: PETSc's
+    reductions need not sum in the same order from one run to the next)."""
     import subprocess
 
     from thermal_kernel.solvers.mpi_launch import command, mpi_env
@@ -224,7 +226,8 @@ def test_the_whole_build_on_rank_0_gives_the_same_temperatures(bed_runs):
     cmd = command(scene, 2, out=out, quiet=True) + ["--whole-build"]
     subprocess.run(cmd, env=mpi_env(), check=True, cwd=tmp)
     whole = _read(out / "thermal.h5")
-    assert np.array_equal(whole["T"], per_rank["T"])
+    change = float(np.abs(per_rank["T"] - per_rank["T0"][None, :]).max())
+    assert np.abs(whole["T"] - per_rank["T"]).max() <= 1e-12 * change
     assert whole["attrs"]["cut_contacts"] == per_rank["attrs"]["cut_contacts"]
 
 

@@ -148,19 +148,18 @@ def read_packing(path, contacts: bool = True) -> Packing:
 CONTACT_BLOCK_ROWS = 1 << 18     # read_contact_rows reads and checks this many rows at a time
 
 
-def read_contact_rows(particles: Packing, start: int, stop: int) -> Packing:
-    """Rows ``start:stop`` of the contacts of the file ``particles`` was read from (by
-    ``read_packing(path, contacts=False)``), checked as :func:`read_packing` checks every row
-    against the particles (indices, i < j, overlaps, forces, branch vectors; duplicates within
-    a block of rows -- a duplicate elsewhere is found by whoever holds both: the rows of a
-    particle, thermal_kernel/rank_build.py); messages name the file's row. Read and checked
-    ``CONTACT_BLOCK_ROWS`` rows at a time (the checks' temporaries are a block's). ``particles``
-    with these contacts (``contact_row`` their rows)."""
-    import dataclasses
-    f, path = _open(particles.path)
+def read_contact_rows(path, n: int, m: int, start: int, stop: int) -> dict:
+    """Rows ``start:stop`` of the contacts of the packing file ``path`` (``n`` particles, ``m``
+    contact rows: ``read_packing(path, contacts=False)``'s ``n_particles`` and
+    ``file_contacts``): a dict of the contacts' arrays (pair as int64; ``contact_radius`` None
+    when the file has none) and ``contact_row``, the file's rows. Their kinds and shapes, the
+    indices (in range, i < j) and duplicates within a block of rows are checked here; the
+    checks against the spheres, by :func:`check_contact_rows` given the rows' spheres (a
+    duplicate elsewhere is found by whoever holds both: the rows of a particle,
+    thermal_kernel/rank_build.py). Read ``CONTACT_BLOCK_ROWS`` rows at a time; messages name
+    the file's rows."""
+    f, path = _open(path)
     start, stop = int(start), int(stop)
-    m = int(particles.file_contacts)
-    n = particles.n_particles
     names = (("pair", "contacts/pair", "i", (None, 2)),
              ("overlap", "contacts/overlap", "f", (m,)),
              ("normal_force", "contacts/normal_force", "f", (m,)),
@@ -173,8 +172,6 @@ def read_contact_rows(particles: Packing, start: int, stop: int) -> Packing:
             got = {key: _dataset(f, path, name, kind, shape, optional=key == "contact_radius",
                                  rows=rows) for key, name, kind, shape in names}
             _check_pairs(path, got["pair"], n, row0=b0)
-            _check_contact_rows(path, particles, got["pair"], got["overlap"],
-                                got["normal_force"], got["branch"], row0=b0)
             if not out:
                 out = {key: None if a is None else np.empty(
                     (stop - start,) + a.shape[1:], np.int64 if key == "pair" else a.dtype)
@@ -182,8 +179,22 @@ def read_contact_rows(particles: Packing, start: int, stop: int) -> Packing:
             for key, a in got.items():
                 if a is not None:
                     out[key][rows.start - start:rows.stop - start] = a
-    return dataclasses.replace(particles, **out,
-                               contact_row=np.arange(start, stop, dtype=np.int64))
+    out["contact_row"] = np.arange(start, stop, dtype=np.int64)
+    return out
+
+
+def read_particle_rows(path, start: int, stop: int) -> dict:
+    """Rows ``start:stop`` of the particles of the packing file ``path`` (centres, radii,
+    phases), for a file :func:`read_packing` has checked (``contacts=False`` will do): the PETSc
+    backend's ranks, each reading a block of the file's particles (rank_build.py)."""
+    f, path = _open(path)
+    rows = slice(int(start), int(stop))
+    with f:
+        n = int(f["particles/position"].shape[0])
+        return dict(position=_dataset(f, path, "particles/position", "f", (None, 3), rows=rows),
+                    radius=_dataset(f, path, "particles/radius", "f", (n,), rows=rows),
+                    phase=_dataset(f, path, "particles/phase", "i", (n,),
+                                   rows=rows).astype(np.int32))
 
 
 def _check_tensile(path, normal_force, row0=0):
@@ -191,18 +202,6 @@ def _check_tensile(path, normal_force, row0=0):
         i = int(np.flatnonzero(normal_force < 0)[0])
         _fail(path, "contacts/normal_force", f"contact {i + row0} has a tensile (negative) "
                                              f"force {float(normal_force[i])!r}; expected >= 0")
-
-
-def _check_contact_rows(path, p: Packing, pair, overlap, normal_force, branch, row0=0):
-    """The checks of :func:`_read_open` that read contact rows, on some rows of them (``row0``
-    the file's row of the first; messages name the file's rows)."""
-    _check_tensile(path, normal_force, row0)
-    none = np.zeros(0, np.int64)
-    _check_geometry(path, p.position, p.radius, p.phase, pair, overlap, branch, none,
-                    np.zeros(0), p.domain_lo, p.domain_hi, p.periodic, row0=row0)
-    _check_forces_and_walls(path, p.position, p.radius, pair, overlap, normal_force, branch,
-                            [], p.wall_point, p.wall_normal, p.wall_radius, none, none,
-                            np.zeros(0), np.zeros(0), row0=row0, centres=False)
 
 
 def read_packing_image(image, name) -> Packing:
@@ -349,6 +348,54 @@ GEOMETRY_RTOL = 1e-9
 BRANCH_RTOL = 1e-6
 
 
+def _check_contact_geometry(path, pair, ri, rj, dx, overlap, branch, extent, periodic, scale,
+                            row0=0):
+    """The contact rows' part of :func:`_check_geometry`, on per-contact values: the radii of
+    the two spheres, ``dx`` = x_j - x_i, ``scale`` the packing's (:func:`contact_check_scales`)."""
+    i, j = pair[:, 0], pair[:, 1]
+    r_min = np.minimum(ri, rj)
+    too_deep = overlap > r_min * (1.0 + GEOMETRY_RTOL) + 8 * np.finfo(float).eps * scale
+    if too_deep.any():
+        c = int(np.flatnonzero(too_deep)[0])
+        _fail(path, "contacts/overlap",
+              f"contact {c + row0} ({int(i[c])}, {int(j[c])}) has overlap "
+              f"{overlap[c]:.6g} m, larger than the smaller radius {r_min[c]:.6g} m; "
+              "expected overlap <= the smaller radius")
+    residual = branch - dx
+    for axis in np.flatnonzero(periodic):        # the partner's image: any whole period
+        residual[:, axis] -= extent[axis] * np.round(residual[:, axis] / extent[axis])
+    error = np.linalg.norm(residual, axis=1)
+    allowed = BRANCH_RTOL * r_min + 8 * np.finfo(float).eps * scale
+    bad = error > allowed
+    if bad.any():
+        c = int(np.flatnonzero(bad)[0])
+        image = " (nearest periodic image)" if periodic.any() else ""
+        _fail(path, "contacts/branch",
+              f"contact {c + row0} ({int(i[c])}, {int(j[c])}): the branch vector is "
+              f"{error[c] / r_min[c]:.3g} radii away from x_j - x_i{image}; expected the "
+              f"vector from centre i to centre j (within {BRANCH_RTOL:g} of the radius)")
+
+
+def contact_check_scales(position, lo, hi) -> tuple[float, float]:
+    """The round-off scales of the contact checks (geometry, forces), from the whole
+    packing's centres: the same for every part of its contacts (thermal_kernel/rank_build.py)."""
+    top = float(np.abs(position).max(initial=0.0))
+    return top + float(np.abs(lo).max()) + float(np.abs(hi).max()), top
+
+
+def check_contact_rows(path, pair, ri, rj, xi, xj, overlap, normal_force, branch, lo, hi,
+                       periodic, scales, row0=0):
+    """Every check :func:`read_packing` makes of contact rows against the particles, on rows
+    given with their spheres' radii and centres (the PETSc backend's ranks, which hold only
+    the rows' spheres; ``scales`` from :func:`contact_check_scales` on the whole packing;
+    messages name the file's rows, ``row0`` the first's)."""
+    _check_tensile(path, normal_force, row0)
+    _check_contact_geometry(path, pair, ri, rj, xj - xi, overlap, branch, hi - lo, periodic,
+                            scales[0], row0)
+    _check_contact_forces(path, pair, ri, rj, overlap, normal_force, branch,
+                          8 * np.finfo(float).eps * scales[1], row0)
+
+
 def _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_particle,
                     wall_overlap, lo, hi, periodic, row0=0):
     """Arrays that are each well formed but describe an impossible packing: a negative phase
@@ -373,27 +420,8 @@ def _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_p
               "centre inside the domain")
     if pair.shape[0]:
         i, j = pair[:, 0], pair[:, 1]
-        r_min = np.minimum(radius[i], radius[j])
-        too_deep = overlap > r_min * (1.0 + GEOMETRY_RTOL) + 8 * np.finfo(float).eps * scale
-        if too_deep.any():
-            c = int(np.flatnonzero(too_deep)[0])
-            _fail(path, "contacts/overlap",
-                  f"contact {c + row0} ({int(i[c])}, {int(j[c])}) has overlap "
-                  f"{overlap[c]:.6g} m, larger than the smaller radius {r_min[c]:.6g} m; "
-                  "expected overlap <= the smaller radius")
-        residual = branch - (position[j] - position[i])
-        for axis in np.flatnonzero(periodic):        # the partner's image: any whole period
-            residual[:, axis] -= extent[axis] * np.round(residual[:, axis] / extent[axis])
-        error = np.linalg.norm(residual, axis=1)
-        allowed = BRANCH_RTOL * r_min + 8 * np.finfo(float).eps * scale
-        bad = error > allowed
-        if bad.any():
-            c = int(np.flatnonzero(bad)[0])
-            image = " (nearest periodic image)" if periodic.any() else ""
-            _fail(path, "contacts/branch",
-                  f"contact {c + row0} ({int(i[c])}, {int(j[c])}): the branch vector is "
-                  f"{error[c] / r_min[c]:.3g} radii away from x_j - x_i{image}; expected the "
-                  f"vector from centre i to centre j (within {BRANCH_RTOL:g} of the radius)")
+        _check_contact_geometry(path, pair, radius[i], radius[j], position[j] - position[i],
+                                overlap, branch, extent, periodic, scale, row0)
     if wall_particle.size:
         r = radius[wall_particle]
         too_deep = wall_overlap > r * (1.0 + GEOMETRY_RTOL) + 8 * np.finfo(float).eps * scale
@@ -464,9 +492,31 @@ def _wall_distance(kind, point, normal, radius, x):
     return radius - np.linalg.norm(d, axis=1)
 
 
+def _check_contact_forces(path, pair, ri, rj, overlap, normal_force, branch, eps, row0=0):
+    """The contact rows' part of :func:`_check_forces_and_walls`, on per-contact radii."""
+    i, j = pair[:, 0], pair[:, 1]
+    r_min = np.minimum(ri, rj)
+    # the branch (already checked to join the centres) gives the spheres' own overlap
+    geo = ri + rj - np.sqrt(np.einsum("ij,ij->i", branch, branch))
+    off = np.abs(overlap - geo) > OVERLAP_RTOL * r_min + eps
+    if off.any():
+        c = int(np.flatnonzero(off)[0])
+        _fail(path, "contacts/overlap",
+              f"contact {c + row0} ({int(i[c])}, {int(j[c])}) has overlap {overlap[c]:.6g} m, "
+              f"but its spheres give r_i + r_j - |branch| = {geo[c]:.6g} m; expected the "
+              f"overlap of the two spheres (within {OVERLAP_RTOL:g} of the smaller radius)")
+    gap_force = (overlap <= 0) & (normal_force > 0)
+    if gap_force.any():
+        c = int(np.flatnonzero(gap_force)[0])
+        _fail(path, "contacts/normal_force",
+              f"contact {c + row0} ({int(i[c])}, {int(j[c])}) is a gap (overlap "
+              f"{overlap[c]:.6g} m) with a normal force of {normal_force[c]:.6g} N; "
+              "expected 0 on a gap")
+
+
 def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force, branch,
                             wall_kind, wall_point, wall_normal, wall_radius, wall_particle,
-                            wall_index, wall_overlap, wall_normal_force, row0=0, centres=True):
+                            wall_index, wall_overlap, wall_normal_force, row0=0):
     """Overlaps that contradict the geometry, forces on gaps: a contact's overlap is
     r_i + r_j - |branch| (the branch is already checked against the centres), a touching wall
     contact's is r - its centre's distance to the wall; a gap (overlap <= 0) carries no force;
@@ -475,23 +525,8 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
     eps = 8 * np.finfo(float).eps * scale
     if pair.shape[0]:
         i, j = pair[:, 0], pair[:, 1]
-        r_min = np.minimum(radius[i], radius[j])
-        # the branch (already checked to join the centres) gives the spheres' own overlap
-        geo = radius[i] + radius[j] - np.sqrt(np.einsum("ij,ij->i", branch, branch))
-        off = np.abs(overlap - geo) > OVERLAP_RTOL * r_min + eps
-        if off.any():
-            c = int(np.flatnonzero(off)[0])
-            _fail(path, "contacts/overlap",
-                  f"contact {c + row0} ({int(i[c])}, {int(j[c])}) has overlap {overlap[c]:.6g} m, "
-                  f"but its spheres give r_i + r_j - |branch| = {geo[c]:.6g} m; expected the "
-                  f"overlap of the two spheres (within {OVERLAP_RTOL:g} of the smaller radius)")
-        gap_force = (overlap <= 0) & (normal_force > 0)
-        if gap_force.any():
-            c = int(np.flatnonzero(gap_force)[0])
-            _fail(path, "contacts/normal_force",
-                  f"contact {c + row0} ({int(i[c])}, {int(j[c])}) is a gap (overlap "
-                  f"{overlap[c]:.6g} m) with a normal force of {normal_force[c]:.6g} N; "
-                  "expected 0 on a gap")
+        _check_contact_forces(path, pair, radius[i], radius[j], overlap, normal_force, branch,
+                              eps, row0)
     if wall_particle.size:
         r = radius[wall_particle]
         for w, kind in enumerate(wall_kind):
@@ -523,7 +558,7 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
                   f"{wall_normal_force[c]:.6g} N; expected 0 on a gap")
     # coincident centres: two spheres in one place (any overlap search would be O(N log N) on
     # every load; equal centres are the impossible case that costs one sort)
-    if centres and position.shape[0] > 1:
+    if position.shape[0] > 1:
         by_x = np.argsort(position[:, 0], kind="stable")
         tied = np.flatnonzero(np.diff(position[by_x, 0]) == 0)      # equal x: the candidates
         mask = np.zeros(position.shape[0], bool)

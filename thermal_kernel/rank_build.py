@@ -1,23 +1,29 @@
 """Each MPI rank reads and builds its own rows of the network (issue 25; docs/scaling.md).
 
 The PETSc backend's build (:mod:`thermal_kernel.mpi_run`): no rank reads the whole contact list
-or evaluates the law on every contact. Collective over an mpi4py communicator:
+or evaluates the law on every contact, and only rank 0 holds the particles whole. Collective
+over an mpi4py communicator:
 
-1. every rank reads the packing without its contacts (``read_packing(path, contacts=False)``:
-   the particles, walls, wall contacts, domain; checked as always) and orders the particles
-   along the Morton curve (:mod:`.solvers.partition`): rank r owns a block of that order;
-2. rank r reads the r-th slice of the file's contact rows (``read_contact_rows``, the reader's
-   row checks on them), adds its rows' neighbour counts to everyone's (one Allreduce: the law's
-   n_i, n_j are whole-packing counts) and sends each contact to the rank(s) owning its two
-   particles (one all-to-all): a rank then holds the contacts touching its particles, in the
-   file's order (duplicates found there: both copies reach the owner of i);
+1. rank 0 reads the packing without its contacts (``read_packing(path, contacts=False)``,
+   checked as always: the boundary kinds, the Morton order and the output need the particles
+   whole) and orders the particles along the Morton curve (:mod:`.solvers.partition`): rank r
+   owns a block of that order; it sends each rank its block and, for the r-th block of the
+   file's particles, their places in the order (each rank is the directory of a file block:
+   it reads those particles' centres, radii and phases itself);
+2. rank r reads the r-th slice of the file's contact rows (``read_contact_rows``), fetches
+   their spheres from the directories and checks the rows against them
+   (``check_contact_rows``, the reader's checks); the neighbour counts are summed at the
+   directories and fetched back; each contact goes, with its two spheres' values, to the
+   rank(s) owning its particles (one Alltoallv a field): a rank then holds the contacts
+   touching its particles, in the file's order (duplicates found there: both copies reach
+   the owner of i);
 3. each rank evaluates the scene's law on those contacts (:func:`~.problem.evaluate_law`, the
-   one law registry) and builds its rows of A = L + diag(g) with the in-process arithmetic
-   (the same sums in the same order: the rows equal the whole build's bit for bit,
-   ``tests/test_petsc_backend.py``);
-4. rank 0 runs the boundary kinds (:func:`~.problem.boundary_problem`, the one registry) on the
-   packing without contacts -- what they need is per particle and per wall -- and sends every
-   rank the boundary rows (held, exchange and power rows: boundary-sized);
+   one law registry, on a packing of the contacts' spheres) and builds its rows of
+   A = L + diag(g) with the in-process arithmetic (the same sums in the same order: the rows
+   equal the whole build's bit for bit, ``tests/test_petsc_backend.py``);
+4. rank 0 evaluates the law's capacities and runs the boundary kinds
+   (:func:`~.problem.boundary_problem`, the one registry) on the whole particles, and sends
+   each rank the per-particle and boundary rows of its block;
 5. the clusters: each rank labels the components of its own rows' contacts, rank 0 joins them
    through the cut contacts (the same numbering as in-process); the degrees, the counts for
    the explicit bounds and the rows of the held and untied particles go to rank 0, which makes
@@ -25,10 +31,9 @@ or evaluates the law on every contact. Collective over an mpi4py communicator:
    the other rows (``adjacency_rows``): what its ledger, steady's floating clusters, the checks
    and the output read.
 
-What stays whole: per particle, on every rank, the centres, radii, phases, the Morton order and
-the law's particle inputs (~100 B per particle per rank: docs/scaling.md); on rank 0 the
-network's per-particle arrays and the boundary rows. A scene with a ``[neighbours]`` criterion
-(a gap chosen over every bulk contact) is still built whole on rank 0 (mpi_run).
+What stays whole: on rank 0 the particles and the network's per-particle arrays (and the
+temperatures it gathers for the output). A scene with a ``[neighbours]`` criterion (a gap
+chosen over every bulk contact) is built whole on rank 0 (mpi_run, also ``--whole-build``).
 """
 from __future__ import annotations
 
@@ -40,9 +45,11 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .network import cluster_report, network_of, particle_terms, validate
-from .packing import PackingError, _check_pairs, read_contact_rows, read_packing
+from .packing import (CONTACT_BLOCK_ROWS, Packing, PackingError, _check_pairs,
+                      check_contact_rows, contact_check_scales, read_contact_rows,
+                      read_packing, read_particle_rows)
 from .problem import boundary_problem, evaluate_law
-from .solvers.partition import block_starts, owner_of_particle, particle_order
+from .solvers.partition import block_starts, particle_order
 
 _CONTACT_FIELDS = ("overlap", "normal_force", "branch", "contact_radius")
 # the boundary rows rank 0 sends every rank (validate()'s names)
@@ -86,207 +93,8 @@ def agree(comm, fn):
     return value
 
 
-def _slice(total: int, rank: int, size: int) -> tuple[int, int]:
-    starts = block_starts(total, size)
-    return int(starts[rank]), int(starts[rank + 1])
-
-
-def _exchange_contacts(comm, part, owner, rank, size):
-    """Every contact of ``part`` (a packing holding some of the file's rows) sent to the ranks
-    owning its particles (one Alltoallv a field, numpy buffers: no pickled copies; ``part``'s
-    contact fields are freed as they go); the contacts this rank receives, in the file's
-    order."""
-    pair = part.pair
-    oi, oj = owner[pair[:, 0]], owner[pair[:, 1]]
-    rows = np.concatenate([np.arange(pair.shape[0]), np.flatnonzero(oj != oi)])
-    dest = np.concatenate([oi, oj[oj != oi]])
-    del oi, oj
-    by = np.argsort(dest, kind="stable")
-    rows = rows[by]
-    send_n = np.bincount(dest, minlength=size).astype(np.int64)
-    del dest, by
-    recv_n = np.empty(size, dtype=np.int64)
-    comm.Alltoall(send_n, recv_n)
-    total = int(recv_n.sum())
-    fields = {"contact_row": part.contact_row, "pair": pair,
-              **{f: getattr(part, f) for f in _CONTACT_FIELDS}}
-    got = {}
-    del pair
-    for name in list(fields):
-        a = fields.pop(name)
-        setattr(part, name, None)           # the slice's field is freed once it is sent
-        if a is None:
-            got[name] = None
-            continue
-        width = int(np.prod(a.shape[1:], dtype=np.int64))
-        send = np.ascontiguousarray(a[rows])
-        del a
-        recv = np.empty((total,) + send.shape[1:], dtype=send.dtype)
-        comm.Alltoallv([send, (send_n * width, _displs(send_n) * width)],
-                       [recv, (recv_n * width, _displs(recv_n) * width)])
-        got[name] = recv
-        del send
-    order = np.argsort(got["contact_row"], kind="stable")
-    for name in got:                    # one field at a time: one extra copy at most
-        if got[name] is not None:
-            got[name] = got[name][order]
-    return got
-
-
 def _displs(counts):
     return np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-
-
-def build_on_ranks(scene, packing_path, comm) -> RankBuild:
-    """The build above; collective. Errors (a bad packing, a law's value out of range, a bad
-    boundary) are raised on every rank (:func:`agree`)."""
-    rank, size = comm.Get_rank(), comm.Get_size()
-    particles = agree(comm, lambda: read_packing(packing_path, contacts=False))
-    n, m = particles.n_particles, int(particles.file_contacts)
-    order = particle_order(particles.position, "morton")
-    starts = block_starts(n, size)
-    owner = owner_of_particle(order, starts)
-    lo, hi = int(starts[rank]), int(starts[rank + 1])
-    mine = order[lo:hi]
-
-    # 2. this rank's slice of the file's contacts; the neighbour counts; the owners' contacts
-    part = agree(comm, lambda: read_contact_rows(particles, *_slice(m, rank, size)))
-    counts = np.bincount(part.pair.reshape(-1), minlength=n).astype(np.int64)
-    comm.Allreduce(_in_place(), counts)
-    got = _exchange_contacts(comm, part, owner, rank, size)
-    del part
-    held_contacts = dataclasses.replace(particles, **got)
-    del got
-    agree(comm, lambda: _check_pairs(particles.path, held_contacts.pair, n,
-                                     row=held_contacts.contact_row))
-
-    # 3. the law on this rank's contacts, its rows of the network
-    law, params, pinput, conductance, capacity = agree(
-        comm, lambda: evaluate_law(scene, held_contacts, None, counts))
-    pair = held_contacts.pair
-    held_contacts = None
-    active = conductance > 0
-    i, j, h = pair[active, 0], pair[active, 1], conductance[active]
-    local_of = np.full(n, -1, dtype=np.int64)
-    local_of[mine] = np.arange(hi - lo)
-    li, lj = local_of[i], local_of[j]
-    # the adjacency's rows of this rank's particles (columns the packing's indices), built as
-    # network.assemble builds the whole one: the same entries, sorted, the same row sums
-    rows = np.concatenate([li[li >= 0], lj[lj >= 0]])
-    cols = np.concatenate([j[li >= 0], i[lj >= 0]])
-    vals = np.concatenate([h[li >= 0], h[lj >= 0]])
-    idx = np.int32 if n < 2 ** 31 - 1 else np.int64
-    adjacency = sp.coo_matrix((vals, (rows.astype(idx), cols.astype(idx))),
-                              shape=(hi - lo, n)).tocsr()
-    del rows, cols, vals
-    adjacency.sum_duplicates()
-    adjacency.sort_indices()
-    degree = np.bincount(np.repeat(np.arange(hi - lo), np.diff(adjacency.indptr)),
-                         weights=adjacency.data, minlength=hi - lo).astype(np.float64)
-    # each conducting contact counted once, by the owner of its first particle
-    first = li >= 0
-    n_active = comm.allreduce(int(np.count_nonzero(first)))
-    h_sum = comm.allreduce(float(h[first].sum()))
-    coord_max = comm.allreduce(int(np.diff(adjacency.indptr).max(initial=0)), op=_max())
-    cut = comm.allreduce(int(np.count_nonzero(first & (lj < 0))))
-    del pair, conductance, active, i, j, h, li, lj, first
-
-    # 4. the boundary kinds on rank 0; their rows to every rank
-    built = {}
-
-    def boundaries():
-        problem, info = boundary_problem(scene, particles, law, params, pinput, capacity,
-                                         np.zeros(0))
-        v = validate(problem)
-        built.update(problem=problem, info=info, v=v)
-        return {key: v[key] for key in _ROW_KEYS}
-
-    row_data = agree(comm, lambda: boundaries() if rank == 0 else None)
-    row_data = comm.bcast(row_data, root=0)
-    meta_rows = comm.bcast((len(scene.boundaries), built["problem"].source is not None)
-                           if rank == 0 else None, root=0)
-    terms = particle_terms({"n": n, **row_data})
-    held_boundary = np.full(n, -1, np.int32)
-    held_boundary[row_data["fixed_particle"]] = row_data["fixed_boundary"]
-
-    # 5. clusters: components of this rank's own contacts, joined on rank 0 by the cut ones
-    own_cols = local_of[adjacency.indices]
-    inner = own_cols >= 0
-    arow = np.repeat(np.arange(hi - lo), np.diff(adjacency.indptr))
-    n_comp, lab = connected_components(
-        sp.csr_matrix((np.ones(int(inner.sum())), (arow[inner], own_cols[inner])),
-                      shape=(hi - lo, hi - lo)), directed=False)
-    offset = comm.exscan(int(n_comp)) or 0
-    gid = lab.astype(np.int64) + offset
-    cut_edges = np.stack([gid[arow[~inner]], adjacency.indices[~inner].astype(np.int64)], axis=1)
-    del own_cols, inner, arow
-    gid_all = _gather_whole(comm, gid, order, starts, np.int64)
-    degree_all = _gather_whole(comm, degree, order, starts, np.float64)
-    cut_all = comm.gather(cut_edges, root=0)
-    total_comp = comm.allreduce(int(n_comp))
-    clusters = None
-    if rank == 0:
-        edges = np.concatenate(cut_all)
-        graph = sp.coo_matrix((np.ones(edges.shape[0]), (edges[:, 0], gid_all[edges[:, 1]])),
-                              shape=(total_comp, total_comp))
-        _, joined = connected_components(graph, directed=False)
-        label_raw = joined[gid_all]
-        # number the components by their first particle, as connected_components does whole
-        k = int(label_raw.max()) + 1
-        first_p = np.full(k, n, dtype=np.int64)
-        np.minimum.at(first_p, label_raw, np.arange(n))
-        renumber = np.empty(k, dtype=np.int64)
-        renumber[np.argsort(first_p, kind="stable")] = np.arange(k)
-        label = renumber[label_raw].astype(np.int32)
-        clusters = cluster_report(k, label, terms["held"] | (terms["g_p"] > 0))
-        keep_rows = np.flatnonzero(terms["held"] | ~clusters.tied_particle)
-        tied = clusters.tied_particle
-    else:
-        keep_rows, tied = None, None
-    del cut_all, gid_all
-
-    # rank 0 keeps the rows of the held and untied particles (its ledger, floating clusters)
-    keep_rows = comm.bcast(keep_rows, root=0)
-    want = np.flatnonzero(np.isin(mine, keep_rows))
-    sub = adjacency[want].tocoo()
-    pieces = comm.gather((mine[want][sub.row], sub.col.astype(np.int64), sub.data), root=0)
-    del sub
-    tied_mine = _scatter_whole(comm, tied, order, starts, lo, hi)
-
-    # the share of this rank, as petsc_backend._share cuts it from a whole network
-    from .solvers.petsc_backend import share_rows
-    share = share_rows(
-        adjacency, degree, mine, lo, np.argsort(order).astype(np.int64), n,
-        capacity=capacity, held=terms["held"], held_t=terms["held_t"], g=terms["g_p"],
-        b=terms["gt_p"] + terms["pw_p"], tied=_whole_from_mine(tied_mine, mine, n),
-        fixed_particle=row_data["fixed_particle"], fixed_boundary=row_data["fixed_boundary"],
-        exchange_particle=row_data["exchange_particle"], exchange_row_g=row_data["exchange_g"],
-        exchange_row_t=row_data["exchange_t"], exchange_boundary=row_data["exchange_boundary"],
-        held_boundary=held_boundary)
-    del adjacency
-    meta = dict(n=n, starts=starts, nb=meta_rows[0], has_source=meta_rows[1], cut=cut,
-                active_contacts=n_active)
-    if rank != 0:
-        return RankBuild(share=share, meta=meta, order=None)
-
-    rp = np.concatenate([p[0] for p in pieces])
-    rc = np.concatenate([p[1] for p in pieces])
-    rd = np.concatenate([p[2] for p in pieces])
-    idx = np.int32 if n < 2 ** 31 - 1 else np.int64
-    root_adj = sp.coo_matrix((rd, (rp.astype(idx), rc.astype(idx))), shape=(n, n)).tocsr()
-    root_adj.sum_duplicates()
-    root_adj.sort_indices()
-    v = dict(built["v"], m=m)       # the file's contacts (the problem holds none of them)
-    net = network_of(built["problem"], v, terms, root_adj, degree_all, n_active, clusters,
-                     coord_max, h_sum / n_active if n_active else math.nan,
-                     adjacency_rows=keep_rows)
-    return RankBuild(share=share, meta=meta, order=order, particles=particles, net=net,
-                     info=built["info"])
-
-
-def _in_place():
-    from mpi4py import MPI
-    return MPI.IN_PLACE
 
 
 def _max():
@@ -308,20 +116,300 @@ def _gather_whole(comm, local, order, starts, dtype):
     return out
 
 
-def _scatter_whole(comm, whole, order, starts, lo, hi):
-    """This rank's block of a (N,) bool array given on rank 0 in the packing's order."""
-    out = np.empty(hi - lo, dtype=np.uint8)
-    send = None
-    if comm.Get_rank() == 0:
-        send = (np.ascontiguousarray(np.asarray(whole)[order], dtype=np.uint8), np.diff(starts))
+def _alltoallv(comm, send, send_n, recv_n):
+    """``send`` (rows grouped by destination rank, ``send_n`` rows each) exchanged: the rows
+    this rank receives, ``recv_n`` from each rank, in rank order."""
+    send = np.ascontiguousarray(send)
+    width = int(np.prod(send.shape[1:], dtype=np.int64))
+    recv = np.empty((int(recv_n.sum()),) + send.shape[1:], dtype=send.dtype)
+    comm.Alltoallv([send, (send_n * width, _displs(send_n) * width)],
+                   [recv, (recv_n * width, _displs(recv_n) * width)])
+    return recv
+
+
+def _counts(comm, dest, size):
+    send_n = np.bincount(dest, minlength=size).astype(np.int64)
+    recv_n = np.empty(size, dtype=np.int64)
+    comm.Alltoall(send_n, recv_n)
+    return send_n, recv_n
+
+
+def _fetch(comm, ids, fblock, columns):
+    """The values of the particles ``ids`` (packing indices, sorted, unique) from their
+    directories (rank d holds the file's particles ``fblock[d]:fblock[d + 1]``); ``columns``
+    this rank's own arrays over its block. Arrays aligned with ``ids``."""
+    rank, size = comm.Get_rank(), comm.Get_size()
+    dest = np.searchsorted(fblock, ids, side="right") - 1      # sorted ids: grouped by rank
+    send_n, recv_n = _counts(comm, dest, size)
+    asked = _alltoallv(comm, np.asarray(ids, dtype=np.int64), send_n, recv_n) - fblock[rank]
+    return [_alltoallv(comm, np.asarray(c)[asked], recv_n, send_n) for c in columns]
+
+
+def _sum_at_directories(comm, ids, values, fblock):
+    """``values`` of the particles ``ids`` (sorted, unique) added up at their directories: the
+    sums over every rank, this rank's file block (int64)."""
+    rank, size = comm.Get_rank(), comm.Get_size()
+    dest = np.searchsorted(fblock, ids, side="right") - 1
+    send_n, recv_n = _counts(comm, dest, size)
+    got = _alltoallv(comm, np.asarray(ids, dtype=np.int64), send_n, recv_n) - fblock[rank]
+    vals = _alltoallv(comm, np.asarray(values, dtype=np.int64), send_n, recv_n)
+    return np.bincount(got, weights=vals, minlength=int(fblock[rank + 1] - fblock[rank])
+                       ).astype(np.int64)
+
+
+def _scatter_blocks(comm, whole, starts, dtype=np.int64):
+    """This rank's block ``starts[r]:starts[r + 1]`` of an (N,) array given on rank 0."""
+    rank = comm.Get_rank()
+    out = np.empty(int(starts[rank + 1] - starts[rank]), dtype=dtype)
+    send = (np.ascontiguousarray(whole, dtype=dtype), np.diff(starts)) if rank == 0 else None
     comm.Scatterv(send, out, root=0)
-    return out.astype(bool)
-
-
-def _whole_from_mine(values, mine, n):
-    out = np.zeros(n, dtype=values.dtype)
-    out[mine] = values
     return out
 
+
+def _exchange_contacts(comm, fields: dict, oi, oj, size):
+    """Every contact (the rows of ``fields``' arrays) sent to the ranks owning its two
+    particles (``oi``, ``oj``; one Alltoallv a field, each field freed once sent); the contacts
+    this rank receives, in the file's order (``fields["contact_row"]``)."""
+    rows = np.concatenate([np.arange(oi.size), np.flatnonzero(oj != oi)])
+    dest = np.concatenate([oi, oj[oj != oi]])
+    rows = rows[np.argsort(dest, kind="stable")]
+    send_n, recv_n = _counts(comm, dest, size)
+    del dest
+    got = {}
+    for name in list(fields):
+        a = fields.pop(name)
+        got[name] = None if a is None else _alltoallv(comm, a[rows], send_n, recv_n)
+        del a
+    order = np.argsort(got["contact_row"], kind="stable")
+    for name in got:                    # one field at a time: one extra copy at most
+        if got[name] is not None:
+            got[name] = got[name][order]
+    return got
+
+
+def build_on_ranks(scene, packing_path, comm) -> RankBuild:
+    """The build above; collective. Errors (a bad packing, a law's value out of range, a bad
+    boundary) are raised on every rank (:func:`agree`)."""
+    rank, size = comm.Get_rank(), comm.Get_size()
+
+    # 1. rank 0: the particles whole, the Morton order; each rank its blocks
+    particles = agree(comm, lambda: read_packing(packing_path, contacts=False)
+                      if rank == 0 else None)
+    head = None
+    if rank == 0:
+        p = particles
+        head = dict(n=p.n_particles, m=int(p.file_contacts), path=p.path, attrs=p.attrs,
+                    lo=p.domain_lo, hi=p.domain_hi, periodic=p.periodic,
+                    scales=contact_check_scales(p.position, p.domain_lo, p.domain_hi))
+    head = comm.bcast(head, root=0)
+    n, m, path = head["n"], head["m"], head["path"]
+    starts = block_starts(n, size)          # the ranks' blocks of the Morton order
+    fblock = block_starts(n, size)          # the directories' blocks of the file's particles
+    lo, hi = int(starts[rank]), int(starts[rank + 1])
+    order = new_index = None
+    if rank == 0:
+        order = particle_order(particles.position, "morton")
+        new_index = np.empty(n, dtype=np.int64)
+        new_index[order] = np.arange(n, dtype=np.int64)
+    mine = _scatter_blocks(comm, order, starts)
+    own_new = _scatter_blocks(comm, new_index, fblock)      # the file block's places
+    del new_index
+    fb = agree(comm, lambda: read_particle_rows(path, fblock[rank], fblock[rank + 1]))
+
+    # 2. this rank's slice of the contact rows, checked against their spheres
+    ms = block_starts(m, size)
+    part = agree(comm, lambda: read_contact_rows(path, n, m, ms[rank], ms[rank + 1]))
+    ends = np.unique(part["pair"])
+    loc = np.searchsorted(ends, part["pair"])
+    pos_e, rad_e, ph_e, new_e = _fetch(comm, ends, fblock, [fb["position"], fb["radius"],
+                                                            fb["phase"], own_new])
+
+    def check():
+        for b0 in range(0, loc.shape[0], CONTACT_BLOCK_ROWS):
+            sl = slice(b0, b0 + CONTACT_BLOCK_ROWS)
+            li, lj = loc[sl, 0], loc[sl, 1]
+            check_contact_rows(path, part["pair"][sl], rad_e[li], rad_e[lj], pos_e[li],
+                               pos_e[lj], part["overlap"][sl], part["normal_force"][sl],
+                               part["branch"][sl], head["lo"], head["hi"], head["periodic"],
+                               head["scales"], row0=int(ms[rank]) + b0)
+
+    agree(comm, check)
+    pos_e = None
+    del fb["position"]
+    # the neighbour counts (every dumped row), summed at the directories, fetched back
+    nb_block = _sum_at_directories(comm, ends, np.bincount(loc.reshape(-1),
+                                                           minlength=ends.size), fblock)
+    owner_e = np.searchsorted(starts, new_e, side="right") - 1
+    oi, oj = owner_e[loc[:, 0]], owner_e[loc[:, 1]]
+    fields = part
+    part = loc = rad_e = None
+    del ends, ph_e, new_e, owner_e
+    got = _exchange_contacts(comm, fields, oi, oj, size)
+    del fields, oi, oj
+    agree(comm, lambda: _check_pairs(path, got["pair"], n, row=got["contact_row"]))
+
+    # 3. rank 0: the law's capacities and inputs on the whole particles (its boundary kinds',
+    # its output's), then the law on each rank's contacts
+    whole = {}
+    nb_whole = _gather_file_order(comm, nb_block, fblock)
+
+    def capacities():
+        law, params, pinput, _, capacity = evaluate_law(scene, particles, None, nb_whole)
+        whole.update(law=law, params=params, pinput=pinput, capacity=capacity)
+
+    agree(comm, capacities if rank == 0 else (lambda: None))
+    # the spheres of this rank's contacts, from their directories
+    ids, inv = np.unique(got["pair"], return_inverse=True)
+    table = dict(zip(("radius", "phase", "nb", "new"), _fetch(
+        comm, ids, fblock, [fb["radius"], fb["phase"], nb_block, own_new])))
+    del fb, nb_block, own_new
+    spheres = Packing(position=np.zeros((ids.size, 3)), radius=table["radius"],
+                      phase=table["phase"], pair=inv.reshape(-1, 2),
+                      overlap=got["overlap"], normal_force=got["normal_force"],
+                      branch=got["branch"], contact_radius=got["contact_radius"],
+                      attrs=head["attrs"], path=path, contact_row=got["contact_row"],
+                      file_contacts=m)
+    _, _, _, conductance, _ = agree(
+        comm, lambda: evaluate_law(scene, spheres, None, table["nb"]))
+    pair = got["pair"]
+    new_l = table["new"]
+    newp = new_l[spheres.pair]          # each contact's two places in the order
+    spheres = got = table = None
+    del inv
+    active = conductance > 0
+    i, j, h = pair[active, 0], pair[active, 1], conductance[active]
+    ni, nj = newp[active, 0], newp[active, 1]
+    del pair, newp, conductance, active
+    mi, mj = (ni >= lo) & (ni < hi), (nj >= lo) & (nj < hi)
+    # the adjacency's rows of this rank's particles (columns the packing's indices), built as
+    # network.assemble builds the whole one: the same entries, sorted, the same row sums
+    rows = np.concatenate([ni[mi], nj[mj]]) - lo
+    cols = np.concatenate([j[mi], i[mj]])
+    vals = np.concatenate([h[mi], h[mj]])
+    idx = np.int32 if n < 2 ** 31 - 1 else np.int64
+    adjacency = sp.coo_matrix((vals, (rows.astype(idx), cols.astype(idx))),
+                              shape=(hi - lo, n)).tocsr()
+    del rows, cols, vals
+    adjacency.sum_duplicates()
+    adjacency.sort_indices()
+    columns = new_l[np.searchsorted(ids, adjacency.indices)]     # their places in the order
+    del ids, new_l
+    degree = np.bincount(np.repeat(np.arange(hi - lo), np.diff(adjacency.indptr)),
+                         weights=adjacency.data, minlength=hi - lo).astype(np.float64)
+    # each conducting contact counted once, by the owner of its first particle
+    n_active = comm.allreduce(int(np.count_nonzero(mi)))
+    h_sum = comm.allreduce(float(h[mi].sum()))
+    coord_max = comm.allreduce(int(np.diff(adjacency.indptr).max(initial=0)), op=_max())
+    cut = comm.allreduce(int(np.count_nonzero(mi & ~mj)))
+    del i, j, h, ni, nj, mi, mj
+
+    # 4. clusters: components of this rank's own contacts, joined on rank 0 by the cut ones
+    inner = (columns >= lo) & (columns < hi)
+    arow = np.repeat(np.arange(hi - lo), np.diff(adjacency.indptr))
+    n_comp, lab = connected_components(
+        sp.csr_matrix((np.ones(int(inner.sum())), (arow[inner], columns[inner] - lo)),
+                      shape=(hi - lo, hi - lo)), directed=False)
+    offset = comm.exscan(int(n_comp)) or 0
+    gid = lab.astype(np.int64) + offset
+    cut_edges = np.stack([gid[arow[~inner]], adjacency.indices[~inner].astype(np.int64)], axis=1)
+    del inner, arow, lab
+    gid_all = _gather_whole(comm, gid, order, starts, np.int64)
+    degree_all = _gather_whole(comm, degree, order, starts, np.float64)
+    cut_all = comm.gather(cut_edges, root=0)
+    total_comp = comm.allreduce(int(n_comp))
+    del gid, cut_edges
+
+    # 5. rank 0: the boundary kinds, the clusters; each rank its per-particle rows
+    built = {}
+
+    def root():
+        problem, info = boundary_problem(scene, particles, whole["law"], whole["params"],
+                                         whole["pinput"], whole["capacity"], np.zeros(0))
+        v = validate(problem)
+        terms = particle_terms(v)
+        edges = np.concatenate(cut_all)
+        graph = sp.coo_matrix((np.ones(edges.shape[0]), (edges[:, 0], gid_all[edges[:, 1]])),
+                              shape=(total_comp, total_comp))
+        _, joined = connected_components(graph, directed=False)
+        label_raw = joined[gid_all]
+        # number the components by their first particle, as connected_components does whole
+        k = int(label_raw.max()) + 1 if n else 0
+        first_p = np.full(k, n, dtype=np.int64)
+        np.minimum.at(first_p, label_raw, np.arange(n))
+        renumber = np.empty(k, dtype=np.int64)
+        renumber[np.argsort(first_p, kind="stable")] = np.arange(k)
+        clusters = cluster_report(k, renumber[label_raw].astype(np.int32),
+                                  terms["held"] | (terms["g_p"] > 0))
+        held_boundary = np.full(n, -1, np.int32)
+        held_boundary[v["fixed_particle"]] = v["fixed_boundary"]
+        built.update(problem=problem, info=info, v=v, terms=terms, clusters=clusters,
+                     held_boundary=held_boundary)
+        return (len(scene.boundaries), problem.source is not None,
+                np.flatnonzero(terms["held"] | ~clusters.tied_particle))
+
+    nb_count, has_source, keep_rows = comm.bcast(
+        agree(comm, root if rank == 0 else (lambda: None)), root=0)
+    cut_all = gid_all = None
+    from .solvers.petsc_backend import share_block, share_particles
+    own = _send_particle_shares(comm, built, order, starts, mine, n, share_particles)
+    own.update(share_block(adjacency, degree, own["g"], lo, n, columns))
+    del columns
+
+    # rank 0 keeps the rows of the held and untied particles (its ledger, floating clusters)
+    want = np.flatnonzero(np.isin(mine, keep_rows))
+    sub = adjacency[want].tocoo()
+    pieces = comm.gather((mine[want][sub.row], sub.col.astype(np.int64), sub.data), root=0)
+    del sub, adjacency
+    meta = dict(n=n, starts=starts, nb=nb_count, has_source=has_source, cut=cut,
+                active_contacts=n_active)
+    if rank != 0:
+        return RankBuild(share=own, meta=meta, order=None)
+    rp = np.concatenate([q[0] for q in pieces])
+    rc = np.concatenate([q[1] for q in pieces])
+    rd = np.concatenate([q[2] for q in pieces])
+    root_adj = sp.coo_matrix((rd, (rp.astype(idx), rc.astype(idx))), shape=(n, n)).tocsr()
+    root_adj.sum_duplicates()
+    root_adj.sort_indices()
+    v = dict(built["v"], m=m)       # the file's contacts (the problem holds none of them)
+    net = network_of(built["problem"], v, built["terms"], root_adj, degree_all, n_active,
+                     built["clusters"], coord_max,
+                     h_sum / n_active if n_active else math.nan, adjacency_rows=keep_rows)
+    return RankBuild(share=own, meta=meta, order=order, particles=particles, net=net,
+                     info=built["info"])
+
+
+def _gather_file_order(comm, local, fblock):
+    """The directories' blocks gathered on rank 0, whole, in the file's order."""
+    if comm.Get_rank() != 0:
+        comm.Gatherv(np.ascontiguousarray(local), None, root=0)
+        return None
+    buf = np.empty(int(fblock[-1]), dtype=local.dtype)
+    comm.Gatherv(np.ascontiguousarray(local), (buf, np.diff(fblock)), root=0)
+    return buf
+
+
+def _send_particle_shares(comm, built, order, starts, mine, n, share_particles):
+    """Rank 0 cuts each rank's per-particle and boundary rows (share_particles) from its whole
+    arrays and sends them, one rank at a time; this rank's."""
+    rank, size = comm.Get_rank(), comm.Get_size()
+    if rank != 0:
+        return comm.recv(source=0, tag=_SHARE_TAG)
+    v, t = built["v"], built["terms"]
+
+    def cut(block):
+        return share_particles(
+            block, n, capacity=v["capacity"], held=t["held"], held_t=t["held_t"], g=t["g_p"],
+            b=t["gt_p"] + t["pw_p"], tied=built["clusters"].tied_particle,
+            fixed_particle=v["fixed_particle"], fixed_boundary=v["fixed_boundary"],
+            exchange_particle=v["exchange_particle"], exchange_row_g=v["exchange_g"],
+            exchange_row_t=v["exchange_t"], exchange_boundary=v["exchange_boundary"],
+            held_boundary=built["held_boundary"])
+
+    for r in range(1, size):
+        comm.send(cut(order[starts[r]:starts[r + 1]]), dest=r, tag=_SHARE_TAG)
+    return cut(mine)
+
+
+_SHARE_TAG = 26
 
 __all__ = ["RankBuild", "RankError", "agree", "build_on_ranks", "PackingError"]

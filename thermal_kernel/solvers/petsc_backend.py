@@ -88,14 +88,25 @@ def _share(net, order, new_index, lo, hi) -> dict:
 def share_rows(adj_rows, degree, mine, lo, new_index, n, *, capacity, held, held_t, g, b, tied,
                fixed_particle, fixed_boundary, exchange_particle, exchange_row_g,
                exchange_row_t, exchange_boundary, held_boundary) -> dict:
-    """One rank's share (the keys of :func:`_share_keys`): from ``adj_rows`` (CSR, row k the
-    adjacency row of particle ``mine[k]``, columns the packing's indices) and their
-    ``degree``, the rows of A = L + diag(g) as a CSR in the new order -- -H off the diagonal,
-    degree + g on it (stored on every row), columns sorted -- and the per-particle and boundary
-    rows of ``mine``; from the whole network on rank 0 (:func:`_share`) or built by the rank
-    itself (thermal_kernel/rank_build.py). The per-particle arrays are indexed by particle,
-    whole."""
-    n_local = mine.size
+    """One rank's share (the keys of :func:`_share_keys`) cut from a whole network's arrays
+    (indexed by particle): :func:`share_block` and :func:`share_particles`."""
+    out = share_particles(mine, n, capacity=capacity, held=held, held_t=held_t, g=g, b=b,
+                          tied=tied, fixed_particle=fixed_particle,
+                          fixed_boundary=fixed_boundary, exchange_particle=exchange_particle,
+                          exchange_row_g=exchange_row_g, exchange_row_t=exchange_row_t,
+                          exchange_boundary=exchange_boundary, held_boundary=held_boundary)
+    out.update(share_block(adj_rows, degree, out["g"], lo, n, new_index[adj_rows.indices]))
+    return out
+
+
+def share_block(adj_rows, degree, g_mine, lo, n, columns) -> dict:
+    """A rank's rows of A = L + diag(g) as a CSR in the new order (``lo`` its first row) --
+    -H off the diagonal, degree + g on it (stored on every row), columns sorted -- from
+    ``adj_rows`` (CSR, row k the adjacency row of the rank's k-th particle, columns the
+    packing's indices, sorted), their ``degree`` and g, ``columns`` the new place of each
+    entry's column: from a whole network (:func:`share_rows`) or built by the rank itself
+    (thermal_kernel/rank_build.py)."""
+    n_local = adj_rows.shape[0]
     per_row = np.diff(adj_rows.indptr)
     indptr = np.concatenate([[0], np.cumsum(per_row + 1)]).astype(np.int64)
     nnz = int(indptr[-1])
@@ -104,15 +115,24 @@ def share_rows(adj_rows, degree, mine, lo, new_index, n, *, capacity, held, held
     data = np.empty(nnz)
     off = np.arange(adj_rows.nnz, dtype=np.int64)       # each row one slot further per row
     off += np.repeat(np.arange(n_local, dtype=np.int64), per_row)   # before it (diagonals)
-    indices[off] = new_index[adj_rows.indices]
+    indices[off] = columns
     data[off] = -adj_rows.data
     del off
     diag = indptr[1:] - 1
     indices[diag] = np.arange(lo, lo + n_local)
-    data[diag] = degree + g[mine]
+    data[diag] = degree + g_mine
     block = sp.csr_matrix((data, indices, indptr.astype(idx)), shape=(n_local, n))
     block.has_sorted_indices = False
     block.sort_indices()
+    return dict(lo=lo, indptr=block.indptr, indices=block.indices, data=block.data)
+
+
+def share_particles(mine, n, *, capacity, held, held_t, g, b, tied, fixed_particle,
+                    fixed_boundary, exchange_particle, exchange_row_g, exchange_row_t,
+                    exchange_boundary, held_boundary) -> dict:
+    """The per-particle and boundary rows of the particles ``mine`` (packing indices), cut
+    from arrays indexed by particle, whole (rank 0 of either build)."""
+    n_local = mine.size
     local_of = np.full(n, -1, dtype=np.int64)
     local_of[mine] = np.arange(n_local)
     fl = local_of[fixed_particle]
@@ -120,7 +140,6 @@ def share_rows(adj_rows, degree, mine, lo, new_index, n, *, capacity, held, held
     el = local_of[exchange_particle]
     ek = el >= 0
     return dict(
-        lo=lo, indptr=block.indptr, indices=block.indices, data=block.data,
         capacity=np.ascontiguousarray(capacity[mine]),
         held=np.ascontiguousarray(held[mine]), held_t=np.ascontiguousarray(held_t[mine]),
         g=np.ascontiguousarray(g[mine]), b=np.ascontiguousarray(b[mine]),
