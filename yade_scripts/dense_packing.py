@@ -515,34 +515,14 @@ def shell_radius_factor(p, young):
     return 1.0 + 0.5 * (hertz_overlap(p, young) - hertz_overlap(p, p["young_pa"]))
 
 
-def release_band(released, free_ids, collider):
-    """Frozen spheres made free (shell_release_diameters), at rest. With density scaling a body
-    made dynamic keeps densityScaling 1 (its real mass) until the time stepper's next update, and
-    the step of 1 the scaled masses allow then throws it out of the box (seed 2 at 2,000, also
-    when blocked for a step: the stepper skips blocked bodies); it starts with the smallest
-    scaling of the free spheres (the heaviest), which the stepper raises at its next update."""
-    scaling = min(O.bodies[b].state.densityScaling for b in free_ids)
-    for b in released:
-        body = O.bodies[b]
-        body.dynamic = True
-        body.groupMask = SHELL_MASK
-        body.state.vel = Vector3(0, 0, 0)
-        body.state.angVel = Vector3(0, 0, 0)
-        body.state.densityScaling = scaling
-    collider.doSort = True
-    log(f"shell: {len(released)} spheres of the frozen band released")
-
-
-def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None, release=None):
+def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None):
     """method = "shell": the free shell and its frozen band in YADE, the walls on the carved
     surface pressed onto the shell until each carries the confining pressure (a servo per wall,
     the compliance of a column of shell_diameters contacts in Hertz's law), through the direct
     path's stages (softened modulus, tenfold stiffening, friction on at the real modulus). The
     radii carry each stage's Hertz overlap and end as given. Returns the pressed state of these
     spheres (indices into centres). ``cloud``: the spheres put back as a shrunk cloud
-    (shell.cloud_layer), grown back to their radii against the walls first (grow_cloud).
-    ``release``: frozen spheres made free after the last stage, which is then run once more
-    (shell_release_diameters)."""
+    (shell.cloud_layer), grown back to their radii against the walls first (grow_cloud)."""
     stages = stiffness_stages(p)
     mats, sphere_ids, wall_of_body, collider = build_scene(p, centres, radii, box, stages[0])
     for k, b in enumerate(sphere_ids):
@@ -593,16 +573,7 @@ def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None, release=Non
     if cloud_ids:
         grow_cloud(p, box, cloud_ids, collider, walls, body, inward,
                    r_mean * layers * hertz_overlap(p, stages[0]), every)
-    # the last stage again once the outer part of the frozen band is released: the seam the
-    # stages left against it (touching Z ~4.8 against the direct boxes' ~5.3 there) is then
-    # between free spheres, and the new one behind it has seen only this last relaxation
-    released = [] if release is None else [int(b) for k, b in enumerate(sphere_ids)
-                                           if release[k]]
-    schedule = list(enumerate(stages)) + ([(len(stages) - 1, stages[-1])] if released else [])
-    for n_stage, (k, young) in enumerate(schedule):
-        if n_stage == len(stages):
-            release_band(released, [int(b) for k, b in enumerate(sphere_ids) if not frozen[k]],
-                         collider)
+    for k, young in enumerate(stages):
         if young != young_now:
             set_young(mats, young, young_now)
             if young == p["young_pa"]:
@@ -741,17 +712,13 @@ def shell_state(p, state):
             dict(p, n_particles=int(round(p["n_particles"] / kept_first.mean()))), state)
     box, position, radius = carved["box"], carved["position"], carved["radius"]
     shell_m = p["shell_diameters"] * 2.0 * float(radius.mean())
-    release_m = p["shell_release_diameters"] * 2.0 * float(radius.mean())
-    band_m = shell.frozen_band_m(radius, p["gap_tolerance"]) + release_m
+    band_m = shell.frozen_band_m(radius, p["gap_tolerance"])
     whole, free, band = shell.split(box, position, radius, shell_m, band_m,
                                     p["shell_cut_depth"])
-    # the band's outer release_m, freed for the last relaxation (press_shell)
-    release = band & (shell.boundary_distance(box, position) < shell_m + release_m)
     _, rows, pair = carve(whole, carved["pair"])
     kept = (pair,) + tuple(carved[k][rows] for k in ("branch", "overlap", "normal_force",
                                                      "contact_radius"))
-    position, radius, free, band, release = (a[whole] for a in (position, radius, free, band,
-                                                                 release))
+    position, radius, free, band = position[whole], radius[whole], free[whole], band[whole]
     if p["shell_cloud_diameters"] > 0:
         # the outer layer put back as a loose cloud in a grown box, the walls on its faces; the
         # layer holds its spheres at the direct box's solid fraction at the radii they grow
@@ -784,8 +751,7 @@ def shell_state(p, state):
         f"{int(band.sum())} frozen behind it ({band_m:.4g} m), {len(radius) - len(sub)} "
         f"interior spheres stay as tiled")
     pressed = press_shell(p, box, position[sub], radius[sub], band[sub], shell_m,
-                          clouded[sub], release[sub])
-    free = free | release           # they moved: their contacts are YADE's
+                          clouded[sub])
     position = position.copy()
     position[sub] = pressed["position"]
     position -= pressed["lo"]
@@ -800,12 +766,11 @@ def shell_state(p, state):
         pressed["wall_touch"])
     info = dict(cell_info, shell_diameters=float(p["shell_diameters"]),
                 shell_cloud_diameters=float(p["shell_cloud_diameters"]),
-                shell_release_diameters=float(p["shell_release_diameters"]),
                 shell_thickness_m=shell_m, frozen_band_m=band_m,
                 shell_stage_unbalanced=float(p["shell_stage_unbalanced"]),
                 shell_servo_gain=float(p["shell_servo_gain"]),
                 shell_free_particles=int(free.sum()),
-                shell_frozen_particles=int((band & ~release).sum()),
+                shell_frozen_particles=int(band.sum()),
                 shell_cut_particles_removed=int((~whole).sum()),
                 shell_steps=pressed["steps"], shell_seconds=pressed["seconds"],
                 cell_steps=int(state["compress_steps"]),

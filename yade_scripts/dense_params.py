@@ -82,12 +82,6 @@ PARAMS = {
                                        "walls before the stages (0: the walls are pressed onto "
                                        "the carved faces; 3: the direct box's wall layer, "
                                        "docs/packings.md)"),
-    "shell_release_diameters": dict(kind="float", default=0.0, minimum=0.0,
-                                    help="shell: the frozen band is this many mean diameters "
-                                         "thicker, and its outer part is freed for one more "
-                                         "relaxation at the real modulus after the stages (the "
-                                         "seam against the frozen band moves inward and sees "
-                                         "only that last relaxation)"),
     "shell_servo_gain": dict(kind="float", default=1.0, minimum=0.1, maximum=10.0,
                              help="shell: gain of the walls' pressure controller after the soft "
                                   "stage, in units of the Hertz compliance of the shell's column "
