@@ -378,14 +378,16 @@ BUILD = ROOT / "bench/results/rank_build_memory.json"
 
 
 def build_fit(build):
-    """Peak RSS per rank of the explicit runs against N and R: after (each rank builds its
-    rows; the largest rank) a + c N + b N / R, before (rank 0 builds the whole network; rank
-    0) a + w N + b0 N / R; least squares, bytes."""
+    """Peak RSS of the explicit runs against N and R, least squares, bytes: a + whole N +
+    divided N / R for rank 0 before (it built the whole network), rank 0 after (it holds the
+    particles whole) and the other ranks after (the largest; rows with R >= 2)."""
     out = {}
-    for which, pick in (("after", max), ("before", lambda v: v[0])):
-        rows = [r for r in build["rows"] if r["solver"] == "explicit"]
+    for which, key, pick, ranks in (("before", "rss_before_gb", lambda v: v[0], 1),
+                                    ("after", "rss_after_gb", lambda v: v[0], 1),
+                                    ("after_other", "rss_after_gb", lambda v: max(v[1:]), 2)):
+        rows = [r for r in build["rows"] if r["solver"] == "explicit" and r["ranks"] >= ranks]
         A = np.array([[1.0, r["n"], r["n"] / r["ranks"]] for r in rows])
-        y = np.array([pick(r[f"rss_{which}_gb"]) * 1e9 for r in rows])
+        y = np.array([pick(r[key]) * 1e9 for r in rows])
         out[which] = dict(zip(("a", "whole", "divided"), np.linalg.lstsq(A, y, rcond=None)[0]))
     return out
 
@@ -415,14 +417,17 @@ def build_memory_section(build) -> str:
                  f"{r['ranks']} | {bf[0]:.2f} | {others(bf)} | {af[0]:.2f} | {others(af)} | "
                  f"{sum(bf):.2f} / {sum(af):.2f} |")
     L.append("")
-    L.append(f"Fitted on the explicit rows (the build dominates their peak): before, rank 0 "
-             f"needed {b['whole']:.0f} B per particle not divided by the ranks (the whole "
-             f"network) + {b['divided']:.0f} B per particle / R; after, the largest rank needs "
-             f"{a['whole']:.0f} B per particle on every rank (the per-particle arrays still "
-             f"whole) + {a['divided']:.0f} B per particle / R (its contacts, the law's inputs "
-             f"on them, its rows), about {a['a'] / 1e9:.2f} GB of libraries apart. The "
-             "steady rows add the solver's share (and, on rank 0, the gathered temperatures "
-             "and the output).\n")
+    o = fit["after_other"]
+    L.append(f"Fitted on the explicit rows (the build dominates their peak; a + w N + d N / R): "
+             f"before, rank 0 needed w = {b['whole']:.0f} B per particle, not divided by the "
+             f"ranks (the whole network), + d = {b['divided']:.0f} B per particle / R; after, "
+             f"rank 0 needs w = {a['whole']:.0f} B per particle (the particles, the Morton "
+             f"order, the network's per-particle arrays) + d = {a['divided']:.0f} / R, the "
+             f"other ranks w = {o['whole']:.0f} + d = {o['divided']:.0f} / R (their contacts, "
+             "the law's inputs on them, their rows: they hold no array of every particle; "
+             "two N and three R do not separate w from d well), about "
+             f"{a['a'] / 1e9:.2f} GB of libraries apart. The steady rows add the solver's share "
+             "(and, on rank 0, the gathered temperatures and the output).\n")
     return "\n".join(L) + "\n"
 
 
@@ -446,18 +451,20 @@ def document(data) -> str:
       "SCENE` (`thermal_kernel/solvers/mpi_launch.py`). The particles are ordered along a "
       "Morton curve of their centres and the order cut into equal blocks "
       "(`thermal_kernel/solvers/partition.py`); each rank builds its own rows "
-      "(`thermal_kernel/rank_build.py`): rank r reads the r-th slice of the packing's contact "
-      "rows (checked as the in-process reader checks them) and sends each contact to the "
-      "ranks owning its two particles, evaluates the scene's law (the one registry) on the "
-      "contacts it then holds and puts its rows into a PETSc MPIAIJ matrix; rank 0 runs the "
-      "boundary kinds (the one registry: what they read is per particle and per wall) and "
-      "sends their rows, and joins the ranks' cluster labels into the in-process clusters. "
-      "Each rank's rows, rank 0's degrees, clusters, bound and flags equal the whole build's "
-      "bit for bit (`tests/mpi_rank_build_check.py`, 2 and 3 ranks). A scene with a "
+      "(`thermal_kernel/rank_build.py`): rank 0 reads the particles (not the contacts), "
+      "orders them and sends each rank its block; rank r reads the r-th block of the file's "
+      "particles and the r-th slice of its contact rows, checks the rows against their "
+      "spheres as the in-process reader does, and sends each contact to the ranks owning its "
+      "two particles; each rank evaluates the scene's law (the one registry) on the contacts "
+      "it then holds and puts its rows into a PETSc MPIAIJ matrix; rank 0 runs the boundary "
+      "kinds (the one registry) on the particles, sends each rank the per-particle rows of "
+      "its block, and joins the ranks' cluster labels into the in-process clusters. Each "
+      "rank's rows, rank 0's degrees, clusters, bound and flags equal the whole build's bit "
+      "for bit (`tests/mpi_rank_build_check.py`, 2 and 3 ranks). A scene with a "
       "`[neighbours]` criterion (a gap chosen over every bulk contact) is still built whole "
       "on rank 0, which sends each rank its rows, and so is any scene given `--whole-build` "
-      "(`thermal_kernel.mpi_run`'s option: less memory in all when a node runs many ranks, "
-      "the cost model below). The explicit step is a distributed mat-vec with "
+      "(`thermal_kernel.mpi_run`'s option, for comparison: the table 'Memory of the build "
+      "on the ranks'). The explicit step is a distributed mat-vec with "
       "the in-process dt and bound; the implicit schemes (theta, Rannacher, TR-BDF2) and the "
       "steady solve use CG with GAMG (default) or hypre BoomerAMG to a relative true residual "
       "of 1e-12. Rank 0 writes the ordinary `thermal.h5` (the in-process attributes, flags and "
@@ -471,18 +478,17 @@ def document(data) -> str:
       "`make test`): explicit within 1e-12 of the temperature change, implicit and steady "
       "within 1e-10, boundary flows and ledger alike, flags identical; the last column of the "
       "table below is the same comparison at bench scale (relative to max abs(T)).\n")
-    w("**Still whole** (what is left of issue 25): on every rank, the packing's per-particle "
-      "arrays (centres, radii, phases, the Morton order, the law's particle inputs and the "
-      "boundary terms: each rank reads and sorts all the centres, and a contact's law needs "
-      "its partner's radius and neighbour count); on rank 0, the network's per-particle "
-      "arrays and boundary rows, a source's powers (a function of the whole packing, "
-      "evaluated there and scattered each step) and the temperatures at the output times "
-      "(gathered there and written by it). No rank holds the whole contact list or evaluates "
-      "the law on every contact any more: rank 0's extra memory for the network is gone, "
-      "every rank carries the per-particle part (the table 'Memory of the build on the "
-      "ranks' below). Next: each rank reading only its block of particles and its contacts' "
-      "partners (a packing written in the Morton order, or a parallel sort of the centres), "
-      "the `[neighbours]` criterion on the ranks, and parallel output.\n")
+    w("**Still whole on rank 0** (what is left of issue 25): the packing's particles "
+      "(centres, radii, phases; read by rank 0 for the boundary kinds, which find their "
+      "particles by position, and for the Morton order, a sort of every centre), the "
+      "network's per-particle arrays and boundary rows (its ledger, the flags, the checks), "
+      "a source's powers (a function of the whole packing, evaluated there and scattered each "
+      "step) and the temperatures at the output times (gathered there and written by it): "
+      "bytes per particle, not per contact. No rank holds the whole contact list or evaluates "
+      "the law on every contact, and the other ranks hold only their blocks (the table "
+      "'Memory of the build on the ranks' below). Next: the boundary kinds on blocks, a "
+      "parallel sort of the Morton keys and parallel output (rank 0's per-particle part), "
+      "and the `[neighbours]` criterion on the ranks.\n")
     w("As in-process: `--checkpoint-every K` and `--resume` (rank 0 gathers the state after "
       "every K output times and writes the in-process checkpoint; either kind resumes on "
       "either), rank 0 shows the in-process progress bar, and `tdem campaign` runs each case "
@@ -606,15 +612,15 @@ def document(data) -> str:
       f"{NODE_GB:g} GB, {LINK_GB_S:g} GB/s per node, {LATENCY_S * 1e6:g} us latency, one rank "
       "per core; GAMG iterations extrapolated log-linearly in N from the two largest N "
       "measured.\n")
-    per_rank = bfit["after"]["whole"] if build else float("nan")
-    w("| N | solver | nodes (64 cores) | solver memory, all ranks | + whole network on rank 0 "
-      "(whole build) | + per-particle arrays on every rank (per-rank build) | time |")
+    root_pp = bfit["after"]["whole"] if build else float("nan")
+    w("| N | solver | nodes (64 cores) | solver memory, all ranks | + on rank 0: the whole "
+      "network (whole build) | + on rank 0: the per-particle arrays (per-rank build) | time |")
     w("|---|---|---|---|---|---|---|")
     for p in proj:
         w(f"| {p['n']:.0e} | {p['solver']} | {p['nodes']} ({p['ranks']} ranks) | "
           f"{p['solve_gb_total']:.0f} GB | {p['whole_gb_rank']:.0f} GB | "
-          f"{per_rank * p['n'] / 1e9:.0f} GB a rank, {per_rank * p['n'] * NODE_CORES / 1e9:.0f} "
-          f"GB a node | {p['what']}" + (f"; {p['extra']}" if p["extra"] else "") + " |")
+          f"{root_pp * p['n'] / 1e9:.0f} GB | {p['what']}"
+          + (f"; {p['extra']}" if p["extra"] else "") + " |")
     w("")
     if proj:
         top = {(p["n"], p["solver"]): p for p in proj}
@@ -623,22 +629,16 @@ def document(data) -> str:
         if s8 and s9 and bfit:
             w(f"Read: the distributed part of a steady solve needs {s8['solve_gb_total']:.0f} GB "
               f"in all at 1e8 ({s8['nodes']} node(s)) and {s9['solve_gb_total']:.0f} GB at 1e9 "
-              f"({s9['nodes']} nodes). Built whole on rank 0, rank 0's node must also hold the "
-              f"whole network on its own ({s8['whole_gb_rank']:.0f} GB at 1e8, "
+              f"({s9['nodes']} nodes). Built whole on rank 0, rank 0's node must also hold "
+              f"the whole network on its own ({s8['whole_gb_rank']:.0f} GB at 1e8, "
               f"{s9['whole_gb_rank']:.0f} GB at 1e9): a few 1e8 particles on a 256 GB node, "
-              "not 1e9. Built on the ranks (a packing file without a `[neighbours]` criterion), "
-              "that column is gone, but every rank still holds the per-particle arrays of the "
-              "whole packing (the last-but-one column, fitted on the build's measured peaks), "
-              "so a node holds it once per rank: with a rank on each of a node's 64 cores that "
-              "is more than the node holds at 1e8 already, where the whole build (rank 0's "
-              "network once, `mpi_run --whole-build`) still fits. The per-rank build is the "
-              "lighter one while a node runs fewer ranks than the whole network's bytes per "
-              "particle over the per-particle arrays' (here ~"
-              f"{bfit['before']['whole'] / bfit['after']['whole']:.0f}); on one machine (this "
-              "one) it is (the table 'Memory of the build on the ranks'). Reading per rank "
-              "only its block of particles and its contacts' partners (a packing written in "
-              "the Morton order, or a parallel sort of the centres: issue 25's next step) "
-              "divides that column by the ranks too; until then neither build reaches 1e9.\n")
+              "not 1e9. Built on the ranks (a packing file without a `[neighbours]` "
+              "criterion), rank 0 holds per-particle arrays only (the last-but-one column, "
+              "fitted on the build's measured peaks: "
+              f"{root_pp * 1e8 / 1e9:.0f} GB at 1e8, {root_pp * 1e9 / 1e9:.0f} GB at 1e9): 1e9 "
+              "then needs rank 0 on a node of that much memory (fewer ranks on its node), or "
+              "the next step (the boundary kinds on blocks, a parallel sort, parallel output), "
+              "which divides that column by the ranks too.\n")
     return "\n".join(L) + "\n"
 
 

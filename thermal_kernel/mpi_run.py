@@ -53,8 +53,8 @@ def _args(argv):
                                         "case: the campaign file's tables, law and packing set)")
     p.add_argument("--whole-build", action="store_true",
                    help="rank 0 reads the packing and builds the whole network, then sends "
-                        "each rank its rows (less memory in all than every rank's copy of the "
-                        "per-particle arrays when a node runs many ranks: docs/scaling.md)")
+                        "each rank its rows (the build of a [neighbours] scene; for "
+                        "comparison: docs/scaling.md)")
     p.add_argument("--status", help="file to write the one-line error to (the launcher's)")
     p.add_argument("--run-args", default="{}", help="the CLI's arguments (JSON), stored")
     return p.parse_args(argv)

@@ -51,12 +51,6 @@ from .packing import (CONTACT_BLOCK_ROWS, Packing, PackingError, _check_pairs,
 from .problem import boundary_problem, evaluate_law
 from .solvers.partition import block_starts, particle_order
 
-_CONTACT_FIELDS = ("overlap", "normal_force", "branch", "contact_radius")
-# the boundary rows rank 0 sends every rank (validate()'s names)
-_ROW_KEYS = ("fixed_particle", "fixed_temperature", "fixed_boundary", "exchange_particle",
-             "exchange_g", "exchange_t", "exchange_boundary", "power_particle", "power")
-
-
 class RankError(RuntimeError):
     """Another rank's part of the build failed: its one-line message (each rank raises)."""
 
