@@ -1,12 +1,12 @@
-"""The scaffolding validation/framework.py gives every case: the convergence fit, the run cache
-and the scene text (one home each, issue 26)."""
+"""The scaffolding validation/framework.py gives every case: the convergence fit, the run cache,
+the scene text and the figure with its CSV (one home each, issue 26)."""
 import math
 
 import numpy as np
 import pytest
 
 from thermal_kernel.scene import load_scene
-from validation.framework import cached, fit_order, scene_toml
+from validation.framework import cached, figure_csv, fit_order, scene_toml
 
 
 def test_fit_order_recovers_a_power_law_and_skips_what_has_no_log():
@@ -17,6 +17,28 @@ def test_fit_order_recovers_a_power_law_and_skips_what_has_no_log():
                          np.append(3.0 * n ** -0.5, [0.0, math.nan, 1.0]))
     assert with_bad == pytest.approx((p, c), rel=1e-12)
     assert all(math.isnan(v) for v in fit_order([1e3, 1e4], [0.1, 0.0]))
+
+
+def test_figure_csv_writes_the_figure_and_its_numbers_or_neither(tmp_path):
+    png = tmp_path / "validation_case0_demo.png"
+    with figure_csv(png, "label,x,y", 1, 2, figsize=(4, 2)) as ((a, b), csv):
+        a.plot([0.0, 1.0], [1.0, 2.0])
+        b.plot([0.0, 1.0], [2.0, 1.0])
+        csv += [("a,b", 1, 1 / 3), ("c", 2, 2.0)]
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # the csv module's quoting, floats to 10 digits, ints as they are, "\r\n" unless told
+    assert png.with_suffix(".csv").read_bytes() == \
+        b'label,x,y\r\n"a,b",1,0.3333333333\r\nc,2,2\r\n'
+    other = tmp_path / "other.png"
+    with figure_csv(other, ["t", "T"], figsize=(3, 2), digits=None, line_end="\n") as (ax, csv):
+        csv.append((0.1 + 0.2, "5.000"))
+    assert other.with_suffix(".csv").read_text() == "t,T\n0.30000000000000004,5.000\n"
+    failed = tmp_path / "failed.png"
+    with pytest.raises(ZeroDivisionError):
+        with figure_csv(failed, ["x"], figsize=(3, 2)) as (ax, csv):
+            csv.append((1.0,))
+            1 / 0
+    assert not failed.exists() and not failed.with_suffix(".csv").exists()
 
 
 def test_cached_makes_once_per_version_and_keeps_the_field(tmp_path):

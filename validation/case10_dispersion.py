@@ -38,7 +38,7 @@ from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 from validation import framework
 from validation import inclusions as I
-from validation.framework import CaseInfo, CaseResult, Context, new_figure, save_figure
+from validation.framework import CaseInfo, CaseResult, Context, figure_csv
 
 CASE = CaseInfo(number=10, title="Random dispersion vs an FFT reference / Maxwell / HS bounds",
                 paper="002 sec. 5.1, Fig. 17", paper_n="8e6",
@@ -533,107 +533,100 @@ def _plots(ctx, runs, reals):
 
 def _figure_fraction(ctx, runs, reals) -> None:
     """k_eff / k_m against f beside the bounds and the FFT reference, and the error."""
-    fig, (ax, bx) = new_figure(1, 2, figsize=(11, 4.3))
-    f_line = np.linspace(0, 0.55, 200)
-    low, high = hashin_shtrikman(1.0, CONTRAST, f_line)
-    ax.fill_between(f_line, low, high, color="0.88", label="Hashin-Shtrikman bounds")
-    ax.plot(f_line, maxwell(1.0, CONTRAST, f_line), "k-", label="Maxwell (= HS lower)")
-    ax.plot(f_line, bruggeman(1.0, CONTRAST, f_line), "k:", label="Bruggeman")
-    fs = sorted(reals)
-    ax.errorbar([reals[f].f for f in fs], [reals[f].ref for f in fs],
-                yerr=[reals[f].ref_unc for f in fs], fmt="D", color="k", mfc="none",
-                label="FFT, same cube and faces (h -> 0)")
-    ax.plot([reals[f].f for f in fs], [reals[f].periodic for f in fs], "x", color="0.4",
-            label="FFT, the cube as a periodic cell")
-    csv = []
-    for k, r in enumerate(sorted(runs, key=lambda r: r.n)):
-        col = f"C{k}"
-        ax.plot([x.f for x in r.rows], [x.k for x in r.rows], "o", color=col,
-                label=f"tdem {r.n:,} spheres")
-        bx.plot([x.f for x in r.rows], [100 * x.err_ref for x in r.rows], "o-",
-                color=col, label=f"{r.n:,} spheres")
-        for x, f in zip(r.rows, fs):
-            csv.append((r.n, x.f, x.k, x.ref, reals[f].ref_unc,
-                        reals[f].periodic, x.maxwell, x.bruggeman, x.hs_low,
-                        x.hs_high, x.err_ref))
-    jams = [reals[f].jam for f in fs if reals[f].jam is not None]
-    if jams:
-        ax.axvline(jams[0], color="C1", ls="--", lw=0.8, label=f"RSA jams (f {jams[0]:.3f})")
-    ax.set_xlabel("inclusion volume fraction f")
-    ax.set_ylabel("k_eff / k_m")
-    ax.set_title(f"random dispersion, d = L/6, contrast {CONTRAST:.2f}", fontsize=9)
-    ax.legend(fontsize=7)
-    bx.axhspan(-0.5, 0.5, color="C1", alpha=0.15, label="002: within 0.5 % of FFT")
-    bx.axhline(0, color="k", lw=0.6)
-    bx.set_xlabel("f")
-    bx.set_ylabel("tdem / FFT reference - 1, %")
-    bx.legend(fontsize=7)
-    path = ctx.figure("fraction")
-    save_figure(fig, path)
-    I.write_csv(path, ("n", "f", "k_over_km", "fft_reference", "fft_uncertainty",
-                       "fft_periodic", "maxwell", "bruggeman", "hs_lower", "hs_upper",
-                       "rel_error_vs_fft"), csv)
+    with figure_csv(ctx.figure("fraction"), ("n", "f", "k_over_km", "fft_reference",
+                                             "fft_uncertainty", "fft_periodic", "maxwell",
+                                             "bruggeman", "hs_lower", "hs_upper",
+                                             "rel_error_vs_fft"),
+                    1, 2, figsize=(11, 4.3), line_end="\n") as ((ax, bx), csv):
+        f_line = np.linspace(0, 0.55, 200)
+        low, high = hashin_shtrikman(1.0, CONTRAST, f_line)
+        ax.fill_between(f_line, low, high, color="0.88", label="Hashin-Shtrikman bounds")
+        ax.plot(f_line, maxwell(1.0, CONTRAST, f_line), "k-", label="Maxwell (= HS lower)")
+        ax.plot(f_line, bruggeman(1.0, CONTRAST, f_line), "k:", label="Bruggeman")
+        fs = sorted(reals)
+        ax.errorbar([reals[f].f for f in fs], [reals[f].ref for f in fs],
+                    yerr=[reals[f].ref_unc for f in fs], fmt="D", color="k", mfc="none",
+                    label="FFT, same cube and faces (h -> 0)")
+        ax.plot([reals[f].f for f in fs], [reals[f].periodic for f in fs], "x", color="0.4",
+                label="FFT, the cube as a periodic cell")
+        for k, r in enumerate(sorted(runs, key=lambda r: r.n)):
+            col = f"C{k}"
+            ax.plot([x.f for x in r.rows], [x.k for x in r.rows], "o", color=col,
+                    label=f"tdem {r.n:,} spheres")
+            bx.plot([x.f for x in r.rows], [100 * x.err_ref for x in r.rows], "o-",
+                    color=col, label=f"{r.n:,} spheres")
+            for x, f in zip(r.rows, fs):
+                csv.append((r.n, x.f, x.k, x.ref, reals[f].ref_unc,
+                            reals[f].periodic, x.maxwell, x.bruggeman, x.hs_low,
+                            x.hs_high, x.err_ref))
+        jams = [reals[f].jam for f in fs if reals[f].jam is not None]
+        if jams:
+            ax.axvline(jams[0], color="C1", ls="--", lw=0.8, label=f"RSA jams (f {jams[0]:.3f})")
+        ax.set_xlabel("inclusion volume fraction f")
+        ax.set_ylabel("k_eff / k_m")
+        ax.set_title(f"random dispersion, d = L/6, contrast {CONTRAST:.2f}", fontsize=9)
+        ax.legend(fontsize=7)
+        bx.axhspan(-0.5, 0.5, color="C1", alpha=0.15, label="002: within 0.5 % of FFT")
+        bx.axhline(0, color="k", lw=0.6)
+        bx.set_xlabel("f")
+        bx.set_ylabel("tdem / FFT reference - 1, %")
+        bx.legend(fontsize=7)
 
 
 def _figure_convergence(ctx, runs, reals) -> float:
     """The max error against N and against the time per solve; its fitted order."""
     fs = sorted(reals)
-    fig, (ax, bx) = new_figure(1, 2, figsize=(11, 4.3))
-    rs = sorted(runs, key=lambda r: r.n)
-    n = np.array([r.n for r in rs], float)
-    e = np.array([max(abs(x.err_ref) for x in r.rows) for r in rs])
-    p, _ = framework.fit_order(n, e)
-    ax.loglog(n, 100 * e, "o-", label=f"max over f of |error| (N^{p:.2f})")
-    for j, f in enumerate(fs):
-        ax.loglog(n, [100 * abs(r.rows[j].err_ref) for r in rs], ".:", lw=0.8,
-                  label=f"f {reals[f].f:.2f}")
-    ax.axhline(0.5, color="C1", ls="--", lw=0.8, label="002: 0.5 % at 8e6")
-    ax.set_xlabel("N (spheres)")
-    ax.set_ylabel("|k / k_FFT - 1|, %")
-    ax.legend(fontsize=7)
-    t = np.array([r.thermal_s / r.solves for r in rs])
-    bx.loglog(t, 100 * e, "o-")
-    for tt, ee, r in zip(t, e, rs):
-        bx.annotate(f"{r.n:,}", (tt, 100 * ee), fontsize=7)
-    bx.set_xlabel("wall time per steady solve, s (1 thread, shared machine)")
-    bx.set_ylabel("max |error|, %")
-    path = ctx.figure("convergence")
-    save_figure(fig, path)
-    I.write_csv(path, ("n", "max_abs_rel_error", "seconds_per_solve",
-                       *[f"err_f{reals[f].f:.3f}" for f in fs]),
-                [(r.n, ee, tt, *[x.err_ref for x in r.rows])
-                 for r, ee, tt in zip(rs, e, t)])
+    with figure_csv(ctx.figure("convergence"), ("n", "max_abs_rel_error", "seconds_per_solve",
+                                                *[f"err_f{reals[f].f:.3f}" for f in fs]),
+                    1, 2, figsize=(11, 4.3), line_end="\n") as ((ax, bx), csv):
+        rs = sorted(runs, key=lambda r: r.n)
+        n = np.array([r.n for r in rs], float)
+        e = np.array([max(abs(x.err_ref) for x in r.rows) for r in rs])
+        p, _ = framework.fit_order(n, e)
+        ax.loglog(n, 100 * e, "o-", label=f"max over f of |error| (N^{p:.2f})")
+        for j, f in enumerate(fs):
+            ax.loglog(n, [100 * abs(r.rows[j].err_ref) for r in rs], ".:", lw=0.8,
+                      label=f"f {reals[f].f:.2f}")
+        ax.axhline(0.5, color="C1", ls="--", lw=0.8, label="002: 0.5 % at 8e6")
+        ax.set_xlabel("N (spheres)")
+        ax.set_ylabel("|k / k_FFT - 1|, %")
+        ax.legend(fontsize=7)
+        t = np.array([r.thermal_s / r.solves for r in rs])
+        bx.loglog(t, 100 * e, "o-")
+        for tt, ee, r in zip(t, e, rs):
+            bx.annotate(f"{r.n:,}", (tt, 100 * ee), fontsize=7)
+        bx.set_xlabel("wall time per steady solve, s (1 thread, shared machine)")
+        bx.set_ylabel("max |error|, %")
+        csv += [(r.n, ee, tt, *[x.err_ref for x in r.rows])
+                     for r, ee, tt in zip(rs, e, t)]
     return p
 
 
 def _figure_fft(ctx, reals) -> None:
     """The FFT reference's own convergence in the voxel size."""
     fs = sorted(reals)
-    fig, ax = new_figure(figsize=(6.2, 4.3))
-    csv = []
-    for j, f in enumerate(fs):
-        rl = reals[f]
-        ser = np.array(rl.fft_faces, float)
-        h = 1.0 / ser[:, 0]
-        ax.loglog(h, 100 * np.abs(ser[:, 1] / rl.ref - 1) + 1e-6, "o-", color=f"C{j}",
-                  label=f"f {rl.f:.2f}: {rl.ref_how}")
-        for row in ser:
-            csv.append((rl.f, "faces", int(row[0]), row[1], int(row[2]), row[3], rl.ref,
-                        rl.ref_unc))
-        for row in np.array(rl.fft_periodic, float):
-            csv.append((rl.f, "periodic", int(row[0]), row[1], int(row[2]), row[3],
-                        rl.periodic, rl.periodic_unc))
-    hh = np.array([1 / 48, 1 / 128])
-    ax.loglog(hh, 0.3 * (hh / hh[0]) ** 2, "k--", lw=0.7, label="h^2")
-    ax.axhline(0.1, color="C3", ls=":", lw=0.8, label="0.1 %")
-    ax.set_xlabel("voxel size h / L")
-    ax.set_ylabel("|k_h / k_ref - 1|, %")
-    ax.set_title("FFT reference: the cube with faces, laminate voxels", fontsize=9)
-    ax.legend(fontsize=7)
-    path = ctx.figure("fft")
-    save_figure(fig, path)
-    I.write_csv(path, ("f", "boundary", "n", "k_over_km", "cg_iterations", "seconds",
-                       "reference", "reference_uncertainty"), csv)
+    with figure_csv(ctx.figure("fft"), ("f", "boundary", "n", "k_over_km", "cg_iterations",
+                                        "seconds", "reference", "reference_uncertainty"),
+                    figsize=(6.2, 4.3), line_end="\n") as (ax, csv):
+        for j, f in enumerate(fs):
+            rl = reals[f]
+            ser = np.array(rl.fft_faces, float)
+            h = 1.0 / ser[:, 0]
+            ax.loglog(h, 100 * np.abs(ser[:, 1] / rl.ref - 1) + 1e-6, "o-", color=f"C{j}",
+                      label=f"f {rl.f:.2f}: {rl.ref_how}")
+            for row in ser:
+                csv.append((rl.f, "faces", int(row[0]), row[1], int(row[2]), row[3], rl.ref,
+                            rl.ref_unc))
+            for row in np.array(rl.fft_periodic, float):
+                csv.append((rl.f, "periodic", int(row[0]), row[1], int(row[2]), row[3],
+                            rl.periodic, rl.periodic_unc))
+        hh = np.array([1 / 48, 1 / 128])
+        ax.loglog(hh, 0.3 * (hh / hh[0]) ** 2, "k--", lw=0.7, label="h^2")
+        ax.axhline(0.1, color="C3", ls=":", lw=0.8, label="0.1 %")
+        ax.set_xlabel("voxel size h / L")
+        ax.set_ylabel("|k_h / k_ref - 1|, %")
+        ax.set_title("FFT reference: the cube with faces, laminate voxels", fontsize=9)
+        ax.legend(fontsize=7)
 
 
 def _section(runs, reals, grids, order):

@@ -41,7 +41,10 @@ from thermal_kernel.solvers.implicit import run_implicit
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement, doc_link as _rel, fit_order, plot_with_csv as _plot
+from .framework import Judgement, doc_link as _rel, figure_csv, fit_order
+
+# the figures: one axes; their CSVs floats to 8 digits, "\n" line ends (as committed)
+_FIGURE = dict(figsize=(6.4, 4.2), digits=8, line_end="\n")
 
 CASE = CaseInfo(number=2, title="beam heated at one end", paper="000 sec. 5.1, Table 2, eq. 8",
                 paper_n="19,465", paper_error='"good agreement" (Fig. 9)',
@@ -407,7 +410,9 @@ def _figure_profiles(ctx, main, seeds, n_actual):
                          float(prof[:, k, b].min()), float(prof[:, k, b].max()),
                          float(exact[k, b])))
 
-    def draw_profiles(ax):
+    f_prof = ctx.figure("profiles")
+    with figure_csv(f_prof, "fourier,paper_time_ms,x_over_L,T_mean_K,T_min_K,T_max_K,"
+                    "T_exact_bin_K", **_FIGURE) as (ax, csv):
         for k, fo in enumerate(FOURIER):
             curve = rod_temperature(xs, fo, 1.0, 1.0, T_HOT, T_INIT)
             ax.plot(xs * PAPER_L * 1e3, curve, "k-", lw=0.8,
@@ -422,8 +427,7 @@ def _figure_profiles(ctx, main, seeds, n_actual):
         ax.set_ylabel("T (K)")
         ax.set_title(f"beam, N = {int(np.mean(n_actual)):,}, {len(seeds)} seed(s), haddad")
         ax.legend(fontsize=7)
-    f_prof = _plot(ctx, "profiles", draw_profiles,
-                   "fourier,paper_time_ms,x_over_L,T_mean_K,T_min_K,T_max_K,T_exact_bin_K", rows)
+        csv += rows
     return f_prof, times_ms
 
 
@@ -440,7 +444,9 @@ def _figure_convergence(ctx, ladder, runs, seeds):
     conv = np.array(conv)
     order, const = fit_order(conv[:, 0], conv[:, 1])
 
-    def draw_conv(ax):
+    f_conv = ctx.figure("convergence")
+    with figure_csv(f_conv, "n_mean,max_err_over_dT_mean,min,max,thermal_seconds_mean",
+                    **_FIGURE) as (ax, csv):
         ax.errorbar(conv[:, 0], 100 * conv[:, 1], yerr=[100 * (conv[:, 1] - conv[:, 2]),
                                                          100 * (conv[:, 3] - conv[:, 1])],
                     fmt="o-", label="max |error| over bins and times (mean, min-max of seeds)")
@@ -453,9 +459,7 @@ def _figure_convergence(ctx, ladder, runs, seeds):
         ax.set_xlabel("N")
         ax.set_ylabel("error (% of dT)")
         ax.legend(fontsize=7)
-    f_conv = _plot(ctx, "convergence", draw_conv,
-                   "n_mean,max_err_over_dT_mean,min,max,thermal_seconds_mean",
-                   [tuple(float(v) for v in r) for r in conv])
+        csv += [tuple(float(v) for v in r) for r in conv]
     return f_conv, conv, order
 
 
@@ -470,7 +474,9 @@ def _figure_speed(ctx, dt_runs, conv):
                         r.max_error_over_dT))
     dt_rows = np.array(dt_rows)
 
-    def draw_speed(ax):
+    f_speed = ctx.figure("speed")
+    with figure_csv(f_speed, "dt_fourier,steps,run_seconds,dt_error_over_dT,error_vs_eq8_over_dT",
+                    **_FIGURE) as (ax, csv):
         ax.loglog(dt_rows[:, 2], 100 * dt_rows[:, 3], "s-",
                   label="time-step error (vs dt/4), N main, seed 1")
         ax.loglog(dt_rows[:, 2], 100 * dt_rows[:, 4], "o-", label="total error vs eq. 8")
@@ -478,9 +484,7 @@ def _figure_speed(ctx, dt_runs, conv):
         ax.set_xlabel("thermal wall time (s, one thread)")
         ax.set_ylabel("error (% of dT)")
         ax.legend(fontsize=7)
-    f_speed = _plot(ctx, "speed", draw_speed,
-                    "dt_fourier,steps,run_seconds,dt_error_over_dT,error_vs_eq8_over_dT",
-                    [tuple(float(v) for v in r) for r in dt_rows])
+        csv += [tuple(float(v) for v in r) for r in dt_rows]
     return f_speed, dt_rows
 
 

@@ -38,7 +38,10 @@ from thermal_kernel.solvers.implicit import run_implicit
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement, doc_link as _rel, plot_with_csv as _plot
+from .framework import Judgement, doc_link as _rel, figure_csv
+
+# the figures: one axes; their CSVs floats to 8 digits, "\n" line ends (as committed)
+_FIGURE = dict(figsize=(6.4, 4.2), digits=8, line_end="\n")
 
 CASE = CaseInfo(number=3, title="sheet heated by a moving source",
                 paper="000 sec. 5.2, Tables 3–5, Fig. 11–14", paper_n="1,000–20,000 × 5",
@@ -379,7 +382,9 @@ def _figure_history(ctx, times, ref, sizes, seeds, dems, names):
             r += [float(np.mean([dems[(n, s)].probe_t_k[p][k] for s in seeds])) for p in names]
         rows.append(tuple(r))
 
-    def draw_t(ax):
+    f_t = ctx.figure("history")
+    with figure_csv(f_t, ["t_s"] + [f"ref_{p}_K" for p in names]
+                    + [f"dem{n}_{p}_K" for n in sizes for p in names], **_FIGURE) as (ax, csv):
         for i, p in enumerate(names):
             line, = ax.plot(times, ref[i] - 273.15, lw=1.2, label=f"{p}: continuum")
             for j, n in enumerate(sizes):
@@ -389,15 +394,16 @@ def _figure_history(ctx, times, ref, sizes, seeds, dems, names):
         ax.set_xlabel("t (s)")
         ax.set_ylabel("T (°C)")
         ax.legend(fontsize=6, ncol=2)
-    f_t = _plot(ctx, "history", draw_t,
-                "t_s," + ",".join(f"ref_{p}_K" for p in names) + "," + ",".join(
-                    f"dem{n}_{p}_K" for n in sizes for p in names), rows)
+        csv += rows
     return f_t
 
 
 def _figure_convergence(ctx, conv, order, const, names):
     """Figure 2: error and dispersion against N (000 Fig. 11); its file."""
-    def draw_conv(ax):
+    f_conv = ctx.figure("convergence")
+    with figure_csv(f_conv, ["n_mean"] + [f"err_{p}" for p in names]
+                    + [f"dispersion_{p}" for p in names] + ["thermal_seconds"],
+                    **_FIGURE) as (ax, csv):
         for i, p in enumerate(names):
             line, = ax.loglog(conv[:, 0], 100 * conv[:, 1 + i], "o-", label=f"{p}: error")
             ax.loglog(conv[:, 0], 100 * conv[:, 4 + i], "s--", color=line.get_color(),
@@ -408,10 +414,7 @@ def _figure_convergence(ctx, conv, order, const, names):
         ax.set_xlabel("N")
         ax.set_ylabel("% of the peak rise at the point")
         ax.legend(fontsize=6, ncol=2)
-    f_conv = _plot(ctx, "convergence", draw_conv,
-                   "n_mean," + ",".join(f"err_{p}" for p in names) + ","
-                   + ",".join(f"dispersion_{p}" for p in names) + ",thermal_seconds",
-                   [tuple(float(v) for v in r) for r in conv])
+        csv += [tuple(float(v) for v in r) for r in conv]
     return f_conv
 
 
@@ -421,17 +424,17 @@ def _figure_speed(ctx, conv, worst, cont_s, fields, est, rise_pt, grids):
     cont_err = [float(max(np.max(np.abs(f[i] - est.extrapolated[i])) / rise_pt[i]
                           for i in range(3))) for f in fields]
 
-    def draw_speed(ax):
+    f_speed = ctx.figure("speed")
+    with figure_csv(f_speed, "kind,n_or_cells,seconds,error", **_FIGURE) as (ax, csv):
         ax.loglog(conv[:, -1], 100 * worst, "o-", label="DEM (worst of A, B, C; mean of seeds)")
         ax.loglog(cont_s, 100 * np.array(cont_err), "s-",
                   label="continuum FV vs its Richardson limit")
         ax.set_xlabel("wall time (s, one thread)")
         ax.set_ylabel("error (% of the peak rise)")
         ax.legend(fontsize=7)
-    f_speed = _plot(ctx, "speed", draw_speed, "kind,n_or_cells,seconds,error",
-                    [("dem", float(c[0]), float(c[-1]), float(w)) for c, w in zip(conv, worst)]
-                    + [("continuum", float(g[0] * round(g[0] * LY / LX)), float(s), float(e))
-                       for g, s, e in zip(grids, cont_s, cont_err)])
+        csv += [("dem", float(c[0]), float(c[-1]), float(w)) for c, w in zip(conv, worst)]
+        csv += [("continuum", float(g[0] * round(g[0] * LY / LX)), float(s), float(e))
+                for g, s, e in zip(grids, cont_s, cont_err)]
     return f_speed
 
 

@@ -32,9 +32,9 @@ from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 
 from .framework import (ROOT, CaseInfo, CaseResult, Context, optional_packing,
-                        previous_numbers, today, write_csv)
-from .framework import Action, Judgement, cell_cost_text, fit_order, held_plane_ct, \
-    held_planes, judged, new_figure, rebuild_saved, save_figure, scene_toml
+                        previous_numbers, today)
+from .framework import Action, Judgement, cell_cost_text, figure_csv, fit_order, \
+    held_plane_ct, held_planes, judged, rebuild_saved, scene_toml
 
 CASE = CaseInfo(number=4, title="cube slab, eq. 17", paper="002 sec. 2.2", paper_n="1e5",
                 paper_error="max rel. error 0.7 %",
@@ -226,59 +226,54 @@ def _figures(ctx: Context, rows: list[dict]) -> dict:
     if best is not None:
         prof = np.array(best.profile)
         png = ctx.figure("profiles")
-        fig, (a, b) = new_figure(1, 2, figsize=(10, 4))
-        for fo in sorted(set(prof[:, 0])):
-            sel = prof[prof[:, 0] == fo]
-            a.plot(sel[:, 2], sel[:, 4], "-", color="0.5")
-            a.plot(sel[:, 2], sel[:, 3], "o", label=f"Fo = {fo:.4f}")
-            b.plot(sel[:, 2], 100 * sel[:, 5] / sel[:, 4], "o-", label=f"Fo = {fo:.4f}")
-        a.set_xlabel("x / L (held planes)")
-        a.set_ylabel("T (°C)")
-        a.set_title(f"cube slab, {best.n_particles:,} spheres: DEM (dots), eq. 17 (lines)")
-        a.legend()
-        b.axhline(100 * PAPER_ERROR, ls="--", color="r", label="Haddad's max 0.7 %")
-        b.axhline(-100 * PAPER_ERROR, ls="--", color="r")
-        b.set_xlabel("x / L")
-        b.set_ylabel("(T_DEM − T_exact) / T_exact(°C)  (%)")
-        b.legend()
-        save_figure(fig, png, dpi=120)
-        write_csv(png.with_suffix(".csv"),
-                  ["fourier", "time_s", "x_over_L", "T_dem_C", "T_exact_C", "error_K"],
-                  [tuple(float(v) for v in r) for r in best.profile])
+        with figure_csv(png, ["fourier", "time_s", "x_over_L", "T_dem_C", "T_exact_C",
+                              "error_K"], 1, 2, figsize=(10, 4), dpi=120) as ((a, b), csv):
+            csv += [tuple(float(v) for v in r) for r in best.profile]
+            for fo in sorted(set(prof[:, 0])):
+                sel = prof[prof[:, 0] == fo]
+                a.plot(sel[:, 2], sel[:, 4], "-", color="0.5")
+                a.plot(sel[:, 2], sel[:, 3], "o", label=f"Fo = {fo:.4f}")
+                b.plot(sel[:, 2], 100 * sel[:, 5] / sel[:, 4], "o-", label=f"Fo = {fo:.4f}")
+            a.set_xlabel("x / L (held planes)")
+            a.set_ylabel("T (°C)")
+            a.set_title(f"cube slab, {best.n_particles:,} spheres: DEM (dots), eq. 17 (lines)")
+            a.legend()
+            b.axhline(100 * PAPER_ERROR, ls="--", color="r", label="Haddad's max 0.7 %")
+            b.axhline(-100 * PAPER_ERROR, ls="--", color="r")
+            b.set_xlabel("x / L")
+            b.set_ylabel("(T_DEM − T_exact) / T_exact(°C)  (%)")
+            b.legend()
         out["profiles"] = (png.name, best)
 
     png = ctx.figure("convergence")
-    fig, ax = new_figure(figsize=(5.5, 4))
     orders = {}
-    for family in (WALLED, TILED):
-        fam = sorted((r for r in rows if r.family == family), key=lambda r: r.n_particles)
-        if not fam:
-            continue
-        ns = [r.n_particles for r in fam]
-        ed = np.array([r.max_err_over_dT for r in fam])
-        ec = np.array([r.max_err_over_T_celsius for r in fam])
-        lab = f"{family}: |err|/ΔT"
-        if len(set(ns)) >= 2:
-            orders[family] = fit_order(ns, ed)[0]
-            lab += f", order {orders[family]:.2f}"
-        line, = ax.loglog(ns, 100 * ed, "o", label=lab)
-        ax.loglog(ns, 100 * ec, "x", color=line.get_color(), label=f"{family}: |err|/T(°C)")
-    ax.axhline(100 * PAPER_ERROR, ls="--", color="r", lw=0.8,
-               label="Haddad 1e5: 0.7 % (of T in °C)")
-    ax.set_xlabel("N (spheres)")
-    ax.set_ylabel("max relative error (%)")
-    ax.legend(fontsize=7)
-    save_figure(fig, png, dpi=120)
-    write_csv(png.with_suffix(".csv"),
-              ["family", "name", "n_particles", "ct_held", "ct_domain", "max_err_over_T_celsius",
-               "max_err_over_dT", "steps", "run_seconds", "measured"],
-              [(r.family or "", r.name, r.n_particles, r.ct_held, r.ct_domain,
-                r.max_err_over_T_celsius, r.max_err_over_dT, r.steps, r.run_seconds,
-                r.measured) for r in rows])
+    with figure_csv(png, ["family", "name", "n_particles", "ct_held", "ct_domain",
+                          "max_err_over_T_celsius", "max_err_over_dT", "steps", "run_seconds",
+                          "measured"], figsize=(5.5, 4), dpi=120) as (ax, csv):
+        for family in (WALLED, TILED):
+            fam = sorted((r for r in rows if r.family == family), key=lambda r: r.n_particles)
+            if not fam:
+                continue
+            ns = [r.n_particles for r in fam]
+            ed = np.array([r.max_err_over_dT for r in fam])
+            ec = np.array([r.max_err_over_T_celsius for r in fam])
+            lab = f"{family}: |err|/ΔT"
+            if len(set(ns)) >= 2:
+                orders[family] = fit_order(ns, ed)[0]
+                lab += f", order {orders[family]:.2f}"
+            line, = ax.loglog(ns, 100 * ed, "o", label=lab)
+            ax.loglog(ns, 100 * ec, "x", color=line.get_color(), label=f"{family}: |err|/T(°C)")
+        ax.axhline(100 * PAPER_ERROR, ls="--", color="r", lw=0.8,
+                   label="Haddad 1e5: 0.7 % (of T in °C)")
+        ax.set_xlabel("N (spheres)")
+        ax.set_ylabel("max relative error (%)")
+        ax.legend(fontsize=7)
+        csv += [(r.family or "", r.name, r.n_particles, r.ct_held, r.ct_domain,
+                 r.max_err_over_T_celsius, r.max_err_over_dT, r.steps, r.run_seconds,
+                 r.measured) for r in rows]
     out["convergence"] = png.name
     out["orders"] = orders
     return out
-
 
 
 def judge(numbers: dict) -> Judgement:

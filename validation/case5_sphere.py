@@ -50,8 +50,8 @@ from thermal_kernel.solvers.explicit import run_explicit
 from thermal_kernel.solvers.implicit import run_implicit
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
     register_packing
-from validation.framework import Judgement, cached, cell_cost_text, csv_writer, fit_order, \
-    held_plane_ct, new_figure, save_figure, scene_toml
+from validation.framework import Judgement, cached, cell_cost_text, figure_csv, fit_order, \
+    held_plane_ct, scene_toml
 
 CASE = CaseInfo(number=5, title="sphere with held surface, eq. 18-19",
                 paper="002 sec. 2.3, eq. 18-19, Fig. 7-8", paper_n="1e5, 1e6",
@@ -465,13 +465,12 @@ def _figure_centre(ctx, rows) -> None:
     """Figure 1: the centre temperature against time (002 Fig. 7), and its CSV."""
 
     png = ctx.figure("centre")
-    fig, ax = new_figure(1, 2, figsize=(10, 4))
-    tt = np.linspace(0.05, PAPER_T_END, 200)
-    ax[0].plot(tt, [sphere_centre_temperature(t, PAPER_R, ALPHA, TS_C, T0_C) for t in tt],
-               "k-", lw=1, label="eq. 19 (corrected)")
-    with csv_writer(png.with_suffix(".csv"), [
-            "n_particles", "ct_label", "ct", "paper_time_s", "T_centre_dem_C", "T_centre_exact_C",
-            "error_C"]) as w:
+    with figure_csv(png, ["n_particles", "ct_label", "ct", "paper_time_s", "T_centre_dem_C",
+                          "T_centre_exact_C", "error_C"], 1, 2, figsize=(10, 4),
+                    digits=None) as (ax, csv):
+        tt = np.linspace(0.05, PAPER_T_END, 200)
+        ax[0].plot(tt, [sphere_centre_temperature(t, PAPER_R, ALPHA, TS_C, T0_C) for t in tt],
+                   "k-", lw=1, label="eq. 19 (corrected)")
         for r in rows:
             if (r.n_nominal < 100_000 and not ctx.quick) or r.centre_dem_c is None:
                 continue            # the implicit 1e6 runs keep the final field only
@@ -481,35 +480,32 @@ def _figure_centre(ctx, rows) -> None:
             ax[0].plot(PAPER_TIMES, r.centre_dem_c, style, ms=4, mfc="none", label=lab)
             ax[1].plot(PAPER_TIMES, d, style + "-", ms=4, mfc="none", label=lab)
             for t, td, te in zip(PAPER_TIMES, r.centre_dem_c, r.centre_exact_c):
-                w.writerow([r.n_particles, r.label, f"{r.ct:.6g}", t, f"{td:.6f}",
+                csv.append([r.n_particles, r.label, f"{r.ct:.6g}", t, f"{td:.6f}",
                             f"{te:.6f}", f"{td - te:.6f}"])
-    ax[0].set_xlabel("t (s, paper's time; ours at the same Fourier number)")
-    ax[0].set_ylabel("centre temperature (C)")
-    ax[0].legend(fontsize=6)
-    ax[1].axhline(1.93, color="r", ls=":", lw=1, label="paper's 1.93 C (1e5)")
-    ax[1].axhline(-1.93, color="r", ls=":", lw=1)
-    ax[1].axhline(0, color="k", lw=0.5)
-    ax[1].set_xlabel("t (s)")
-    ax[1].set_ylabel("centre T_DEM - T_exact (C)")
-    ax[1].legend(fontsize=6)
-    save_figure(fig, png)
+        ax[0].set_xlabel("t (s, paper's time; ours at the same Fourier number)")
+        ax[0].set_ylabel("centre temperature (C)")
+        ax[0].legend(fontsize=6)
+        ax[1].axhline(1.93, color="r", ls=":", lw=1, label="paper's 1.93 C (1e5)")
+        ax[1].axhline(-1.93, color="r", ls=":", lw=1)
+        ax[1].axhline(0, color="k", lw=0.5)
+        ax[1].set_xlabel("t (s)")
+        ax[1].set_ylabel("centre T_DEM - T_exact (C)")
+        ax[1].legend(fontsize=6)
 
 
 def _figure_profile(ctx, rows, main, main_n, field) -> None:
     """Figure 2: the profile at t = 10 s (002 Fig. 8), the shells of the main N's runs."""
 
     png = ctx.figure("profile")
-    fig, ax = new_figure(figsize=(6, 4))
-    if field is not None:
-        rr, td, te = field
-        pick = np.random.default_rng(1).permutation(len(rr))[:3000]
-        ax.plot(rr[pick], td[pick], ".", ms=1, color="0.6", label="particles")
-    rs = np.linspace(0, 1, 200)
-    ax.plot(rs, sphere_temperature(rs * PAPER_R, PAPER_T_END, PAPER_R, ALPHA, TS_C, T0_C), "k-",
-            lw=1, label="eq. 18 (corrected)")
-    with csv_writer(png.with_suffix(".csv"), [
-            "n_particles", "ct_label", "r_over_R_shell_mid", "T_dem_C", "T_exact_C",
-            "particles"]) as w:
+    with figure_csv(png, ["n_particles", "ct_label", "r_over_R_shell_mid", "T_dem_C",
+                          "T_exact_C", "particles"], figsize=(6, 4), digits=None) as (ax, csv):
+        if field is not None:
+            rr, td, te = field
+            pick = np.random.default_rng(1).permutation(len(rr))[:3000]
+            ax.plot(rr[pick], td[pick], ".", ms=1, color="0.6", label="particles")
+        rs = np.linspace(0, 1, 200)
+        ax.plot(rs, sphere_temperature(rs * PAPER_R, PAPER_T_END, PAPER_R, ALPHA, TS_C, T0_C), "k-",
+                lw=1, label="eq. 18 (corrected)")
         for r in rows:
             if r.n_nominal != main_n:
                 continue
@@ -517,13 +513,12 @@ def _figure_profile(ctx, rows, main, main_n, field) -> None:
             ax.plot(sh[:, 0], sh[:, 1], "o" if r.label == "paper" else "s", ms=4, mfc="none",
                     label=f"shell means, C_t {r.ct:.3f} ({r.label})")
             for s in r.shells:
-                w.writerow([r.n_particles, r.label, f"{s[0]:.4f}", f"{s[1]:.6f}",
+                csv.append([r.n_particles, r.label, f"{s[0]:.4f}", f"{s[1]:.6f}",
                             f"{s[2]:.6f}", s[3]])
-    ax.set_xlabel("r / R_held")
-    ax.set_ylabel("T at t = 10 s (C)")
-    ax.set_title(f"{main.n_particles:,} spheres", fontsize=9)
-    ax.legend(fontsize=7)
-    save_figure(fig, png)
+        ax.set_xlabel("r / R_held")
+        ax.set_ylabel("T at t = 10 s (C)")
+        ax.set_title(f"{main.n_particles:,} spheres", fontsize=9)
+        ax.legend(fontsize=7)
 
 
 def _figure_convergence(ctx, rows, ours) -> dict:
@@ -533,31 +528,29 @@ def _figure_convergence(ctx, rows, ours) -> dict:
     ns = [r.n_particles for r in ours]
     big = [i for i, n in enumerate(ns) if n >= 10_000] or list(range(len(ns)))
     orders = {}
-    fig, ax = new_figure(figsize=(6, 4.5))
-    for key, lab, mk in (("centre_error_c", "|centre error|", "o"),
-                         ("max_abs_error_c", "max |error| (paper's measure)", "s"),
-                         ("rms_error_c", "RMS error", "^")):
-        e = np.abs([getattr(r, key) for r in ours])
-        orders[key] = fit_order([ns[i] for i in big], [e[i] for i in big])[0]
-        ax.loglog(ns, e, mk + "-", label=f"{lab}, slope {orders[key]:.2f}")
-    for lab in ("paper", "ours, held planes", "ours, domain length"):
-        pr = [r for r in rows if r.label == lab]
-        if pr:
-            ax.loglog([r.n_particles for r in pr], np.abs([r.centre_error_c for r in pr]),
-                      "x", ms=7, label=f"|centre error|, C_t {lab}")
-    ax.axhline(1.93, color="r", ls=":", lw=1, label="paper, 1e5: 1.93 C")
-    ax.axhline(1.0, color="g", ls=":", lw=1, label="goal, 1e5: 1 C")
-    ax.set_xlabel("N (spheres)")
-    ax.set_ylabel("error at t = 10 s (C)")
-    ax.legend(fontsize=7)
-    ax.grid(True, which="both", alpha=0.3)
-    save_figure(fig, png)
-    with csv_writer(png.with_suffix(".csv"), [
-            "n_particles", "ct_label", "ct", "r_held_m", "r_carve_m", "centre_error_C",
-            "centre_error_carve_radius_C", "max_abs_error_C", "rms_error_C", "mean_error_C",
-            "steps", "run_seconds", "pack_seconds"]) as w:
+    with figure_csv(png, ["n_particles", "ct_label", "ct", "r_held_m", "r_carve_m",
+                          "centre_error_C", "centre_error_carve_radius_C", "max_abs_error_C",
+                          "rms_error_C", "mean_error_C", "steps", "run_seconds",
+                          "pack_seconds"], figsize=(6, 4.5), digits=None) as (ax, csv):
+        for key, lab, mk in (("centre_error_c", "|centre error|", "o"),
+                             ("max_abs_error_c", "max |error| (paper's measure)", "s"),
+                             ("rms_error_c", "RMS error", "^")):
+            e = np.abs([getattr(r, key) for r in ours])
+            orders[key] = fit_order([ns[i] for i in big], [e[i] for i in big])[0]
+            ax.loglog(ns, e, mk + "-", label=f"{lab}, slope {orders[key]:.2f}")
+        for lab in ("paper", "ours, held planes", "ours, domain length"):
+            pr = [r for r in rows if r.label == lab]
+            if pr:
+                ax.loglog([r.n_particles for r in pr], np.abs([r.centre_error_c for r in pr]),
+                          "x", ms=7, label=f"|centre error|, C_t {lab}")
+        ax.axhline(1.93, color="r", ls=":", lw=1, label="paper, 1e5: 1.93 C")
+        ax.axhline(1.0, color="g", ls=":", lw=1, label="goal, 1e5: 1 C")
+        ax.set_xlabel("N (spheres)")
+        ax.set_ylabel("error at t = 10 s (C)")
+        ax.legend(fontsize=7)
+        ax.grid(True, which="both", alpha=0.3)
         for r in rows:
-            w.writerow([r.n_particles, r.label, f"{r.ct:.6g}", f"{r.r_held_m:.6g}",
+            csv.append([r.n_particles, r.label, f"{r.ct:.6g}", f"{r.r_held_m:.6g}",
                         f"{r.r_carve_m:.6g}", f"{r.centre_error_c:.5f}",
                         f"{r.centre_error_carve_radius_c:.5f}", f"{r.max_abs_error_c:.5f}",
                         f"{r.rms_error_c:.5f}", f"{r.mean_error_c:.5f}", r.steps,
@@ -570,27 +563,25 @@ def _figure_speed(ctx, ours, speed) -> None:
 
     ns = [r.n_particles for r in ours]
     png = ctx.figure("speed_error")
-    fig, ax = new_figure(figsize=(6, 4.5))
-    ax.loglog([abs(r.centre_error_c) for r in ours], [r.run_seconds for r in ours], "o-",
-              label="explicit (the paper's scheme), N = " + ", ".join(f"{n:.0e}" for n in ns))
-    for r in ours:
-        ax.annotate(f"{r.n_particles:,}", (abs(r.centre_error_c), r.run_seconds),
-                    fontsize=6, xytext=(3, 3), textcoords="offset points")
-    ax.loglog([abs(r.centre_error_c) for r in speed], [r.run_seconds for r in speed], "s-",
-              label=f"Rannacher CN at N = {speed[0].n_particles:,} (labels: steps)")
-    for r in speed:
-        ax.annotate(str(r.steps), (abs(r.centre_error_c), r.run_seconds), fontsize=6,
-                    xytext=(3, -8), textcoords="offset points")
-    ax.set_xlabel("|centre error| at t = 10 s (C)")
-    ax.set_ylabel("thermal wall time, 1 thread (s)")
-    ax.legend(fontsize=7)
-    ax.grid(True, which="both", alpha=0.3)
-    save_figure(fig, png)
-    with csv_writer(png.with_suffix(".csv"), [
-            "solver", "n_particles", "steps", "run_seconds", "centre_error_C", "max_abs_error_C",
-            "rms_error_C"]) as w:
+    with figure_csv(png, ["solver", "n_particles", "steps", "run_seconds", "centre_error_C",
+                          "max_abs_error_C", "rms_error_C"], figsize=(6, 4.5),
+                    digits=None) as (ax, csv):
+        ax.loglog([abs(r.centre_error_c) for r in ours], [r.run_seconds for r in ours], "o-",
+                  label="explicit (the paper's scheme), N = " + ", ".join(f"{n:.0e}" for n in ns))
+        for r in ours:
+            ax.annotate(f"{r.n_particles:,}", (abs(r.centre_error_c), r.run_seconds),
+                        fontsize=6, xytext=(3, 3), textcoords="offset points")
+        ax.loglog([abs(r.centre_error_c) for r in speed], [r.run_seconds for r in speed], "s-",
+                  label=f"Rannacher CN at N = {speed[0].n_particles:,} (labels: steps)")
+        for r in speed:
+            ax.annotate(str(r.steps), (abs(r.centre_error_c), r.run_seconds), fontsize=6,
+                        xytext=(3, -8), textcoords="offset points")
+        ax.set_xlabel("|centre error| at t = 10 s (C)")
+        ax.set_ylabel("thermal wall time, 1 thread (s)")
+        ax.legend(fontsize=7)
+        ax.grid(True, which="both", alpha=0.3)
         for r in ours + speed:
-            w.writerow([r.method, r.n_particles, r.steps, f"{r.run_seconds:.3f}",
+            csv.append([r.method, r.n_particles, r.steps, f"{r.run_seconds:.3f}",
                         f"{r.centre_error_c:.5f}", f"{r.max_abs_error_c:.5f}",
                         f"{r.rms_error_c:.5f}"])
 

@@ -32,11 +32,9 @@ import numpy as np
 from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 
-from .framework import Action, cell_cpu_seconds, held_planes, new_figure, rebuild_saved, \
-    save_figure
+from .framework import Action, cell_cpu_seconds, figure_csv, held_planes, rebuild_saved
 from .framework import (OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
-                        optional_packing, previous_numbers, register_packing,
-                        today, write_csv)
+                        optional_packing, previous_numbers, register_packing, today)
 
 CASE = CaseInfo(number=6, title="C_t calibration", paper="002 sec. 2.1, Fig. 3",
                 paper_n="up to 8e6, 4 realisations",
@@ -365,36 +363,34 @@ def _judge(st: dict[str, dict[str, Realisations]]) -> Judgement:
 
 def _figure(ctx: Context, rows: list[dict], stats: dict) -> tuple[str, str]:
     png = ctx.figure("ct")
-    fig, ax = new_figure(figsize=(6.4, 4.2))
-    ax.axhspan(0.75, 0.84, color="0.88", label="Haddad Fig. 3: 0.75–0.84")
-    styles = {"dump": ("C0", "o"), "z75": ("C3", "s"), "z75_geometric": ("C2", "^"),
-              "z75_harmonic": ("C4", "v")}
-    for v, (color, marker) in styles.items():
-        for fam, fill in (("walled", "none"), ("tiled", None)):
-            s = [r for r in rows if r.name.startswith(fam) and v in r.variants
-                 and r.shape == "box"]
-            if not s:
-                continue
-            ax.semilogx([r.n_particles for r in s], [_mean(r, "ct_domain", v) for r in s],
-                        marker, color=color, mfc=fill, ms=4, alpha=0.7, ls="none",
-                        label=f"{VARIANT_LABEL[v]} ({fam})")
-    for size, n in (("1e4", 1e4), ("1e5", 1e5), ("1e6", 1e6)):
-        for v, (color, _) in styles.items():
-            s = stats.get(size, {}).get(v)
-            if s and s.n > 1:
-                ax.errorbar([n * 1.15], [s.ct], yerr=[s.sd], color=color, capsize=3)
-    ax.semilogx(list(PAPER), list(PAPER.values()), "k*", ms=10,
-                label="Haddad: 0.806 (1e5), 0.834 (1e6)")
-    ax.set_xlabel("N (spheres)")
-    ax.set_ylabel("C_t (mean over the axes, domain length)")
-    ax.legend(fontsize=5.5, loc="center right", bbox_to_anchor=(1.0, 0.39))
-    save_figure(fig, png, dpi=120)
-    write_csv(png.with_suffix(".csv"), CSV_FIELDS,
-              [(r.name, r.n_particles, r.shape, r.seed, v, axis,
-                a.ct_domain, a.ct_held, a.length_domain_m, a.length_held_m,
-                m.gap, m.z_all, m.z_bulk, r.solid_fraction, m.seconds, r.measured)
-               for r in rows for v, m in r.variants.items()
-               for axis, a in sorted(m.axes.items())])
+    with figure_csv(png, CSV_FIELDS, figsize=(6.4, 4.2), dpi=120) as (ax, csv):
+        ax.axhspan(0.75, 0.84, color="0.88", label="Haddad Fig. 3: 0.75–0.84")
+        styles = {"dump": ("C0", "o"), "z75": ("C3", "s"), "z75_geometric": ("C2", "^"),
+                  "z75_harmonic": ("C4", "v")}
+        for v, (color, marker) in styles.items():
+            for fam, fill in (("walled", "none"), ("tiled", None)):
+                s = [r for r in rows if r.name.startswith(fam) and v in r.variants
+                     and r.shape == "box"]
+                if not s:
+                    continue
+                ax.semilogx([r.n_particles for r in s], [_mean(r, "ct_domain", v) for r in s],
+                            marker, color=color, mfc=fill, ms=4, alpha=0.7, ls="none",
+                            label=f"{VARIANT_LABEL[v]} ({fam})")
+        for size, n in (("1e4", 1e4), ("1e5", 1e5), ("1e6", 1e6)):
+            for v, (color, _) in styles.items():
+                s = stats.get(size, {}).get(v)
+                if s and s.n > 1:
+                    ax.errorbar([n * 1.15], [s.ct], yerr=[s.sd], color=color, capsize=3)
+        ax.semilogx(list(PAPER), list(PAPER.values()), "k*", ms=10,
+                    label="Haddad: 0.806 (1e5), 0.834 (1e6)")
+        ax.set_xlabel("N (spheres)")
+        ax.set_ylabel("C_t (mean over the axes, domain length)")
+        ax.legend(fontsize=5.5, loc="center right", bbox_to_anchor=(1.0, 0.39))
+        csv += [(r.name, r.n_particles, r.shape, r.seed, v, axis,
+                 a.ct_domain, a.ct_held, a.length_domain_m, a.length_held_m,
+                 m.gap, m.z_all, m.z_bulk, r.solid_fraction, m.seconds, r.measured)
+                for r in rows for v, m in r.variants.items()
+                for axis, a in sorted(m.axes.items())]
     return png.name, png.with_suffix(".csv").name
 
 

@@ -39,7 +39,7 @@ from thermal_kernel.scene import load_scene
 from thermal_kernel.solvers.steady import solve_steady
 from validation.case4_slab import scene_text as slab_scene_text
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
-    cached, csv_writer, new_figure, register_packing, save_figure
+    cached, figure_csv, register_packing
 
 CASE = CaseInfo(number=7, title="Halo CoV vs halo/DE radius ratio",
                 paper="002 sec. 3, eq. 20-23, Fig. 10-11", paper_n="1e5, 5e5",
@@ -400,39 +400,39 @@ def _figure_cov(ctx, recs) -> dict:
     """Figure 1: the CoV against the ratio (002 Fig. 10), both halo radii; the fitted slopes."""
 
     png = ctx.figure("cov")
-    fig, ax = new_figure(figsize=(7, 4.8))
-    slopes = {}
-    for k, rec in enumerate(recs):
-        for kind, style in (("common", "o-"), ("own", "^--")):
-            rr = [r for r in _rows(rec, kind) if r.ratio >= 2]
-            x = np.array([r.ratio for r in rr])
-            y = 100 * np.array([r.cov_abs for r in rr])
-            ax.loglog(x, y, style, ms=4, color=f"C{k}", mfc="none" if kind == "own" else None,
-                      label=f"{rec.n_particles:,} spheres, halo ratio × "
-                            + ("r̄ (common)" if kind == "common" else "R_p (own)"))
-            fit = x >= 5
-            if fit.sum() >= 2:
-                slopes[f"{rec.n_particles}_{kind}"] = float(
-                    np.polyfit(np.log(x[fit]), np.log(y[fit]), 1)[0])
-        ax.loglog([1.0], [100 * rec.raw.cov_number], "o", color=f"C{k}")
-        ax.loglog([1.0], [100 * rec.raw.cov_volume], "s", mfc="none", color=f"C{k}")
-    ax.loglog([p[0] for p in PAPER], [p[1] for p in PAPER], "r*", ms=12,
-              label="002 (values in its text; raw at ratio 1)")
-    ax.axhline(5, color="0.6", lw=0.6)
-    ax.axhline(2, color="0.6", lw=0.6)
-    ax.set_xlabel("halo / DE radius ratio (at 1: raw eq. 20, ● per particle, □ volume-weighted)")
-    ax.set_ylabel("CoV of |q| over the particles (%)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    save_figure(fig, png)
-    with csv_writer(png.with_suffix(".csv"), [
-            "n_particles", "halo_radius", "ratio", "n_inside", "n_eval", "members_mean",
-            "cov_abs_pct", "cov_abs_volume_weighted_pct", "cov_x_pct", "mean_abs_over_QA",
-            "mean_x_over_QA", "min_abs_over_QA", "max_abs_over_QA", "halo_seconds"]) as w:
+    with figure_csv(png, ["n_particles", "halo_radius", "ratio", "n_inside", "n_eval",
+                          "members_mean", "cov_abs_pct", "cov_abs_volume_weighted_pct",
+                          "cov_x_pct", "mean_abs_over_QA", "mean_x_over_QA", "min_abs_over_QA",
+                          "max_abs_over_QA", "halo_seconds"], figsize=(7, 4.8),
+                    digits=None) as (ax, csv):
+        slopes = {}
+        for k, rec in enumerate(recs):
+            for kind, style in (("common", "o-"), ("own", "^--")):
+                rr = [r for r in _rows(rec, kind) if r.ratio >= 2]
+                x = np.array([r.ratio for r in rr])
+                y = 100 * np.array([r.cov_abs for r in rr])
+                ax.loglog(x, y, style, ms=4, color=f"C{k}", mfc="none" if kind == "own" else None,
+                          label=f"{rec.n_particles:,} spheres, halo ratio × "
+                                + ("r̄ (common)" if kind == "common" else "R_p (own)"))
+                fit = x >= 5
+                if fit.sum() >= 2:
+                    slopes[f"{rec.n_particles}_{kind}"] = float(
+                        np.polyfit(np.log(x[fit]), np.log(y[fit]), 1)[0])
+            ax.loglog([1.0], [100 * rec.raw.cov_number], "o", color=f"C{k}")
+            ax.loglog([1.0], [100 * rec.raw.cov_volume], "s", mfc="none", color=f"C{k}")
+        ax.loglog([p[0] for p in PAPER], [p[1] for p in PAPER], "r*", ms=12,
+                  label="002 (values in its text; raw at ratio 1)")
+        ax.axhline(5, color="0.6", lw=0.6)
+        ax.axhline(2, color="0.6", lw=0.6)
+        ax.set_xlabel("halo / DE radius ratio (at 1: raw eq. 20, ● per particle, "
+                      "□ volume-weighted)")
+        ax.set_ylabel("CoV of |q| over the particles (%)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
         for rec in recs:
             for kind in KINDS:
                 for r in _rows(rec, kind):
-                    w.writerow([rec.n_particles, kind if r.ratio > 0 else "raw",
+                    csv.append([rec.n_particles, kind if r.ratio > 0 else "raw",
                                 r.ratio, r.n_inside, r.n_eval,
                                 f"{r.members_mean:.1f}", f"{100 * r.cov_abs:.4f}",
                                 f"{100 * r.cov_abs_volume:.4f}", f"{100 * r.cov_x:.4f}",
@@ -440,7 +440,7 @@ def _figure_cov(ctx, recs) -> dict:
                                 f"{r.min_abs:.5f}", f"{r.max_abs:.5f}",
                                 f"{r.seconds:.3f}"])
         for p in PAPER:
-            w.writerow(["paper_text", "", p[0], "", "", "", p[1], "", "", "", "", "", "", ""])
+            csv.append(["paper_text", "", p[0], "", "", "", p[1], "", "", "", "", "", "", ""])
     return slopes
 
 
@@ -448,24 +448,22 @@ def _figure_minmax(ctx, main) -> None:
     """Figure 2: mean / min / max |q| (002 Fig. 11) at the main N, common radius."""
 
     png = ctx.figure("minmax")
-    fig, ax = new_figure(figsize=(6, 4))
-    rr = main.rows
-    x = [max(r.ratio, 1.0) for r in rr]
-    ax.semilogx(x, [r.mean_abs for r in rr], "o-", label="mean |q|")
-    ax.semilogx(x, [r.mean_x for r in rr], "s--", ms=3, label="mean q_x")
-    ax.semilogx(x, [r.max_abs for r in rr], "^-", label="max |q|")
-    ax.semilogx(x, [r.min_abs for r in rr], "v-", label="min |q|")
-    ax.axhline(1.0, color="k", lw=0.8)
-    ax.set_xlabel("halo / DE radius ratio (halo ratio × r̄; raw at 1)")
-    ax.set_ylabel("flux / (Q / A)")
-    ax.set_title(f"{main.n_particles:,} spheres", fontsize=9)
-    ax.legend(fontsize=7)
-    save_figure(fig, png)
-    with csv_writer(png.with_suffix(".csv"), [
-            "n_particles", "halo_radius", "ratio", "mean_abs_over_QA", "mean_x_over_QA",
-            "min_abs_over_QA", "max_abs_over_QA"]) as w:
+    with figure_csv(png, ["n_particles", "halo_radius", "ratio", "mean_abs_over_QA",
+                          "mean_x_over_QA", "min_abs_over_QA", "max_abs_over_QA"],
+                    figsize=(6, 4), digits=None) as (ax, csv):
+        rr = main.rows
+        x = [max(r.ratio, 1.0) for r in rr]
+        ax.semilogx(x, [r.mean_abs for r in rr], "o-", label="mean |q|")
+        ax.semilogx(x, [r.mean_x for r in rr], "s--", ms=3, label="mean q_x")
+        ax.semilogx(x, [r.max_abs for r in rr], "^-", label="max |q|")
+        ax.semilogx(x, [r.min_abs for r in rr], "v-", label="min |q|")
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.set_xlabel("halo / DE radius ratio (halo ratio × r̄; raw at 1)")
+        ax.set_ylabel("flux / (Q / A)")
+        ax.set_title(f"{main.n_particles:,} spheres", fontsize=9)
+        ax.legend(fontsize=7)
         for r in rr:
-            w.writerow([main.n_particles, "common", r.ratio, f"{r.mean_abs:.5f}",
+            csv.append([main.n_particles, "common", r.ratio, f"{r.mean_abs:.5f}",
                         f"{r.mean_x:.5f}", f"{r.min_abs:.5f}", f"{r.max_abs:.5f}"])
 
 
@@ -473,10 +471,9 @@ def _figure_speed(ctx, recs, main) -> None:
     """Figure 3: speed against error, seconds per evaluated particle against the CoV."""
 
     png = ctx.figure("speed_error")
-    fig, ax = new_figure(figsize=(6, 4.5))
-    with csv_writer(png.with_suffix(".csv"), [
-            "n_particles", "halo_radius", "ratio", "cov_abs_pct",
-            "microseconds_per_particle"]) as w:
+    with figure_csv(png, ["n_particles", "halo_radius", "ratio", "cov_abs_pct",
+                          "microseconds_per_particle"], figsize=(6, 4.5),
+                    digits=None) as (ax, csv):
         for k, rec in enumerate(recs):
             for kind, style in (("common", "o-"), ("own", "^--")):
                 rr = [r for r in _rows(rec, kind) if r.ratio >= 2]
@@ -484,18 +481,17 @@ def _figure_speed(ctx, recs, main) -> None:
                           [1e6 * r.seconds_per_particle for r in rr], style, ms=4,
                           color=f"C{k}", label=f"{rec.n_particles:,} spheres, {kind}")
                 for r in rr:
-                    w.writerow([rec.n_particles, kind, r.ratio,
+                    csv.append([rec.n_particles, kind, r.ratio,
                                 f"{100 * r.cov_abs:.4f}",
                                 f"{1e6 * r.seconds_per_particle:.3f}"])
-    for r in [r for r in main.rows if r.ratio >= 2]:
-        ax.annotate(f"{r.ratio:g}", (100 * r.cov_abs, 1e6 * r.seconds_per_particle),
-                    fontsize=6, xytext=(3, 3), textcoords="offset points")
-    ax.set_xlabel("CoV of |q| (%)")
-    ax.set_ylabel("Halo evaluation, µs per particle (1 thread)")
-    ax.set_title("labels: halo / DE ratio (common radius)", fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    save_figure(fig, png)
+        for r in [r for r in main.rows if r.ratio >= 2]:
+            ax.annotate(f"{r.ratio:g}", (100 * r.cov_abs, 1e6 * r.seconds_per_particle),
+                        fontsize=6, xytext=(3, 3), textcoords="offset points")
+        ax.set_xlabel("CoV of |q| (%)")
+        ax.set_ylabel("Halo evaluation, µs per particle (1 thread)")
+        ax.set_title("labels: halo / DE ratio (common radius)", fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
 
 
 def _ratio_for(rec, level, kind="common"):

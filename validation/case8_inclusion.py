@@ -31,7 +31,7 @@ from tdem_post.analytic import hashin_shtrikman, maxwell, rayleigh_cubic_array
 from tdem_post.records import column, from_dict, to_dict
 from validation import framework
 from validation import inclusions as I
-from validation.framework import CaseInfo, CaseResult, Context, new_figure, save_figure
+from validation.framework import CaseInfo, CaseResult, Context, figure_csv
 from validation.framework import Judgement
 
 CASE = CaseInfo(number=8, title="Single spherical inclusion vs Maxwell, contrast 0.01-100",
@@ -232,81 +232,77 @@ def _figure_contrast(ctx, runs) -> None:
     """k/k_m against the contrast at the largest N of each series, over Maxwell (002 Fig. 14),
     and the error."""
     key = ERROR_KEY
-    fig, (ax, bx) = new_figure(1, 2, figsize=(11, 4.3))
-    c_line = np.logspace(-2, 2, 200)
-    low, high = hashin_shtrikman(1.0, c_line, F)
-    ax.fill_between(c_line, low, high, color="0.88", label="Hashin-Shtrikman bounds")
-    ax.plot(c_line, maxwell(1.0, c_line, F), "k-", label="Maxwell (002 Fig. 14's reference)")
-    ax.plot(c_line, rayleigh_cubic_array(1.0, c_line, F), "k:",
-            label="Rayleigh, simple-cubic array (exact)")
-    csv = []
-    for s in ("faces", "faces_z75", "periodic_harmonic", "periodic_cut"):
-        runs_s = [r for r in runs if r.series == s]
-        if not runs_s:
-            continue
-        big = max(runs_s, key=lambda r: r.n)
-        mk, col, lab = STYLES[s]
-        cs = [r.contrast for r in big.rows]
-        ax.plot(cs, [r.k for r in big.rows], mk, color=col, mfc="none",
-                label=f"tdem {big.n:,}: {lab.split(',')[0]}, {lab.split(', ')[1]}")
-        bx.plot(cs, [100 * getattr(r, key[s]) for r in big.rows], mk + "-", color=col,
-                label=f"{lab} ({big.n:,})")
-        for r in big.rows:
-            csv.append((s, big.n, r.contrast, r.k, float(maxwell(1, r.contrast, F)),
-                        float(rayleigh_cubic_array(1, r.contrast, F)), getattr(r, key[s])))
-    bx.axhspan(-0.65, 0.65, color="C1", alpha=0.15, label="002's max error (0.65 %)")
-    bx.axhline(0, color="k", lw=0.6)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("contrast c = k_i / k_m")
-    ax.set_ylabel("k_eff / k_m")
-    ax.set_title(f"single inclusion a = L/3 (f = {F:.4f})", fontsize=9)
-    ax.legend(fontsize=7)
-    bx.set_xscale("log")
-    bx.set_xlabel("contrast c = k_i / k_m")
-    bx.set_ylabel("relative error, %")
-    bx.legend(fontsize=7)
-    path = ctx.figure("contrast")
-    save_figure(fig, path)
-    I.write_csv(path, ("series", "n", "contrast", "k_over_km", "maxwell", "rayleigh",
-                       "rel_error"), csv)
+    with figure_csv(ctx.figure("contrast"), ("series", "n", "contrast", "k_over_km", "maxwell",
+                                             "rayleigh", "rel_error"),
+                    1, 2, figsize=(11, 4.3), line_end="\n") as ((ax, bx), csv):
+        c_line = np.logspace(-2, 2, 200)
+        low, high = hashin_shtrikman(1.0, c_line, F)
+        ax.fill_between(c_line, low, high, color="0.88", label="Hashin-Shtrikman bounds")
+        ax.plot(c_line, maxwell(1.0, c_line, F), "k-", label="Maxwell (002 Fig. 14's reference)")
+        ax.plot(c_line, rayleigh_cubic_array(1.0, c_line, F), "k:",
+                label="Rayleigh, simple-cubic array (exact)")
+        for s in ("faces", "faces_z75", "periodic_harmonic", "periodic_cut"):
+            runs_s = [r for r in runs if r.series == s]
+            if not runs_s:
+                continue
+            big = max(runs_s, key=lambda r: r.n)
+            mk, col, lab = STYLES[s]
+            cs = [r.contrast for r in big.rows]
+            ax.plot(cs, [r.k for r in big.rows], mk, color=col, mfc="none",
+                    label=f"tdem {big.n:,}: {lab.split(',')[0]}, {lab.split(', ')[1]}")
+            bx.plot(cs, [100 * getattr(r, key[s]) for r in big.rows], mk + "-", color=col,
+                    label=f"{lab} ({big.n:,})")
+            for r in big.rows:
+                csv.append((s, big.n, r.contrast, r.k, float(maxwell(1, r.contrast, F)),
+                            float(rayleigh_cubic_array(1, r.contrast, F)), getattr(r, key[s])))
+        bx.axhspan(-0.65, 0.65, color="C1", alpha=0.15, label="002's max error (0.65 %)")
+        bx.axhline(0, color="k", lw=0.6)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("contrast c = k_i / k_m")
+        ax.set_ylabel("k_eff / k_m")
+        ax.set_title(f"single inclusion a = L/3 (f = {F:.4f})", fontsize=9)
+        ax.legend(fontsize=7)
+        bx.set_xscale("log")
+        bx.set_xlabel("contrast c = k_i / k_m")
+        bx.set_ylabel("relative error, %")
+        bx.legend(fontsize=7)
 
 
 def _figure_convergence(ctx, runs) -> dict:
     """The max |error| over the contrasts against N (log-log, fitted order) and against the
     time per solve; the fitted orders."""
     key = ERROR_KEY
-    fig, (ax, bx) = new_figure(1, 2, figsize=(11, 4.3))
-    csv, orders = [], {}
-    for s in ("faces", "faces_z75", "periodic_harmonic", "periodic_cut"):
-        runs_s = sorted((r for r in runs if r.series == s), key=lambda r: r.n)
-        if not runs_s:
-            continue
-        mk, col, lab = STYLES[s]
-        n = np.array([r.n for r in runs_s], float)
-        e = np.array([max_err(r, key[s]) for r in runs_s])
-        fit = _fitted(runs_s)
-        p, c0 = framework.fit_order([r.n for r in fit], [max_err(r, key[s]) for r in fit])
-        orders[s] = p
-        ax.loglog(n, 100 * e, mk + "-", color=col,
-                  label=f"{lab}: N^{p:.2f}" if np.isfinite(p) else lab)
-        t = np.array([r.thermal_s / r.solves for r in runs_s])
-        bx.loglog(t, 100 * e, mk + "-", color=col, label=lab)
-        for r, ee, tt in zip(runs_s, e, t):
-            csv.append((s, r.n, ee, tt, *[getattr(r2, key[s]) for r2 in r.rows]))
-    ax.axhline(0.5, color="C1", ls="--", lw=0.8, label="goal 0.5 %")
-    ax.plot([1.5e5], [0.65], "*", color="C1", ms=12, label="002: 0.65 % at ~150,000")
-    ax.set_xlabel("N (spheres)")
-    ax.set_ylabel("max over c of |k / k_ref - 1|, %")
-    ax.legend(fontsize=7)
-    bx.axhline(0.5, color="C1", ls="--", lw=0.8)
-    bx.set_xlabel("wall time per steady solve, s (1 thread, shared machine)")
-    bx.set_ylabel("max over c of |error|, %")
-    bx.legend(fontsize=7)
-    path = ctx.figure("convergence")
-    save_figure(fig, path)
-    I.write_csv(path, ("series", "n", "max_abs_rel_error", "seconds_per_solve",
-                       *[f"err_c{c:g}" for c in CONTRASTS]), csv)
+    orders = {}
+    with figure_csv(ctx.figure("convergence"), ("series", "n", "max_abs_rel_error",
+                                                "seconds_per_solve",
+                                                *[f"err_c{c:g}" for c in CONTRASTS]),
+                    1, 2, figsize=(11, 4.3), line_end="\n") as ((ax, bx), csv):
+        for s in ("faces", "faces_z75", "periodic_harmonic", "periodic_cut"):
+            runs_s = sorted((r for r in runs if r.series == s), key=lambda r: r.n)
+            if not runs_s:
+                continue
+            mk, col, lab = STYLES[s]
+            n = np.array([r.n for r in runs_s], float)
+            e = np.array([max_err(r, key[s]) for r in runs_s])
+            fit = _fitted(runs_s)
+            p, c0 = framework.fit_order([r.n for r in fit], [max_err(r, key[s]) for r in fit])
+            orders[s] = p
+            ax.loglog(n, 100 * e, mk + "-", color=col,
+                      label=f"{lab}: N^{p:.2f}" if np.isfinite(p) else lab)
+            t = np.array([r.thermal_s / r.solves for r in runs_s])
+            bx.loglog(t, 100 * e, mk + "-", color=col, label=lab)
+            for r, ee, tt in zip(runs_s, e, t):
+                csv.append((s, r.n, ee, tt, *[getattr(r2, key[s]) for r2 in r.rows]))
+        ax.axhline(0.5, color="C1", ls="--", lw=0.8, label="goal 0.5 %")
+        ax.plot([1.5e5], [0.65], "*", color="C1", ms=12, label="002: 0.65 % at ~150,000")
+        ax.set_xlabel("N (spheres)")
+        ax.set_ylabel("max over c of |k / k_ref - 1|, %")
+        ax.legend(fontsize=7)
+        bx.axhline(0.5, color="C1", ls="--", lw=0.8)
+        bx.set_xlabel("wall time per steady solve, s (1 thread, shared machine)")
+        bx.set_ylabel("max over c of |error|, %")
+        bx.legend(fontsize=7)
     return orders
 
 

@@ -47,7 +47,7 @@ from tdem_post.records import from_dict, to_dict
 from tdem_post.flux import contact_moments, halo_flux
 from validation import framework
 from validation import inclusions as I
-from validation.framework import CaseInfo, CaseResult, Context, new_figure, save_figure
+from validation.framework import CaseInfo, CaseResult, Context, figure_csv
 
 CASE = CaseInfo(number=9, title="Single inclusion, c = 5: T and Halo flux at A, B, C",
                 paper="002 sec. 4.2, Table 2", paper_n="150,000 / 500,000",
@@ -454,51 +454,49 @@ def run(ctx: Context) -> CaseResult:
 
 
 def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
-    fig, (ax, bx) = new_figure(1, 2, figsize=(12, 4.5))
-    names = list(POINTS)
-    x = np.arange(3)
-    rs = sorted(runs, key=lambda r: r.n)
-    w = 0.8 / (len(rs) + 3)
-    ax.bar(x - 0.4 + w / 2, ref_T, w, yerr=[dT * v for v in ref["T_unc"]], color="k",
-           label="FV (h -> 0)")
-    ax.bar(x - 0.4 + 1.5 * w, PAPER["FE"]["T"], w, color="0.6", label="002 FE")
-    csv = [("FV", 0, "", *ref_T, *ref_q),
-           ("002 FE", 0, "", *PAPER["FE"]["T"], *PAPER["FE"]["q"]),
-           ("002 DE", 150000, "", *PAPER["150,000 DE"]["T"], *PAPER["150,000 DE"]["q"]),
-           ("002 DE", 500000, "", *PAPER["500,000 DE"]["T"], *PAPER["500,000 DE"]["q"])]
-    for k, r in enumerate(rs):
-        ax.bar(x - 0.4 + (2.5 + k) * w, r.T, w, color=f"C{k}", label=f"tdem {r.n:,}")
-        for key in KEYS:
-            csv.append(("tdem", r.n, key, *r.T, *r.q[key]))
-    ax.set_xticks(x, names)
-    ax.set_ylim(24, 36)
-    ax.set_ylabel("T, °C")
-    ax.legend(fontsize=7)
-    # flux: error against 002's FE, ours (common radius, ratio 11; own radius hollow) and the
-    # paper's at its two N
-    for j, (lab, n) in enumerate((("002 DE 150,000", 150_000), ("002 DE 500,000", 500_000))):
-        bx.plot(x + 0.25 * (j - 0.5) * 0.3, [100 * v for v in PAPER_ERR[n]], "r*" if j == 0
-                else "m*", ms=11, label=lab)
-    for k, r in enumerate(rs):
-        off = -0.3 + 0.6 * k / max(len(rs) - 1, 1)
-        sc = r.scatter[_key(*MAIN)]
-        bx.errorbar(x + off, [100 * v for v in r.err_q_fe[_key(*MAIN)]],
-                    yerr=[100 * sc[lab]["std"] if np.isfinite(sc[lab]["std"]) else 0
-                          for lab in names], fmt="o", color=f"C{k}", capsize=3,
-                    label=f"tdem {r.n:,}, Halo 11 r̄ (bar: std over the symmetric points)")
-        bx.plot(x + off + 0.04, [100 * v for v in r.err_q_fe["own_11"]], "^", mfc="none",
-                color=f"C{k}", label=f"tdem {r.n:,}, Halo 11 R_p (own)")
-    bx.axhline(0, color="k", lw=0.8)
-    bx.set_xticks(x, names)
-    bx.set_ylabel("|q| against 002's FE (%)")
-    bx.set_ylim(-35, 35)
-    bx.legend(fontsize=6, ncol=2)
-    fig.suptitle("single inclusion, c = 5: A (0.5, 0.5, 0.5) L, B (0.08, 0.5, 0.5) L, "
-                 "C (0.5, 0.92, 0.5) L", fontsize=9)
-    path = ctx.figure("points")
-    save_figure(fig, path)
-    I.write_csv(path, ("source", "n", "flux_reading", "T_A_C", "T_B_C", "T_C_C", "q_A", "q_B",
-                       "q_C"), csv)
+    with figure_csv(ctx.figure("points"), ("source", "n", "flux_reading", "T_A_C", "T_B_C",
+                                           "T_C_C", "q_A", "q_B", "q_C"),
+                    1, 2, figsize=(12, 4.5), line_end="\n") as ((ax, bx), csv):
+        names = list(POINTS)
+        x = np.arange(3)
+        rs = sorted(runs, key=lambda r: r.n)
+        w = 0.8 / (len(rs) + 3)
+        ax.bar(x - 0.4 + w / 2, ref_T, w, yerr=[dT * v for v in ref["T_unc"]], color="k",
+               label="FV (h -> 0)")
+        ax.bar(x - 0.4 + 1.5 * w, PAPER["FE"]["T"], w, color="0.6", label="002 FE")
+        csv += [("FV", 0, "", *ref_T, *ref_q),
+                ("002 FE", 0, "", *PAPER["FE"]["T"], *PAPER["FE"]["q"]),
+                ("002 DE", 150000, "", *PAPER["150,000 DE"]["T"], *PAPER["150,000 DE"]["q"]),
+                ("002 DE", 500000, "", *PAPER["500,000 DE"]["T"], *PAPER["500,000 DE"]["q"])]
+        for k, r in enumerate(rs):
+            ax.bar(x - 0.4 + (2.5 + k) * w, r.T, w, color=f"C{k}", label=f"tdem {r.n:,}")
+            for key in KEYS:
+                csv.append(("tdem", r.n, key, *r.T, *r.q[key]))
+        ax.set_xticks(x, names)
+        ax.set_ylim(24, 36)
+        ax.set_ylabel("T, °C")
+        ax.legend(fontsize=7)
+        # flux: error against 002's FE, ours (common radius, ratio 11; own radius hollow) and the
+        # paper's at its two N
+        for j, (lab, n) in enumerate((("002 DE 150,000", 150_000), ("002 DE 500,000", 500_000))):
+            bx.plot(x + 0.25 * (j - 0.5) * 0.3, [100 * v for v in PAPER_ERR[n]], "r*" if j == 0
+                    else "m*", ms=11, label=lab)
+        for k, r in enumerate(rs):
+            off = -0.3 + 0.6 * k / max(len(rs) - 1, 1)
+            sc = r.scatter[_key(*MAIN)]
+            bx.errorbar(x + off, [100 * v for v in r.err_q_fe[_key(*MAIN)]],
+                        yerr=[100 * sc[lab]["std"] if np.isfinite(sc[lab]["std"]) else 0
+                              for lab in names], fmt="o", color=f"C{k}", capsize=3,
+                        label=f"tdem {r.n:,}, Halo 11 r̄ (bar: std over the symmetric points)")
+            bx.plot(x + off + 0.04, [100 * v for v in r.err_q_fe["own_11"]], "^", mfc="none",
+                    color=f"C{k}", label=f"tdem {r.n:,}, Halo 11 R_p (own)")
+        bx.axhline(0, color="k", lw=0.8)
+        bx.set_xticks(x, names)
+        bx.set_ylabel("|q| against 002's FE (%)")
+        bx.set_ylim(-35, 35)
+        bx.legend(fontsize=6, ncol=2)
+        ax.figure.suptitle("single inclusion, c = 5: A (0.5, 0.5, 0.5) L, B (0.08, 0.5, 0.5) L, "
+                     "C (0.5, 0.92, 0.5) L", fontsize=9)
 
 
 def _point_tables(rs, ref_T, ref_q, ref, dT, q0, grids) -> tuple:

@@ -340,18 +340,20 @@ def previous_numbers(number: int) -> dict:
     return dict(record["result"].get("numbers", {})) if record else {}
 
 
-def write_csv(path: Path, header: list[str], rows, lineterminator: str = "\r\n") -> Path:
-    """A small CSV (the numbers of a figure or a table), written atomically (the csv module's
-    line ends unless told)."""
+def write_csv(path: Path, header, rows, digits: int | None = 10,
+              line_end: str = "\r\n") -> Path:
+    """A small CSV (the numbers of a figure or a table), written atomically by the csv module:
+    ``header`` (a sequence, or its names comma-separated), then ``rows``, floats to ``digits``
+    significant digits (as given when None), lines ended by ``line_end``."""
     import csv
     import io
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     text = io.StringIO(newline="")
-    w = csv.writer(text, lineterminator=lineterminator)
-    w.writerow(header)
+    w = csv.writer(text, lineterminator=line_end)
+    w.writerow(header.split(",") if isinstance(header, str) else list(header))
     for r in rows:
-        w.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in r])
+        w.writerow([f"{v:.{digits}g}" if digits and isinstance(v, float) else v for v in r])
     return write_text_atomic(path, text.getvalue())
 
 
@@ -411,52 +413,40 @@ def held_plane_ct(scene, packing, axis: str, ct_used: float, conductivity_w_mk: 
 
 
 def new_figure(*args, **kwargs):
-    """``plt.subplots(*args, **kwargs)`` on matplotlib's Agg backend (no display): (fig, axes).
-    Every case's figure starts here and ends in :func:`save_figure`."""
+    """``plt.subplots(*args, **kwargs)`` on matplotlib's Agg backend (no display): (fig, axes)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt.subplots(*args, **kwargs)
 
 
-def save_figure(fig, path: Path, dpi: int = 110) -> Path:
-    """``fig`` laid out (tight), written to ``path`` atomically and closed."""
+@contextlib.contextmanager
+def figure_csv(path: Path, header, *grid, figsize, dpi: int = 110, digits: int | None = 10,
+               line_end: str = "\r\n"):
+    """Every case's figure and the CSV of its numbers beside it, in one place::
+
+        with figure_csv(ctx.figure("profiles"), ["x", "T_K"], 1, 2, figsize=(10, 4)) as (ax, csv):
+            ...draw on ax (the axes of ``plt.subplots(*grid)``), append the plotted numbers...
+
+    When the block ends the figure is laid out (tight), written to ``path`` atomically at
+    ``dpi`` and closed, and ``rows`` go to ``path`` with the suffix .csv below ``header``
+    (:func:`write_csv`: floats to ``digits`` significant digits, or as given; ``line_end``).
+    The cases keep the number format and line ends their committed CSVs were written with
+    (docs/img/validation_*.csv, byte for byte). An error in the block writes neither file."""
     import matplotlib.pyplot as plt
 
     from thermal_kernel.atomic import savefig_atomic
+    fig, axes = new_figure(*grid, figsize=figsize)
+    rows: list = []
+    try:
+        yield axes, rows
+    except BaseException:
+        plt.close(fig)
+        raise
     fig.tight_layout()
     savefig_atomic(fig, path, dpi=dpi)
     plt.close(fig)
-    return path
-
-
-@contextlib.contextmanager
-def csv_writer(path: Path, header):
-    """A ``csv.writer`` (the csv module's dialect) for the block, its ``header`` row first;
-    the rows go to ``path`` atomically when the block ends (a figure's numbers, written while
-    it is drawn)."""
-    import csv
-    import io
-    text = io.StringIO(newline="")
-    w = csv.writer(text)
-    w.writerow(header)
-    yield w
-    write_text_atomic(Path(path), text.getvalue())
-
-
-def plot_with_csv(ctx: Context, stem: str, draw, csv_header: str, csv_rows) -> Path:
-    """One-axes figure ``ctx.figure(stem)`` drawn by ``draw(ax)``, and beside it its numbers:
-    ``csv_header`` (comma-separated names) and ``csv_rows`` (floats to 8 digits)."""
-    from thermal_kernel.atomic import open_atomic
-    path = ctx.figure(stem)
-    fig, ax = new_figure(figsize=(6.4, 4.2))
-    draw(ax)
-    save_figure(fig, path)
-    with open_atomic(path.with_suffix(".csv"), "w") as f:
-        f.write(csv_header + "\n")
-        for r in csv_rows:
-            f.write(",".join(f"{v:.8g}" if isinstance(v, float) else str(v) for v in r) + "\n")
-    return path
+    write_csv(Path(path).with_suffix(".csv"), header, rows, digits=digits, line_end=line_end)
 
 
 def doc_link(path: Path) -> str:

@@ -200,13 +200,6 @@ def particle_fraction(packing: Packing, phase: np.ndarray) -> float:
     return float(v[phase == 1].sum() / v.sum())
 
 
-def write_csv(path, header, rows):
-    """The numbers of a figure beside it (same stem, .csv), every number to 10 digits."""
-    return framework.write_csv(Path(path).with_suffix(".csv"), list(header),
-                               [[v if isinstance(v, str) else f"{v:.10g}" for v in r]
-                                for r in rows], lineterminator="\n")
-
-
 # ---------------------------------------------------------------- periodic homogenisation
 # A cube of side L with one centred sphere, two opposite faces held and the others adiabatic is,
 # for the continuum, exactly the unit cell of the simple-cubic array of spheres (the faces are
