@@ -337,12 +337,11 @@ def build_on_ranks(scene, packing_path, comm) -> RankBuild:
         held_boundary = np.full(n, -1, np.int32)
         held_boundary[v["fixed_particle"]] = v["fixed_boundary"]
         built.update(problem=problem, info=info, v=v, terms=terms, clusters=clusters,
-                     held_boundary=held_boundary)
-        return (len(scene.boundaries), problem.source is not None,
-                np.flatnonzero(terms["held"] | ~clusters.tied_particle))
+                     held_boundary=held_boundary, keep=terms["held"] | ~clusters.tied_particle)
+        return len(scene.boundaries), problem.source is not None
 
-    nb_count, has_source, keep_rows = comm.bcast(
-        agree(comm, root if rank == 0 else (lambda: None)), root=0)
+    nb_count, has_source = comm.bcast(agree(comm, root if rank == 0 else (lambda: None)),
+                                      root=0)
     cut_all = gid_all = None
     from .solvers.petsc_backend import share_block, share_particles
     own = _send_particle_shares(comm, built, order, starts, mine, n, share_particles)
@@ -350,7 +349,8 @@ def build_on_ranks(scene, packing_path, comm) -> RankBuild:
     del columns
 
     # rank 0 keeps the rows of the held and untied particles (its ledger, floating clusters)
-    want = np.flatnonzero(np.isin(mine, keep_rows))
+    want = np.flatnonzero(_scatter_blocks(comm, built["keep"][order] if rank == 0 else None,
+                                          starts, np.uint8))
     sub = adjacency[want].tocoo()
     pieces = comm.gather((mine[want][sub.row], sub.col.astype(np.int64), sub.data), root=0)
     del sub, adjacency
@@ -367,7 +367,8 @@ def build_on_ranks(scene, packing_path, comm) -> RankBuild:
     v = dict(built["v"], m=m)       # the file's contacts (the problem holds none of them)
     net = network_of(built["problem"], v, built["terms"], root_adj, degree_all, n_active,
                      built["clusters"], coord_max,
-                     h_sum / n_active if n_active else math.nan, adjacency_rows=keep_rows)
+                     h_sum / n_active if n_active else math.nan,
+                     adjacency_rows=np.flatnonzero(built["keep"]))
     return RankBuild(share=own, meta=meta, order=order, particles=particles, net=net,
                      info=built["info"])
 
