@@ -488,7 +488,8 @@ def document(data) -> str:
       "the law on every contact, and the other ranks hold only their blocks (the table "
       "'Memory of the build on the ranks' below). Next: the boundary kinds on blocks, a "
       "parallel sort of the Morton keys and parallel output (rank 0's per-particle part), "
-      "and the `[neighbours]` criterion on the ranks.\n")
+      "and the `[neighbours]` criterion on the ranks (a scene with one -- "
+      "`runs/dense_box_1e5.toml` among them -- is still built whole on rank 0).\n")
     w("As in-process: `--checkpoint-every K` and `--resume` (rank 0 gathers the state after "
       "every K output times and writes the in-process checkpoint; either kind resumes on "
       "either), rank 0 shows the in-process progress bar, and `tdem campaign` runs each case "
