@@ -71,8 +71,6 @@ CASES = [
     ("shell_thin_10000", "shell", 10_000, (1,), False, dict(shell_diameters=3.0)),
     ("shell_cloud3_thin_10000", "shell", 10_000, (1, 2, 3), False,
      dict(shell_cloud_diameters=3.0, shell_diameters=4.0)),
-    ("shell_servo_10000", "shell", 10_000, (1, 2, 3), False,
-     dict(shell_cloud_diameters=3.0, shell_servo_gain=3.3, shell_stage_unbalanced=0.05)),
     ("shell_100000", "shell", 100_000, (1,), False, {}),
     ("shell_1000000", "shell", 1_000_000, (1,), False, {}),
 ]

@@ -586,22 +586,17 @@ def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None):
             young_now = young
         final, label, unbalanced_target, overlap_scale = enter_stage(p, mats, stages, k,
                                                                      friction_stage)
-        if not final:
-            # the stages before the last end once the walls carry the pressure and the
-            # unbalanced force is below shell_stage_unbalanced (the direct path's 1e-2: most of
-            # each stage's steps go to its slow creep from ~3e-2 down to 1e-2)
-            unbalanced_target = max(unbalanced_target, p["shell_stage_unbalanced"])
         # a wall moves at most this far per control interval: a few overlaps of its column of
         # contacts, or shell_press_step mean radii while it carries less than a quarter of the
         # target (the cut layer's deficit closing: little resistance)
-        # (after the first stage the column is shell_servo_gain times stiffer than Hertz's
-        # typical overlap says: the contacts hold ~3.3 h(E) per diameter, shell_radius_factor)
-        servo = 1.0 if k == 0 else p["shell_servo_gain"]
-        max_move = r_mean * min(1e-2, 2.0 * servo * layers * overlap_scale)
+        # (the contacts hold ~3.3 h per diameter, shell_radius_factor: a servo that gain times
+        # stiffer backs the walls off faster after a stiffening but leaves the stages unsettled,
+        # docs/packings.md)
+        max_move = r_mean * min(1e-2, 2.0 * layers * overlap_scale)
         # Hertz: a column of `layers` contacts of overlap ~ overlap_scale r shortens by
         # layers r overlap_scale ((p_t/p)^(2/3) - 1) to bring its stress from p to p_t; in the
         # soft first stage the cut layer also rearranges: its own gain (shell_soft_gain)
-        gain = p["shell_soft_gain"] if k == 0 else servo
+        gain = p["shell_soft_gain"] if k == 0 else 1.0
         settled = 0
         while True:
             O.run(every, True)
@@ -766,8 +761,6 @@ def shell_state(p, state):
     info = dict(cell_info, shell_diameters=float(p["shell_diameters"]),
                 shell_cloud_diameters=float(p["shell_cloud_diameters"]),
                 shell_thickness_m=shell_m, frozen_band_m=band_m,
-                shell_stage_unbalanced=float(p["shell_stage_unbalanced"]),
-                shell_servo_gain=float(p["shell_servo_gain"]),
                 shell_free_particles=int(free.sum()),
                 shell_frozen_particles=int(band.sum()),
                 shell_cut_particles_removed=int((~whole).sum()),

@@ -82,15 +82,6 @@ PARAMS = {
                                        "walls before the stages (0: the walls are pressed onto "
                                        "the carved faces; 3: the direct box's wall layer, "
                                        "docs/packings.md)"),
-    "shell_servo_gain": dict(kind="float", default=1.0, minimum=0.1, maximum=10.0,
-                             help="shell: gain of the walls' pressure controller after the soft "
-                                  "stage, in units of the Hertz compliance of the shell's column "
-                                  "(1: the typical overlap (p/E*)^(2/3) per contact; the direct "
-                                  "boxes' contacts hold ~3.3 times that)"),
-    "shell_stage_unbalanced": dict(kind="float", default=1e-2, minimum=1e-4, maximum=0.5,
-                                   help="shell: the unbalanced-force ratio that ends each stage "
-                                        "before the last (the last ends at "
-                                        "unbalanced_force_target; 1e-2 as the direct path)"),
     "cell_particles": dict(kind="int", default=10000, minimum=20,
                            help="tiled, shell: spheres in the periodic cell that is copied"),
     "cell_packing": dict(kind="str", default="",

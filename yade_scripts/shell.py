@@ -127,8 +127,6 @@ def layer_solid_fraction(bulk_solid_fraction, layer_diameters):
 
 
 CLOUD_SHRINK = 0.75
-
-
 # candidates in the layer per sphere before the placement gives up
 CLOUD_TRIES = 20_000
 def cloud_layer(box, position, radius, layer_m, seed, solid_fraction, shrink=1.0):
