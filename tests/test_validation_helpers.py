@@ -1,12 +1,14 @@
 """The scaffolding validation/framework.py gives every case: the convergence fit, the run cache,
-the scene text and the figure with its CSV (one home each, issue 26)."""
+the scene text, the figure with its CSV and the section's tables and figure links (one home
+each, issue 26)."""
 import math
 
 import numpy as np
 import pytest
 
 from thermal_kernel.scene import load_scene
-from validation.framework import cached, figure_csv, fit_order, scene_toml
+from validation.framework import ROOT, cached, figure_csv, figure_md, fit_order, md_table, \
+    scene_toml
 
 
 def test_fit_order_recovers_a_power_law_and_skips_what_has_no_log():
@@ -37,8 +39,18 @@ def test_figure_csv_writes_the_figure_and_its_numbers_or_neither(tmp_path):
     with pytest.raises(ZeroDivisionError):
         with figure_csv(failed, ["x"], figsize=(3, 2)) as (ax, csv):
             csv.append((1.0,))
-            1 / 0
+            csv.append((1.0 / 0,))
     assert not failed.exists() and not failed.with_suffix(".csv").exists()
+
+
+def test_md_table_and_figure_md_write_the_sections_markdown():
+    table = md_table(["", "A", "B"], [("tdem 400", 1.5, "2 %"), ["FV", "—", ""]])
+    assert table.splitlines() == ["| | A | B |", "|---|---|---|", "| tdem 400 | 1.5 | 2 % |",
+                                  "| FV | — |  |"]
+    assert md_table(["N"], []) == "| N |\n|---|"
+    png = ROOT / "docs" / "img" / "validation_case0_x.png"
+    assert figure_md("case 0", png) == \
+        "![case 0](img/validation_case0_x.png)\n\n(data: `img/validation_case0_x.csv`)"
 
 
 def test_cached_makes_once_per_version_and_keeps_the_field(tmp_path):

@@ -38,7 +38,7 @@ from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 from validation import framework
 from validation import inclusions as I
-from validation.framework import CaseInfo, CaseResult, Context, figure_csv
+from validation.framework import CaseInfo, CaseResult, Context, figure_csv, md_table
 
 CASE = CaseInfo(number=10, title="Random dispersion vs an FFT reference / Maxwell / HS bounds",
                 paper="002 sec. 5.1, Fig. 17", paper_n="8e6",
@@ -632,27 +632,26 @@ def _figure_fft(ctx, reals) -> None:
 def _section(runs, reals, grids, order):
     fs = sorted(reals)
     rs = sorted(runs, key=lambda r: r.n)
-    real_lines = "\n".join(
-        f"| {f:g} | {reals[f].count} | {reals[f].method}"
-        + (f" ({reals[f].sweeps} sweeps)" if reals[f].sweeps else "")
-        + f" | {reals[f].f:.4f} | "
-        + ", ".join(f"{x[0]}³ {x[1]:.5f}" for x in reals[f].fft_faces)
-        + f" | **{reals[f].ref:.5f} ± {reals[f].ref_unc:.5f}** "
-          f"({100 * reals[f].ref_unc / reals[f].ref:.3f} %; {reals[f].ref_how}) | "
-        + f"{reals[f].periodic:.5f} ({100 * (reals[f].periodic / reals[f].ref - 1):+.2f}"
-          " %) |"
-        for f in fs)
-    head = "| N | inclusion radius / r̄ | " + " | ".join(
-        f"f {reals[f].f:.3f}" for f in fs) + " | s / solve |"
-    lines = [head, "|" + "---|" * (len(fs) + 3)]
-    for r in rs:
-        lines.append(f"| {r.n:,} | {r.a_over_r:.1f} | " + " | ".join(
-            f"{x.k:.4f} ({100 * x.err_ref:+.2f} %)" for x in r.rows)
-            + f" | {r.thermal_s / r.solves:.1f} |")
+    real_lines = md_table(
+        ["f target", "inclusions", "placed by", "f", "FFT, cube with faces, by grid",
+         "reference (h → 0)", "FFT, periodic cell (vs reference)"],
+        [(f"{f:g}", reals[f].count,
+          reals[f].method + (f" ({reals[f].sweeps} sweeps)" if reals[f].sweeps else ""),
+          f"{reals[f].f:.4f}", ", ".join(f"{x[0]}³ {x[1]:.5f}" for x in reals[f].fft_faces),
+          f"**{reals[f].ref:.5f} ± {reals[f].ref_unc:.5f}** "
+          f"({100 * reals[f].ref_unc / reals[f].ref:.3f} %; {reals[f].ref_how})",
+          f"{reals[f].periodic:.5f} ({100 * (reals[f].periodic / reals[f].ref - 1):+.2f} %)")
+         for f in fs])
+    lines = md_table(["N", "inclusion radius / r̄"] + [f"f {reals[f].f:.3f}" for f in fs]
+                     + ["s / solve"],
+                     [[f"{r.n:,}", f"{r.a_over_r:.1f}"]
+                      + [f"{x.k:.4f} ({100 * x.err_ref:+.2f} %)" for x in r.rows]
+                      + [f"{r.thermal_s / r.solves:.1f}"] for r in rs])
     big = rs[-1]
-    mx = "\n".join(f"| {x.f:.3f} | {x.k:.4f} | {x.ref:.4f} | {x.maxwell:.4f} | "
-                   f"{x.bruggeman:.4f} | {x.hs_low:.4f} – {x.hs_high:.4f} |"
-                   for x in big.rows)
+    mx = md_table(["f", "tdem", "FFT", "Maxwell", "Bruggeman", "HS bounds"],
+                  [(f"{x.f:.3f}", f"{x.k:.4f}", f"{x.ref:.4f}", f"{x.maxwell:.4f}",
+                    f"{x.bruggeman:.4f}", f"{x.hs_low:.4f} – {x.hs_high:.4f}")
+                   for x in big.rows])
     jam = next((reals[f].jam for f in fs if reals[f].jam is not None), None)
     jam_text = (f"RSA (seed {SEED}) jams at f = {jam:.3f} "
                 f"({int(round(jam / (4 / 3 * math.pi * RADIUS ** 3)))} "
@@ -690,21 +689,16 @@ f 0.1–0.3).
 moves alternating with inflation to the largest radius the configuration allows — the
 Lubachevsky–Stillinger idea (002's "LSA") without the event-driven dynamics.
 
-| f target | inclusions | placed by | f | FFT, cube with faces, by grid \
-| reference (h → 0) | FFT, periodic cell (vs reference) |
-|---|---|---|---|---|---|---|
 {real_lines}
 
 ![FFT convergence](img/validation_case10_fft.png)
 
 k_eff/k_m of tdem (error against the FFT reference):
 
-{chr(10).join(lines)}
+{lines}
 
 At N = {big.n:,}, against the estimates (Maxwell = the Hashin–Shtrikman lower bound):
 
-| f | tdem | FFT | Maxwell | Bruggeman | HS bounds |
-|---|---|---|---|---|---|
 {mx}
 
 ![k/k_m against f](img/validation_case10_fraction.png)
@@ -744,17 +738,16 @@ def _limits(rs, reals):
 def _bridge_text(bridges: list) -> str:
     if not bridges:
         return ""
-    rows = "\n".join(f"| {b.n:,} | {b.f:.3f} | {b.bridges:,} | "
-                      f"{100 * b.err_ref:+.2f} % | "
-                      f"{100 * b.err_ref_bridges_interface:+.2f} % |" for b in bridges)
+    rows = md_table(["N", "f", "bridging contacts", "error vs FFT (002's rule)",
+                     "with them at the interface conductivity"],
+                    [(f"{b.n:,}", f"{b.f:.3f}", f"{b.bridges:,}", f"{100 * b.err_ref:+.2f} %",
+                      f"{100 * b.err_ref_bridges_interface:+.2f} %") for b in bridges])
     return f"""
 
 **The bridging contacts, measured** (`bridge_test`): the same flux test with the contacts that
 join two different inclusions at the interface conductivity 2c/(1 + c) instead of c — a
 measurement of their share of the error, not the case's model (which keeps 002's rule):
 
-| N | f | bridging contacts | error vs FFT (002's rule) | with them at the interface conductivity |
-|---|---|---|---|---|
 {rows}
 """
 

@@ -18,7 +18,7 @@ from thermal_kernel.hand_inputs import (POISSON, YOUNG_PA, conductance,
                                         hertz_radius_equal_spheres, one_contact)
 
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement
+from .framework import Judgement, md_table
 
 CASE = CaseInfo(number=11, title="pipe / BOB / Argento / Chaudhuri two-sphere values",
                 paper="003 eq. 34–40, 004", paper_n="two spheres",
@@ -110,16 +110,15 @@ def judge(numbers: dict) -> Judgement:
 def run(ctx: Context) -> CaseResult:
     m = measure()
     worst = m.max_rel_error
-    table = "\n".join(f"| {r.quantity} | {r.tdem:.10g} | {r.closed_form:.10g} | "
-                      f"{r.rel_error:.1e} | {r.source} |" for r in m.rows)
+    table = md_table(["quantity", "tdem", "closed form", "relative error", "reference"],
+                     [(r.quantity, f"{r.tdem:.10g}", f"{r.closed_form:.10g}",
+                       f"{r.rel_error:.1e}", r.source) for r in m.rows])
     printed = m.rows[1].tdem
     section = f"""\
 Exact case: each law's conductance of two spheres in contact (003 Table 1 particle, R = 2 mm,
 κ = 205 W/m/K, F_n = 10 N; E = 50 GPa, ν = 0.2; ζ the Hertz contact radius of eq. 34-35)
 against its closed form.
 
-| quantity | tdem | closed form | relative error | reference |
-|---|---|---|---|---|
 {table}
 
 The pipe law's 2.066 of eq. 40 is √2 / 0.6846 = {printed:.6f} rounded to four digits (the paper's

@@ -24,7 +24,7 @@ from tdem_post.post_run import MEAN_FIELD_LAWS
 from tdem_post.records import from_dict, record_from_json, to_dict
 
 from .framework import ROOT, CaseInfo, CaseResult, Context
-from .framework import Judgement
+from .framework import Judgement, md_table
 
 CASE = CaseInfo(number=12, title="the pressure campaign", paper="003 Fig. 7, 10", paper_n="7,500",
                 paper_error="γ(p), τ(p) fits")
@@ -180,12 +180,14 @@ def measure(quick: bool = False) -> CampaignNumbers:
 
 def run(ctx: Context) -> CaseResult:
     m = measure(ctx.quick)
-    rows = [f"| {law} | {_curve(f.gamma_abc)} | {_curve(f.tau_abc_s)} s | "
-            f"{f.gamma_loglog_slope:.3f} | "
-            + (f"{min(f.gamma_paper_over_paper):.3g} … {max(f.gamma_paper_over_paper):.3g}"
-               if f.gamma_paper_over_paper else "—") + " |"
-            for law, f in sorted(m.laws.items())]
     pg, pt = m.paper_gamma_abc, m.paper_tau_abc_s
+    table = md_table(
+        ["law", "γ(p)", "τ(p)", "log-log slope of γ", "γ_paper / paper's γ (low → high p)"],
+        [(law, _curve(f.gamma_abc), f"{_curve(f.tau_abc_s)} s", f"{f.gamma_loglog_slope:.3f}",
+          f"{min(f.gamma_paper_over_paper):.3g} … {max(f.gamma_paper_over_paper):.3g}"
+          if f.gamma_paper_over_paper else "—") for law, f in sorted(m.laws.items())]
+        + [("paper (003)", f"{_curve(pg)} (Fig. 7)", f"{_curve(pt)} s (Fig. 10)", "falling",
+            "1")])
     pipe = m.laws.get("pipe", next(iter(m.laws.values())))
     pipe_g, pipe_t = pipe.gamma_abc[1], pipe.tau_abc_s[1]
     s = m.seeds
@@ -200,10 +202,7 @@ Everything — setup, the 21 cases, the profiles, the figures and the discussion
 [docs/campaign.md](campaign.md); the fits from the campaign's record
 (`{m.source}`):
 
-| law | γ(p) | τ(p) | log-log slope of γ | γ_paper / paper's γ (low → high p) |
-|---|---|---|---|---|
-{chr(10).join(rows)}
-| paper (003) | {_curve(pg)} (Fig. 7) | {_curve(pt)} s (Fig. 10) | falling | 1 |
+{table}
 
 ![γ(p)](img/campaign_7500_gamma_p.png)
 

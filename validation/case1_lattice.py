@@ -16,7 +16,7 @@ from tdem_post.records import from_dict, to_dict
 from thermal_kernel.hand_inputs import capacity, conductance, lattice_inputs
 
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement
+from .framework import Judgement, md_table
 
 CASE = CaseInfo(number=1, title="simple-cubic lattice = 7-point stencil", paper="000 sec. 3",
                 paper_n="lattice", paper_error="exact")
@@ -77,18 +77,19 @@ def judge(numbers: dict) -> Judgement:
 
 def run(ctx: Context) -> CaseResult:
     m = measure()                     # 125 spheres: seconds, quick or not
+    table = md_table(["quantity", "tdem against the stencil (max relative error)"], [
+        ("H of an interior contact vs λ a", _err(m.conductance_rel_error)),
+        ("capacity of an interior particle vs ρ c a³", f"{m.capacity_rel_error:.1e} (000's "
+         "Table 1 prints f_vl(6) = 0.52359 for π/6: 1.7e-5)"),
+        ("dT/dt of the centre particle for T = x² + 2y² − z² vs α ∇²T",
+         f"{m.laplacian_rel_error:.1e}")])
     section = f"""\
 Exact case. On a simple-cubic lattice of pitch a (000's Table 2 material: λ = 134 W/m/K,
 ρ = 2790 kg/m³, c = 880 J/kg/K) every interior contact of the `terreros` law has H = λ a²/a = λ a
 and every interior particle the capacity ρ c a³, so the particle balance is the 7-point stencil.
 On a {m.n_particles}-sphere lattice ({m.interior_contacts} interior contacts):
 
-| quantity | tdem against the stencil (max relative error) |
-|---|---|
-| H of an interior contact vs λ a | {_err(m.conductance_rel_error)} |
-| capacity of an interior particle vs ρ c a³ | {m.capacity_rel_error:.1e} (000's Table 1 prints \
-f_vl(6) = 0.52359 for π/6: 1.7e-5) |
-| dT/dt of the centre particle for T = x² + 2y² − z² vs α ∇²T | {m.laplacian_rel_error:.1e} |
+{table}
 
 The test `{TEST}` asserts the same numbers (rtol 1e-14 for H, 2e-5 for the capacity and the
 Laplacian); this case computes them with the test's own helpers."""

@@ -41,7 +41,7 @@ from thermal_kernel.solvers.implicit import run_implicit
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement, doc_link as _rel, figure_csv, fit_order
+from .framework import Judgement, figure_csv, figure_md, fit_order, md_table
 
 # the figures: one axes; their CSVs floats to 8 digits, "\n" line ends (as committed)
 _FIGURE = dict(figsize=(6.4, 4.2), digits=8, line_end="\n")
@@ -375,21 +375,20 @@ def run(ctx: Context) -> CaseResult:
 def _series_text(extra: dict) -> str:
     out = []
     for series, beams in extra.items():
-        rows = "\n".join(
-            f"| {s} | {w.n_particles:,} | {w.ct_held_plane:.4f} | "
-            f"{100 * w.max_error_over_dT:.2f} | "
-            + " / ".join(f"{100 * e:.2f}" for e in w.max_error_over_dT_per_time)
-            + f" | {w.radius_over_mean_radius:.1f} |"
-            for s, w in sorted(beams.items()))
+        table = md_table(
+            ["seed", "N", "C_t (held planes)", "max error (% of ΔT)", "per time (% of ΔT)",
+             "R / r̄"],
+            [(s, f"{w.n_particles:,}", f"{w.ct_held_plane:.4f}",
+              f"{100 * w.max_error_over_dT:.2f}",
+              " / ".join(f"{100 * e:.2f}" for e in w.max_error_over_dT_per_time),
+              f"{w.radius_over_mean_radius:.1f}") for s, w in sorted(beams.items())])
         ok = sum(w.max_error_over_dT < 0.01 for w in beams.values())
         out.append(f"""
 **At the paper's N, {SERIES[series]}.** {ok} of {len(beams)} seeds below 1 % of ΔT at every
 output time (max over the bins and the {len(FOURIER)} times; haddad, C_t calibrated on the same
 packing):
 
-| seed | N | C_t (held planes) | max error (% of ΔT) | per time (% of ΔT) | R / r̄ |
-|---|---|---|---|---|---|
-{rows}
+{table}
 """)
     return "".join(out)
 
@@ -506,14 +505,13 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, extra=None) -> Ca
     f_conv, conv, order = _figure_convergence(ctx, ladder, runs, seeds)
     f_speed, dt_rows = _figure_speed(ctx, dt_runs, conv)
 
-    ntab = ["| N (mean of seeds) | max error, mean / min / max of seeds | seeds under 1 % | "
-            "thermal s (calibration + run) |", "|---|---|---|---|"]
-    n_ok = {}
-    for n, row in zip(ladder, conv):
-        e = [runs[(n, s, "haddad")].max_error_over_dT for s in seeds]
-        n_ok[n] = int(sum(v < 0.01 for v in e))
-        ntab.append(f"| {row[0]:,.0f} | {100 * row[1]:.2f} / {100 * row[2]:.2f} / "
-                    f"{100 * row[3]:.2f} % | {n_ok[n]} of {len(seeds)} | {row[4]:.1f} |")
+    n_ok = {n: int(sum(runs[(n, s, "haddad")].max_error_over_dT < 0.01 for s in seeds))
+            for n in ladder}
+    ntab = md_table(["N (mean of seeds)", "max error, mean / min / max of seeds",
+                     "seeds under 1 %", "thermal s (calibration + run)"],
+                    [(f"{row[0]:,.0f}", f"{100 * row[1]:.2f} / {100 * row[2]:.2f} / "
+                      f"{100 * row[3]:.2f} %", f"{n_ok[n]} of {len(seeds)}", f"{row[4]:.1f}")
+                     for n, row in zip(ladder, conv)])
     signed = np.array([(np.array(r.profile_k) - np.array(r.exact_k)) / DT_K
                        for r in main])                        # (seeds, times, bins)
     bias_first = float(signed[:, 0, 0].mean())
@@ -569,30 +567,24 @@ Signed, next to the hot end at the first time the beam is \
 {100 * abs(bias_first):.2f} % of ΔT (the hottest bin, seed mean; over all bins and times the mean
 is {100 * bias_all:+.3f} %).{bias_note}
 
-{chr(10).join(ntab)}
+{ntab}
 
 Sphere by sphere (no binning), the rms of T − T_eq.8 at each time is {rms_txt} of ΔT: the scatter
 a single sphere carries, which the bin means average out.
 
-![case 2 profiles]({_rel(f_prof)})
-
-(data: `{_rel(f_prof.with_suffix('.csv'))}`)
+{figure_md("case 2 profiles", f_prof)}
 
 **Convergence with N** (max error over bins and times, mean of the seeds, min–max as bars):
 fitted order N^{order:.2f}, to compare with N^(−1/3), the order of an error made by a layer one
 sphere thick at the end of a beam of fixed shape (r/L ∝ N^(−1/3)); the seeds scatter by a
 factor 2–5 at every N, so the fit is rough.
 
-![case 2 convergence]({_rel(f_conv)})
-
-(data: `{_rel(f_conv.with_suffix('.csv'))}`)
+{figure_md("case 2 convergence", f_conv)}
 
 **Speed against error.** The thermal run is cheap (implicit, one factorisation); the time step is
 not what limits the accuracy — halving dt moves the profile by far less than the packing error:
 
-![case 2 speed against error]({_rel(f_speed)})
-
-(data: `{_rel(f_speed.with_suffix('.csv'))}`)
+{figure_md("case 2 speed against error", f_speed)}
 
 {_series_text(extra)}
 **What limits us.** The error is the packing's: the held layer at the hot end (the spheres within

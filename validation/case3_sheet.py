@@ -38,7 +38,7 @@ from thermal_kernel.solvers.implicit import run_implicit
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement, doc_link as _rel, figure_csv
+from .framework import Judgement, figure_csv, figure_md, md_table
 
 # the figures: one axes; their CSVs floats to 8 digits, "\n" line ends (as committed)
 _FIGURE = dict(figsize=(6.4, 4.2), digits=8, line_end="\n")
@@ -466,15 +466,14 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
                         f"{row.source_energy_ratio_range[0]:.4f}–"
                         f"{row.source_energy_ratio_range[1]:.4f})" for row in table)
     nx_f, dt_f = grids[-1]
-    tab = ["| N (mean) | " + " | ".join(f"{p}: error (mean / max of seeds) | "
-                                        f"{p}: error of the seed mean | {p}: dispersion"
-                                        for p in names) + " | thermal s |",
-           "|---" * (2 + 3 * len(names)) + "|"]
-    for row in table:
-        tab.append(f"| {row.n:,.0f} | " + " | ".join(
-            f"{100 * row.at(p).err_mean_of_seeds:.2f} / {100 * row.at(p).err_max:.2f} % | "
-            f"{100 * row.at(p).err_of_seed_mean:.2f} % | {100 * row.at(p).dispersion:.2f} %"
-            for p in names) + f" | {row.seconds:.1f} |")
+    tab = md_table(
+        ["N (mean)"] + [f"{p}: {what}" for p in names for what in (
+            "error (mean / max of seeds)", "error of the seed mean", "dispersion")]
+        + ["thermal s"],
+        [[f"{row.n:,.0f}"] + [cell for p in names for cell in (
+            f"{100 * row.at(p).err_mean_of_seeds:.2f} / {100 * row.at(p).err_max:.2f} %",
+            f"{100 * row.at(p).err_of_seed_mean:.2f} %", f"{100 * row.at(p).dispersion:.2f} %")]
+         + [f"{row.seconds:.1f}"] for row in table])
     last = table[-1]
     worst_big = max(last.at(p).err_mean_of_seeds for p in names)
     cts = [d.ct for d in dems.values()]
@@ -518,18 +517,14 @@ centres, averaged alike.
 **dispersion** (Fig. 11: the standard deviation over the 5 seeds, averaged over time, / the peak
 rise):
 
-{chr(10).join(tab)}
+{tab}
 
-![case 3 temperature histories at A, B, C]({_rel(f_t)})
-
-(data: `{_rel(f_t.with_suffix('.csv'))}`)
+{figure_md("case 3 temperature histories at A, B, C", f_t)}
 
 **Convergence with N** (error, mean of the seeds, and dispersion): the worst of A, B, C falls as
 N^{order:.2f}.
 
-![case 3 error and dispersion against N]({_rel(f_conv)})
-
-(data: `{_rel(f_conv.with_suffix('.csv'))}`)
+{figure_md("case 3 error and dispersion against N", f_conv)}
 
 The heat the DEM's source puts in (spheres whose centre is inside the disc receive q × their
 represented volume) against the disc's exact {source_energy_exact() / 1e3:.1f} kJ: {src_txt} —
@@ -550,9 +545,7 @@ disc switches on and off).
 cheaper at equal error by one to two orders of magnitude — the DEM's reason to exist is the
 mechanics it shares its particles with (000 sec. 1), not the conduction alone:
 
-![case 3 speed against error]({_rel(f_speed)})
-
-(data: `{_rel(f_speed.with_suffix('.csv'))}`)
+{figure_md("case 3 speed against error", f_speed)}
 
 **What limits us.** The paper's N is small for this sheet: at 1,000 spheres the sheet is ~1.3
 sphere diameters thick and the 4 mm source covers a few dozen spheres, so whether a sphere's

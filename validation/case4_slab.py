@@ -34,7 +34,7 @@ from thermal_kernel.atomic import write_text_atomic
 from .framework import (ROOT, CaseInfo, CaseResult, Context, optional_packing,
                         previous_numbers, today)
 from .framework import Action, Judgement, cell_cost_text, figure_csv, fit_order, \
-    held_plane_ct, held_planes, judged, rebuild_saved, scene_toml
+    held_plane_ct, held_planes, judged, md_table, rebuild_saved, scene_toml
 
 CASE = CaseInfo(number=4, title="cube slab, eq. 17", paper="002 sec. 2.2", paper_n="1e5",
                 paper_error="max rel. error 0.7 %",
@@ -363,25 +363,24 @@ def _steady_cells(r):
     return lg["cold"], lg["mid"], lg["hot"], hot
 
 
-def _packing_table(rows: list[SlabRow]) -> list[str]:
-    """The rows of the section's table of packings (the 1e5 row bold, carried rows marked)."""
-    table = []
+def _packing_table(rows: list[SlabRow]) -> str:
+    """The section's table of packings (the 1e5 row bold, carried rows marked)."""
+    cells = []
     for r in rows:
-        bold = r.name == "tiled_1e5"
-        b = "**" if bold else ""
+        b = "**" if r.name == "tiled_1e5" else ""
         t = f"{r.run_seconds:.1f}" if r.run_seconds < 100 else f"{r.run_seconds:.0f}"
         mark = " †" if r.how != HOW else ""
-        table.append(f"| {b}{r.label}{b}{mark} | {b}{r.n_particles:,}{b} | "
-                     f"{r.ct_held:.4f} / {r.ct_domain:.4f} | "
-                     f"{b}{_p(r.max_err_over_T_celsius)}{b} | "
-                     f"{b}{_p(r.max_err_over_dT)}{b} | {_z_cell(r)} | "
-                     f"{r.steps:,} | {t} |")
-    return table
+        cells.append((f"{b}{r.label}{b}{mark}", f"{b}{r.n_particles:,}{b}",
+                      f"{r.ct_held:.4f} / {r.ct_domain:.4f}",
+                      f"{b}{_p(r.max_err_over_T_celsius)}{b}", f"{b}{_p(r.max_err_over_dT)}{b}",
+                      _z_cell(r), f"{r.steps:,}", t))
+    return md_table(["packing", "N", "C_t (held planes / domain)", "max err / T(°C)",
+                     "max err / ΔT", "bulk Z (gap)", "explicit steps", "thermal (s)"], cells)
 
 
-def _steady_table(rows: list[SlabRow]) -> list[str]:
-    """The rows of the steady-profile table: its ends, mid-slab and shape per packing."""
-    steady_rows = []
+def _steady_table(rows: list[SlabRow]) -> str:
+    """The steady-profile table: its ends, mid-slab and shape per packing."""
+    cells = []
     for r in rows:
         if r.steady_pct is None and r.steady_legacy is None:
             continue
@@ -394,9 +393,8 @@ def _steady_table(rows: list[SlabRow]) -> list[str]:
                      "held layers")
         else:
             shape = "ends of one sign"
-        steady_rows.append(f"| {r.label}, {r.n_particles:,} | {_sg(cold)} | {mid} | "
-                           f"{hot_t} | {shape} |")
-    return steady_rows
+        cells.append((f"{r.label}, {r.n_particles:,}", _sg(cold), mid, hot_t, shape))
+    return md_table(["packing", "cold end", "mid-slab", "hot end", "shape"], cells)
 
 
 def _where(b5: SlabRow | None, b6: SlabRow | None, n: dict) -> dict:
@@ -437,7 +435,7 @@ def _result(rows: list[SlabRow], figs: dict) -> CaseResult:
     carried = sorted({r.measured for r in rows if r.how != HOW})
     table = _packing_table(rows)
     ratios = [r.max_err_over_dT / r.max_err_over_T_celsius for r in rows]
-    steady_rows = _steady_table(rows)
+    steady = _steady_table(rows)
     b4, b5, b6 = by.get("ds_10000_s1"), by.get("tiled_1e5"), by.get("tiled_1e6")
     tiled4 = [by[k] for k in ("tiled_10000_s1", "tiled_10000_s2", "tiled_10000_s3") if k in by]
     parts = _where(b5, b6, n)
@@ -500,10 +498,7 @@ One packing by hand: `slab_case(PACKING)` of `validation/case4_slab.py`, what ev
 
 (data: `img/{Path(prof_png[0]).with_suffix('.csv').name}`)
 """ if prof_png else "") + f"""
-| packing | N | C_t (held planes / domain) | max err / T(°C) | max err / ΔT | bulk Z (gap) | \
-explicit steps | thermal (s) |
-|---|---|---|---|---|---|---|---|
-{chr(10).join(table)}
+{table}
 """ + (f"""
 † Measured {', '.join(carried)} (through every dumped pair: before the scene's neighbour
 criterion of issue 23) and carried over: those packings are not on this machine;
@@ -536,9 +531,7 @@ The steady profile says where the floor comes from (steady T minus the linear pr
 {STEADY_BINS} bins from the cold to the hot held plane, computed by `slab_case` on the same
 network). The calibration makes the heat flow exact, not the profile linear:
 
-| packing | cold end | mid-slab | hot end | shape |
-|---|---|---|---|---|
-{chr(10).join(steady_rows)}
+{steady}
 
 So the cut (tiled) faces carry a boundary resistance that the single calibrated C_t cannot
 absorb; at 1e5 and 1e6 it bends the steady profile by a few tenths of a per cent of ΔT, and the

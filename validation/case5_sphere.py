@@ -51,7 +51,7 @@ from thermal_kernel.solvers.implicit import run_implicit
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
     register_packing
 from validation.framework import Judgement, cached, cell_cost_text, figure_csv, fit_order, \
-    held_plane_ct, scene_toml
+    held_plane_ct, md_table, scene_toml
 
 CASE = CaseInfo(number=5, title="sphere with held surface, eq. 18-19",
                 paper="002 sec. 2.3, eq. 18-19, Fig. 7-8", paper_n="1e5, 1e6",
@@ -654,12 +654,13 @@ def _cross_case_facts(main, calib) -> dict:
                 case7=case7)
 
 
-def _fmt_row(r):
-    return (f"| {r.n_particles:,} | {r.label} | {r.ct:.4f} | {1e3 * r.r_held_m:.2f} / "
-            f"{1e3 * r.r_carve_m:.2f} | {r.centre_error_c:+.3f} | "
-            f"{r.centre_error_carve_radius_c:+.3f} | {r.max_abs_error_c:.3f} "
-            f"({r.argmax_r_over_R:.2f}) | {r.rms_error_c:.3f} | {r.steps:,} | "
-            f"{r.run_seconds:.1f} |")
+def _row_cells(r):
+    """The cells of one run in the section's results table."""
+    return (f"{r.n_particles:,}", r.label, f"{r.ct:.4f}",
+            f"{1e3 * r.r_held_m:.2f} / {1e3 * r.r_carve_m:.2f}", f"{r.centre_error_c:+.3f}",
+            f"{r.centre_error_carve_radius_c:+.3f}",
+            f"{r.max_abs_error_c:.3f} ({r.argmax_r_over_R:.2f})", f"{r.rms_error_c:.3f}",
+            f"{r.steps:,}", f"{r.run_seconds:.1f}")
 
 
 def _paper_texts(by: dict, main: dict) -> dict:
@@ -721,15 +722,20 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
     met = abs(main.centre_error_c) <= 1.0
     facts = _cross_case_facts(main, calib)
     n_fmt = ", ".join(f"{r.n_particles:,}" for r in rows if r.label == PRIMARY)
-    table = "\n".join(_fmt_row(r) for r in rows)
-    cal_rows = "\n".join(
-        f"| {c.n_particles:,} | {c.ct_bulk:.4f} | "
-        + (f"{c.ct_domain_mean:.4f} | {c.ct_held_mean:.4f} | "
-           f"{' / '.join(f'{v:.4f}' for v in c.ct_held)} |" if c.ct_held is not None
-           else "— | — | — |") for c in calib.values())
-    speed_rows = "\n".join(
-        f"| {r.steps} | {r.run_seconds:.2f} | {r.centre_error_c:+.3f} | "
-        f"{r.max_abs_error_c:.3f} |" for r in speed)
+    table = md_table(["N", "C_t", "value", "R_h / R_carve (mm)", "centre error",
+                      "centre error vs R_carve", "max error (r/R_h)", "RMS", "steps",
+                      "thermal (s)"], [_row_cells(r) for r in rows])
+    cal_table = md_table(
+        ["cube N", "C_t bulk (interior)", "C_t (domain)", "C_t (held planes)",
+         "held planes x / y / z"],
+        [(f"{c.n_particles:,}", f"{c.ct_bulk:.4f}")
+         + ((f"{c.ct_domain_mean:.4f}", f"{c.ct_held_mean:.4f}",
+             " / ".join(f"{v:.4f}" for v in c.ct_held)) if c.ct_held is not None
+            else ("—", "—", "—")) for c in calib.values()])
+    speed_table = md_table(
+        ["CN steps", "thermal (s)", "centre error (°C)", "max error (°C)"],
+        [(r.steps, f"{r.run_seconds:.2f}", f"{r.centre_error_c:+.3f}",
+          f"{r.max_abs_error_c:.3f}") for r in speed])
     t = _paper_texts(by, main)
     paper_txt, paper_conv, paper_conv_txt = t["paper_txt"], t["paper_conv"], t["paper_conv_txt"]
     big_txt, big_limit = t["big_txt"], t["big_limit"]
@@ -783,17 +789,12 @@ planes and domain length, docs/validation.md "The slab length") include the defi
 layers along the cube's adiabatic cut faces (case 7 measures it{facts['case7']}) and so come
 out {facts['whole_over_bulk']} higher; they are run beside it up to 1e5.
 
-| cube N | C_t bulk (interior) | C_t (domain) | C_t (held planes) | held planes x / y / z |
-|---|---|---|---|---|
-{cal_rows}
+{cal_table}
 
 **Results at t = 10 s** (errors T_DEM − T_exact, °C; "centre": volume-weighted mean over the free
 particles within 0.1 R_h of the centre; "max": max |T_p − T_exact(r_p)| over the free particles,
 the paper's Fig. 8c measure, with where it lies as r/R_h; thermal: 1 thread, shared machine):
 
-| N | C_t | value | R_h / R_carve (mm) | centre error | centre error vs R_carve | max error \
-(r/R_h) | RMS | steps | thermal (s) |
-|---|---|---|---|---|---|---|---|---|---|
 {table}
 
 At 1e5 with our C_t the centre error is **{main.centre_error_c:+.3f} °C** against the paper's
@@ -827,9 +828,7 @@ other side.
 {speed[0].n_particles:,} spheres with n steps to t = 10 s, against the explicit run of the
 same packing, {main.steps:,} steps in {main.run_seconds:.1f} s):
 
-| CN steps | thermal (s) | centre error (°C) | max error (°C) |
-|---|---|---|---|
-{speed_rows}
+{speed_table}
 
 The cheapest implicit run within the explicit one's error takes {best_cn.steps} steps,
 {best_cn.run_seconds:.1f} s. The error at this Fourier number is the packing's, not the time

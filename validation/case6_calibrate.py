@@ -32,7 +32,8 @@ import numpy as np
 from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 
-from .framework import Action, cell_cpu_seconds, figure_csv, held_planes, rebuild_saved
+from .framework import Action, cell_cpu_seconds, figure_csv, held_planes, md_table, \
+    rebuild_saved
 from .framework import (OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
                         optional_packing, previous_numbers, register_packing, today)
 
@@ -450,8 +451,8 @@ def _cell(r, v):
     return f"{_mean(r, 'ct_domain', v):.4f}"
 
 
-def _packing_table(rows: list[CalibRow]) -> list[str]:
-    """The rows of the table of every packing (carried rows marked)."""
+def _packing_table(rows: list[CalibRow]) -> str:
+    """The table of every packing (carried rows marked)."""
     table = []
     for r in rows:
         dump = r.variants.get("dump")
@@ -465,14 +466,16 @@ def _packing_table(rows: list[CalibRow]) -> list[str]:
         zd = f"{dump.z_bulk:.2f}" if dump else "—"
         zc = f"{z75.gap:.4f} / {z75.z_bulk:.2f}" if z75 else "—"
         held = f"{_mean(r, 'ct_held', 'z75'):.4f}" if z75 else "—"
-        table.append(f"| {r.label}{mark} | {_fmt_n(r.n_particles)} | {shape} | {zd} | "
-                     f"{_cell(r, 'dump')} | {zc} | {_cell(r, 'z75')} | {held} | "
-                     f"{_cell(r, 'z75_geometric')} | {_cell(r, 'z75_harmonic')} | {t} |")
-    return table
+        table.append((f"{r.label}{mark}", _fmt_n(r.n_particles), shape, zd, _cell(r, "dump"),
+                      zc, _cell(r, "z75"), held, _cell(r, "z75_geometric"),
+                      _cell(r, "z75_harmonic"), t))
+    return md_table(["packing", "N", "shape", "bulk Z, every pair", "C_t, every pair",
+                     "gap / bulk Z (Z 7.5)", "C_t, Z 7.5", "C_t held, Z 7.5",
+                     "C_t, Z 7.5, R_m geom.", "C_t, Z 7.5, R_m harm.", "solves (s)"], table)
 
 
-def _realisation_table(stats: dict) -> list[str]:
-    """The rows of the table over the realisations, per size and variant."""
+def _realisation_table(stats: dict) -> str:
+    """The table over the realisations, per size and variant."""
     real = []
     for size in ("1e4", "1e5", "1e6"):
         for v in VARIANTS:
@@ -481,10 +484,11 @@ def _realisation_table(stats: dict) -> list[str]:
                 continue
             cov = f"{100 * s.cov:.2f} %" if s.n > 1 else "—"
             sd = f"{s.sd:.4f}" if s.n > 1 else "—"
-            real.append(f"| {size} | {VARIANT_LABEL[v]} | {', '.join(map(str, s.seeds))} | "
-                        f"{s.gap:.4f} | {s.z_bulk:.3f} | **{s.ct:.4f}** | {sd} | {cov} | "
-                        f"{s.ct_held:.4f} | {s.seconds:.1f} |")
-    return real
+            real.append((size, VARIANT_LABEL[v], ", ".join(map(str, s.seeds)), f"{s.gap:.4f}",
+                         f"{s.z_bulk:.3f}", f"**{s.ct:.4f}**", sd, cov, f"{s.ct_held:.4f}",
+                         f"{s.seconds:.1f}"))
+    return md_table(["N", "variant", "cell seeds", "gap", "bulk Z", "C_t mean (domain)", "sd",
+                     "CoV", "C_t (held planes)", "solve (s)"], real)
 
 
 def _coordination(b5: CalibRow | None, b6: CalibRow | None, n: dict) -> list[str]:
@@ -631,17 +635,11 @@ independent seed of the 10,000-sphere periodic cell (its own YADE run, ~9 min on
 tiled and carved to 1e4, 1e5 and 1e6; the cubes of one size carved from one cell share its
 structure, so they are not counted as realisations.
 
-| N | variant | cell seeds | gap | bulk Z | C_t mean (domain) | sd | CoV | C_t (held planes) \
-| solve (s) |
-|---|---|---|---|---|---|---|---|---|---|
-{chr(10).join(real)}
+{real}
 
 Every packing:
 
-| packing | N | shape | bulk Z, every pair | C_t, every pair | gap / bulk Z (Z 7.5) \
-| C_t, Z 7.5 | C_t held, Z 7.5 | C_t, Z 7.5, R_m geom. | C_t, Z 7.5, R_m harm. | solves (s) |
-|---|---|---|---|---|---|---|---|---|---|---|
-{chr(10).join(table)}
+{table}
 
 (C_t: mean over the axes, domain length. Bulk: centres ≥ 2 mean diameters from every face.
 Times: the steady solves of every variant, one thread, shared machine.){carried_note}

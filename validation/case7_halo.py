@@ -39,7 +39,7 @@ from thermal_kernel.scene import load_scene
 from thermal_kernel.solvers.steady import solve_steady
 from validation.case4_slab import scene_text as slab_scene_text
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
-    cached, figure_csv, register_packing
+    cached, figure_csv, md_table, register_packing
 
 CASE = CaseInfo(number=7, title="Halo CoV vs halo/DE radius ratio",
                 paper="002 sec. 3, eq. 20-23, Fig. 10-11", paper_n="1e5, 5e5",
@@ -512,10 +512,7 @@ def _tables(recs, slopes) -> tuple:
     """The section's tables over the packings: the CoV by ratio, the raw flux's CoV, the two
     neighbour criteria, the ratios reaching 5 % and 2 % (with their times)."""
     ns = [r.n_particles for r in recs]
-    header = ("| ratio | " + " | ".join(f"{n:,}: ratio × r̄ (common) | {n:,}: ratio × R_p (own)"
-                                          for n in ns) + " |")
-    sep = "|---|" + "---|---|" * len(recs)
-    lines = []
+    rows = []
     paper = {p[0]: p[1] for p in PAPER}
     for ratio in RATIOS:
         if ratio == 0:
@@ -528,29 +525,32 @@ def _tables(recs, slopes) -> tuple:
                 cells.append("—" if np.isnan(v) else
                              f"{100 * v:.2f} % ({int(n_ev):,}; {m:.0f} in a halo)")
         note = f" (paper {paper[ratio]:g} %)" if ratio in paper and ratio > 1 else ""
-        lines.append(f"| {ratio:g}{note} | " + " | ".join(cells) + " |")
-    table = "\n".join([header, sep] + lines)
-    raw_lines = "\n".join(
-        f"| {rec.n_particles:,} | {_pct(rec.raw.cov_number, 1)} | "
-        f"{_pct(rec.raw.cov_volume, 1)} | {_pct(rec.raw.cov_number_small_half, 1)}"
-        f" | {_pct(rec.raw.cov_number_large_half, 1)} | {rec.raw.n_inside:,} |"
-        for rec in recs)
-    z_lines = "\n".join(
-        f"| {rec.n_particles:,} | {z.criterion} | {z.gap:.4f} | {z.z_bulk:.2f} | "
-        f"{_pct(z.cov_number, 1)} | {_pct(z.cov_volume, 1)} | {_pct(z.halo4)} | "
-        f"{_pct(z.halo11)} |"
-        for rec in recs for z in rec.z_rows)
+        rows.append([f"{ratio:g}{note}"] + cells)
+    table = md_table(["ratio"] + [f"{n:,}: ratio × {r}" for n in ns
+                                  for r in ("r̄ (common)", "R_p (own)")], rows)
+    raw_lines = md_table(
+        ["N", "per particle", "volume-weighted", "smaller half", "larger half", "particles"],
+        [(f"{rec.n_particles:,}", _pct(rec.raw.cov_number, 1), _pct(rec.raw.cov_volume, 1),
+          _pct(rec.raw.cov_number_small_half, 1), _pct(rec.raw.cov_number_large_half, 1),
+          f"{rec.raw.n_inside:,}") for rec in recs])
+    z_lines = md_table(
+        ["N", "neighbours", "relative gap ≤", "bulk Z", "raw CoV per particle",
+         "volume-weighted", "Halo 4 r̄", "Halo 11 r̄"],
+        [(f"{rec.n_particles:,}", z.criterion, f"{z.gap:.4f}", f"{z.z_bulk:.2f}",
+          _pct(z.cov_number, 1), _pct(z.cov_volume, 1), _pct(z.halo4), _pct(z.halo11))
+         for rec in recs for z in rec.z_rows])
     r5 = {rec.n_particles: _ratio_for(rec, 0.05) for rec in recs}
     r2 = {rec.n_particles: _ratio_for(rec, 0.02) for rec in recs}
     r5o = {rec.n_particles: _ratio_for(rec, 0.05, "own") for rec in recs}
     r2o = {rec.n_particles: _ratio_for(rec, 0.02, "own") for rec in recs}
-    ratio_lines = "\n".join(
-        f"| {n:,} | {r5[n]:.2f} | {r2[n]:.2f} | {r5o[n]:.2f} | {r2o[n]:.2f} | "
-        f"{slopes.get(f'{n}_common', float('nan')):.2f} | "
-        f"{rec.steady_seconds:.1f} | "
-        f"{sum(r.seconds for k in KINDS for r in _rows(rec, k)):.1f} | "
-        f"{_pack(rec.name)} |"
-        for n, rec in zip(r5, recs))
+    ratio_lines = md_table(
+        ["N", "common: ratio at 5 %", "common: ratio at 2 %", "own: ratio at 5 %",
+         "own: ratio at 2 %", "slope (common)", "steady solve (s)", "Halo, all ratios (s)",
+         "packing (s)"],
+        [(f"{n:,}", f"{r5[n]:.2f}", f"{r2[n]:.2f}", f"{r5o[n]:.2f}", f"{r2o[n]:.2f}",
+          f"{slopes.get(f'{n}_common', float('nan')):.2f}", f"{rec.steady_seconds:.1f}",
+          f"{sum(r.seconds for k in KINDS for r in _rows(rec, k)):.1f}", _pack(rec.name))
+         for n, rec in zip(r5, recs)])
     return table, raw_lines, z_lines, ratio_lines, (r5, r2, r5o, r2o)
 
 
@@ -576,14 +576,10 @@ def _class_table(main) -> str:
     """The scatter by class of R_p / r̄ at the main N (rms deviation, members of a halo)."""
     labels = [f"R_p/r̄ {a:g}–{b:g}" if np.isfinite(b) else f"R_p/r̄ ≥ {a:g}"
               for a, b in zip(CLASSES[:-1], CLASSES[1:])]
-    class_table = "\n".join(
-        ["| halo | ratio | " + " | ".join(labels) + " |", "|---|---|" + "---|" * len(labels)]
-        + [f"| {kind} | {ratio:g} | " + " | ".join(
-            f"{100 * d:.1f} % ({m:.0f})" for d, m in zip(_at(main, ratio, 'class_rms_dev', kind),
-                                                        _at(main, ratio, 'class_members', kind)))
-           + " |" for kind in KINDS for ratio in (2.0, 3.0, 4.0)
-           if np.isfinite(_at(main, ratio, kind=kind))])
-    return class_table
+    return md_table(["halo", "ratio"] + labels, [
+        [kind, f"{ratio:g}"] + [f"{100 * d:.1f} % ({m:.0f})" for d, m in zip(
+            _at(main, ratio, "class_rms_dev", kind), _at(main, ratio, "class_members", kind))]
+        for kind in KINDS for ratio in (2.0, 3.0, 4.0) if np.isfinite(_at(main, ratio, kind=kind))])
 
 
 def _summary(recs, main, slopes, quick=False) -> CaseResult:
@@ -657,8 +653,6 @@ spheres in a halo):
 **Raw scatter (eq. 20, no halo)**, per particle (002's statistic, presumably) and per unit solid
 volume (weights V_p), and per particle over the smaller and the larger half of the radii:
 
-| N | per particle | volume-weighted | smaller half | larger half | particles |
-|---|---|---|---|---|---|
 {raw_lines}
 
 eq. 20 divides each sphere's contact moment by its own volume: a small sphere with a few
@@ -673,9 +667,6 @@ the dumped pairs within the relative gap that gives it, `[neighbours] target_z_w
 beside it every dumped pair; the same packing; Halo columns: common radius, on up to 5,000
 particles for the every-pair row):
 
-| N | neighbours | relative gap ≤ | bulk Z | raw CoV per particle | volume-weighted | \
-Halo 4 r̄ | Halo 11 r̄ |
-|---|---|---|---|---|---|---|---|
 {z_lines}
 
 {z_text}
@@ -706,9 +697,6 @@ values](img/validation_case7_cov.png)
 slope of log CoV against log ratio fitted for ratio ≥ 5, common radius; times on 1 thread of a
 shared machine, Halo seconds for both radii and every ratio on the evaluated subset):
 
-| N | common: ratio at 5 % | common: ratio at 2 % | own: ratio at 5 % | own: ratio at 2 % | \
-slope (common) | steady solve (s) | Halo, all ratios (s) | packing (s) |
-|---|---|---|---|---|---|---|---|---|
 {ratio_lines}
 
 As the paper found, the curve hardly depends on N: it is a property of the packing's local

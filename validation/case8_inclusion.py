@@ -31,7 +31,7 @@ from tdem_post.analytic import hashin_shtrikman, maxwell, rayleigh_cubic_array
 from tdem_post.records import column, from_dict, to_dict
 from validation import framework
 from validation import inclusions as I
-from validation.framework import CaseInfo, CaseResult, Context, figure_csv
+from validation.framework import CaseInfo, CaseResult, Context, figure_csv, md_table
 from validation.framework import Judgement
 
 CASE = CaseInfo(number=8, title="Single spherical inclusion vs Maxwell, contrast 0.01-100",
@@ -344,15 +344,13 @@ def _limits(runs, key):
 
 
 def _table(runs, key):
-    head = "| series | N | inclusion spheres | a / r̄ | " + " | ".join(
-        f"c = {c:g}" for c in CONTRASTS) + " | max | s / solve |"
-    lines = [head, "|" + "---|" * (len(CONTRASTS) + 6)]
-    for r in sorted(runs, key=lambda r: (r.series, r.n)):
-        k = key[r.series]
-        lines.append(f"| {r.series} | {r.n:,} | {r.inclusion:,} | {r.a_over_r:.1f} | "
-                     + " | ".join(f"{100 * getattr(x, k):+.2f} %" for x in r.rows)
-                     + f" | {100 * max_err(r, k):.2f} % | {r.thermal_s / r.solves:.1f} |")
-    return "\n".join(lines)
+    return md_table(
+        ["series", "N", "inclusion spheres", "a / r̄"] + [f"c = {c:g}" for c in CONTRASTS]
+        + ["max", "s / solve"],
+        [[r.series, f"{r.n:,}", f"{r.inclusion:,}", f"{r.a_over_r:.1f}"]
+         + [f"{100 * getattr(x, key[r.series]):+.2f} %" for x in r.rows]
+         + [f"{100 * max_err(r, key[r.series]):.2f} %", f"{r.thermal_s / r.solves:.1f}"]
+         for r in sorted(runs, key=lambda r: (r.series, r.n))])
 
 
 

@@ -47,7 +47,7 @@ from tdem_post.records import from_dict, to_dict
 from tdem_post.flux import contact_moments, halo_flux
 from validation import framework
 from validation import inclusions as I
-from validation.framework import CaseInfo, CaseResult, Context, figure_csv
+from validation.framework import CaseInfo, CaseResult, Context, figure_csv, md_table
 
 CASE = CaseInfo(number=9, title="Single inclusion, c = 5: T and Halo flux at A, B, C",
                 paper="002 sec. 4.2, Table 2", paper_n="150,000 / 500,000",
@@ -501,52 +501,43 @@ def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
 
 def _point_tables(rs, ref_T, ref_q, ref, dT, q0, grids) -> tuple:
     """The section's tables at A, B, C: T, |q|, the scatter over the equivalent points, the
-    homogeneous and local errors (rows of markdown)."""
-    t_rows = [f"| FV reference (h → 0), {'/'.join(map(str, grids))}³ | "
-              + " | ".join(f"{t:.3f} ± {dT * u:.3f}" for t, u in zip(ref_T, ref["T_unc"]))
-              + " |",
-              "| 002 FE / DE 150,000 / DE 500,000 | " + " | ".join(
-                  f"{a} / {b} / {c}" for a, b, c in zip(PAPER["FE"]["T"],
-                                                        PAPER["150,000 DE"]["T"],
-                                                        PAPER["500,000 DE"]["T"])) + " |"]
-    for r in rs:
-        t_rows.append(f"| tdem {r.n:,} | " + " | ".join(
-            f"{t:.3f} ({100 * e:.2f} %; {100 * d:.2f} % of ΔT)"
-            for t, e, d in zip(r.T, r.err_T, r.err_T_of_dT)) + " |")
-    q_rows = ["| FV reference (h → 0) | " + " | ".join(
-        f"{v:.0f} ± {q0 * u:.0f}" for v, u in zip(ref_q, ref["q_unc"])) + " |",
-        "| 002 FE | " + " | ".join(f"{v}" for v in PAPER["FE"]["q"]) + " |"]
-    for n, lab in ((150_000, "150,000 DE"), (500_000, "500,000 DE")):
-        q_rows.append(f"| 002 DE {n:,} | " + " | ".join(
-            f"{v} ({100 * e:+.1f} %)" for v, e in zip(PAPER[lab]["q"], PAPER_ERR[n])) + " |")
+    homogeneous and local errors (markdown)."""
+    t_rows = [[f"FV reference (h → 0), {'/'.join(map(str, grids))}³"]
+              + [f"{t:.3f} ± {dT * u:.3f}" for t, u in zip(ref_T, ref["T_unc"])],
+              ["002 FE / DE 150,000 / DE 500,000"]
+              + [f"{a} / {b} / {c}" for a, b, c in zip(PAPER["FE"]["T"], PAPER["150,000 DE"]["T"],
+                                                       PAPER["500,000 DE"]["T"])]]
+    t_rows += [[f"tdem {r.n:,}"] + [f"{t:.3f} ({100 * e:.2f} %; {100 * d:.2f} % of ΔT)"
+                                    for t, e, d in zip(r.T, r.err_T, r.err_T_of_dT)]
+               for r in rs]
+    q_rows = [["FV reference (h → 0)"] + [f"{v:.0f} ± {q0 * u:.0f}"
+                                          for v, u in zip(ref_q, ref["q_unc"])],
+              ["002 FE"] + [f"{v}" for v in PAPER["FE"]["q"]]]
+    q_rows += [[f"002 DE {n:,}"] + [f"{v} ({100 * e:+.1f} %)"
+                                    for v, e in zip(PAPER[lab]["q"], PAPER_ERR[n])]
+               for n, lab in ((150_000, "150,000 DE"), (500_000, "500,000 DE"))]
     names = {"raw": "raw (eq. 20)", "common_4": "Halo 4 r̄", "common_11": "**Halo 11 r̄**",
              "own_4": "Halo 4 R_p (own)", "own_11": "Halo 11 R_p (own)"}
-    for r in rs:
-        for key in ("common_11", "own_11", "common_4", "own_4", "raw"):
-            q_rows.append(f"| tdem {r.n:,}, {names[key]} | " + " | ".join(
-                f"{v:.0f} ({100 * e:+.1f} %; FV {100 * f:+.1f} %)"
-                for v, e, f in zip(r.q[key], r.err_q_fe[key], r.err_q[key])) + " |")
-    sc_rows = []
-    for r in rs:
-        for key in ("common_11", "own_11", "common_4"):
-            sc = r.scatter[key]
-            sc_rows.append(f"| tdem {r.n:,}, {names[key]} | " + " | ".join(
-                f"{100 * sc[lab]['mean_err']:+.1f} % ± {100 * sc[lab]['std']:.1f} % "
-                f"(max {100 * sc[lab]['max_abs_err']:.1f} %, {sc[lab]['n']})"
-                for lab in "ABC") + " |")
-    h_rows = []
-    for r in rs:
-        for key in ("common_11", "own_11"):
-            h_rows.append(
-                f"| tdem {r.n:,}, {names[key]} | " + " | ".join(
-                    f"{100 * h:+.1f} % (mean {100 * hm:+.1f} %) | {100 * le:+.1f} % "
-                    f"(mean {100 * lm:+.1f} % ± {100 * ls:.1f} %)"
-                    for h, hm, le, lm, ls in zip(r.homogeneous_err[key],
-                                                 r.homogeneous_mean[key],
-                                                 r.local_err_fv[key],
-                                                 r.local_mean_err_fv[key],
-                                                 r.local_std[key])) + " |")
-    return t_rows, q_rows, sc_rows, h_rows
+    q_rows += [[f"tdem {r.n:,}, {names[key]}"]
+               + [f"{v:.0f} ({100 * e:+.1f} %; FV {100 * f:+.1f} %)"
+                  for v, e, f in zip(r.q[key], r.err_q_fe[key], r.err_q[key])]
+               for r in rs for key in ("common_11", "own_11", "common_4", "own_4", "raw")]
+    sc_rows = [[f"tdem {r.n:,}, {names[key]}"]
+               + [f"{100 * sc[lab]['mean_err']:+.1f} % ± {100 * sc[lab]['std']:.1f} % "
+                  f"(max {100 * sc[lab]['max_abs_err']:.1f} %, {sc[lab]['n']})" for lab in "ABC"]
+               for r in rs for key in ("common_11", "own_11", "common_4")
+               for sc in [r.scatter[key]]]
+    h_rows = [[f"tdem {r.n:,}, {names[key]}"]
+              + [cell for h, hm, le, lm, ls in zip(
+                  r.homogeneous_err[key], r.homogeneous_mean[key], r.local_err_fv[key],
+                  r.local_mean_err_fv[key], r.local_std[key])
+                 for cell in (f"{100 * h:+.1f} % (mean {100 * hm:+.1f} %)",
+                              f"{100 * le:+.1f} % (mean {100 * lm:+.1f} % ± {100 * ls:.1f} %)")]
+              for r in rs for key in ("common_11", "own_11")]
+    points = ["", "A", "B", "C"]
+    return (md_table(points, t_rows), md_table(points, q_rows), md_table(points, sc_rows),
+            md_table([""] + [f"{p}: {w}" for p in "ABC" for w in ("homogeneous", "normalised")],
+                     h_rows))
 
 
 def _speed(rs, judged, key) -> str:
@@ -576,17 +567,14 @@ def _speed(rs, judged, key) -> str:
 
 def _every_md(every, key) -> str:
     """The table through every dumped pair (tdem's network before issue 23)."""
-    every_rows = "\n".join(
-        f"| {r.n:,} | " + " | ".join(
-            f"{v:.0f} ({100 * e:+.1f} %; FV {100 * f:+.1f} %)"
-            for v, e, f in zip(r.q[key], r.err_q_fe[key], r.err_q[key]))
-        + f" | {'met' if r.judged['met'] else 'missed'} |" for r in every)
+    every_rows = md_table(["N", "A", "B", "C", "target"], [
+        [f"{r.n:,}"] + [f"{v:.0f} ({100 * e:+.1f} %; FV {100 * f:+.1f} %)"
+                        for v, e, f in zip(r.q[key], r.err_q_fe[key], r.err_q[key])]
+        + ["met" if r.judged["met"] else "missed"] for r in every])
     every_md = "" if not every else f"""
 Through every dumped pair instead (bulk Z ≈ 8.8, the dump's gap tolerance 0.1; tdem's network
 before issue 23), Halo 11 r̄, against 002's FE (and our FV):
 
-| N | A | B | C | target |
-|---|---|---|---|---|
 {every_rows}
 """
     return every_md
@@ -685,15 +673,11 @@ difference ({fv_s:.0f} s in all); it is within 1 % of 002's FE at the three poin
 
 Temperature (°C) at A, B, C (error: |T − T_FV| / T_FV in °C, 002's measure; and of ΔT = 10 K):
 
-| | A | B | C |
-|---|---|---|---|
-{chr(10).join(t_rows)}
+{t_rows}
 
 |q| (W/m²) at A, B, C (in brackets: against 002's FE; against our FV reference):
 
-| | A | B | C |
-|---|---|---|---|
-{chr(10).join(q_rows)}
+{q_rows}
 {every_md}
 ![T and the flux error at A, B, C](img/validation_case9_points.png)
 
@@ -704,9 +688,7 @@ points 0.08 L from an adiabatic face; C 0.08 L from either held face), with the 
 each of the three axes in turn — mean error against the FV reference ± std over the equivalent
 points (max |error|, count):
 
-| | A | B | C |
-|---|---|---|---|
-{chr(10).join(sc_rows)}
+{sc_rows}
 
 At {main_run.n:,} the std of one point value (Halo 11 r̄) is
 {100 * sc_main['A']['std']:.1f} / {100 * sc_main['B']['std']:.1f} / \
@@ -722,10 +704,7 @@ scatter — with no inclusion in it. Beside it, the composite's |q| normalised p
 it (|q| × 3,300 / |q|_single, the same particle and halo), against the FV reference (the paper's
 point; mean ± std over the symmetric equivalents):
 
-| | A: homogeneous | A: normalised | B: homogeneous | B: normalised | C: homogeneous | \
-C: normalised |
-|---|---|---|---|---|---|---|
-{chr(10).join(h_rows)}
+{h_rows}
 
 {causes}
 **Target** (issue 23, at N 150,000 against 002's FE, Halo 11 r̄):

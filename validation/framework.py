@@ -449,6 +449,23 @@ def figure_csv(path: Path, header, *grid, figsize, dpi: int = 110, digits: int |
     write_csv(Path(path).with_suffix(".csv"), header, rows, digits=digits, line_end=line_end)
 
 
+# ---------------------------------------------------------------- section text
+def md_table(header, rows) -> str:
+    """A table of a case's section, the one home of its markdown: ``header`` (its cells; an
+    empty one is ``| |``) over the rule ``|---|...|``, then ``rows`` (each a sequence of cells,
+    written by ``str``), one line each, no newline after the last."""
+    return "\n".join(["|" + "|".join(f" {h} " if h else " " for h in header) + "|",
+                      "|" + "---|" * len(header)]
+                     + ["| " + " | ".join(map(str, r)) + " |" for r in rows])
+
+
+def figure_md(caption: str, path: Path) -> str:
+    """A figure of a case's section with its numbers under it: ``![caption](link)``, an empty
+    line and ``(data: `link.csv`)``, the links as :func:`doc_link` gives them."""
+    return (f"![{caption}]({doc_link(path)})\n\n"
+            f"(data: `{doc_link(Path(path).with_suffix('.csv'))}`)")
+
+
 def doc_link(path: Path) -> str:
     """A figure's path as docs/validation.md links it (relative to docs/; a quick run's figure
     outside docs/ as it is)."""
