@@ -605,6 +605,28 @@ def test_same_outputs_snapshots_and_diffs_validation(tmp_path, capsys):
     assert f"img/{csv.name}: differs" in capsys.readouterr().out
 
 
+def test_same_outputs_rebuild_instance_leaves_the_committed_files(tmp_path):
+    """tools/same_outputs.py's validation_rebuild instance runs a case's --action rebuild on a
+    copy: validation/results and docs/img are not written, and the figure's numbers it makes
+    from the saved result are the committed ones."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        "same_outputs", framework.ROOT / "tools" / "same_outputs.py")
+    so = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(so)
+    saved = framework.RESULTS / "case6.json"
+    committed = framework.IMG / "validation_case6_ct.csv"
+    before = (saved.read_bytes(), saved.stat().st_mtime_ns, committed.stat().st_mtime_ns)
+    so.snap(tmp_path / "s", ["validation_rebuild=6"])
+    out = tmp_path / "s" / "validation_rebuild"
+    assert (saved.read_bytes(), saved.stat().st_mtime_ns, committed.stat().st_mtime_ns) == before
+    assert framework.RESULTS == saved.parent and framework.IMG == committed.parent
+    rebuilt = json.loads((out / "case6_rebuilt.json").read_text())
+    assert rebuilt["finished"] == "X" and rebuilt["info"]["number"] == 6
+    assert (out / "figures" / "validation_case6_ct.png").stat().st_size > 0
+    assert (out / "figures" / committed.name).read_bytes() == committed.read_bytes()
+
+
 @pytest.mark.parametrize("edit, said", [
     (lambda d: d["result"].update(our_error=12345), "result: our_error: expected a string"),
     (lambda d: d["result"].update(extra=1), "result: extra: unknown field of a CaseResult"),
