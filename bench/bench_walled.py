@@ -69,8 +69,6 @@ CASES = [
     ("shell_cloud_10000", "shell", 10_000, (1, 2, 3), False, dict(shell_cloud_diameters=1.5)),
     ("shell_cloud3_10000", "shell", 10_000, (1, 2, 3), False, dict(shell_cloud_diameters=3.0)),
     ("shell_thin_10000", "shell", 10_000, (1,), False, dict(shell_diameters=3.0)),
-    ("shell_tie_10000", "shell", 10_000, (1, 2, 3), False,
-     dict(shell_cloud_diameters=3.0, shell_tie_diameters=1.5)),
     ("direct_100000", "direct", 100_000, (1,), False, {}),
     ("shell_cloud3_100000", "shell", 100_000, (1,), False, dict(shell_cloud_diameters=3.0)),
     ("shell_100000", "shell", 100_000, (1,), False, {}),

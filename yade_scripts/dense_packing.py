@@ -146,8 +146,7 @@ def set_young(mats, young, young_now):
     """Raise the modulus of the materials (spheres, plane walls, facets) and of every existing
     contact from young_now to young (the stiffening stages)."""
     factor = young / young_now
-    # (a fourth material, the shell path's tied spheres, is the spheres' own)
-    for m, scale in zip(mats, (1.0, WALL_YOUNG_FACTOR["plane"], WALL_YOUNG_FACTOR["facet"], 1.0)):
+    for m, scale in zip(mats, (1.0, WALL_YOUNG_FACTOR["plane"], WALL_YOUNG_FACTOR["facet"])):
         O.materials[m].young = young * scale
     for i in O.interactions:
         if i.isReal:
@@ -516,30 +515,16 @@ def shell_radius_factor(p, young):
     return 1.0 + 0.5 * (hertz_overlap(p, young) - hertz_overlap(p, p["young_pa"]))
 
 
-def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None, tied=None):
+def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None):
     """method = "shell": the free shell and its frozen band in YADE, the walls on the carved
     surface pressed onto the shell until each carries the confining pressure (a servo per wall,
     the compliance of a column of shell_diameters contacts in Hertz's law), through the direct
     path's stages (softened modulus, tenfold stiffening, friction on at the real modulus). The
     radii carry each stage's Hertz overlap and end as given. Returns the pressed state of these
     spheres (indices into centres). ``cloud``: the spheres put back as a shrunk cloud
-    (shell.cloud_layer), grown back to their radii against the walls first (grow_cloud).
-    ``tied``: free spheres next to the frozen band that have the material's friction from the
-    start, as the band has (shell_tie_diameters)."""
+    (shell.cloud_layer), grown back to their radii against the walls first (grow_cloud)."""
     stages = stiffness_stages(p)
     mats, sphere_ids, wall_of_body, collider = build_scene(p, centres, radii, box, stages[0])
-    if tied is not None and tied.any():
-        # the free spheres next to the band and the band itself frictional from the start (a
-        # contact takes the smaller friction of its two materials): the spheres at the seam
-        # hold their place against the band's surface instead of sliding off its pockets while
-        # the frictionless stages rearrange the shell
-        tie_mat = O.materials.append(FrictMat(
-            young=O.materials[mats[0]].young, poisson=p["poisson"],
-            density=O.materials[mats[0]].density, frictionAngle=math.atan(p["friction"])))
-        for k, b in enumerate(sphere_ids):
-            if tied[k] or frozen[k]:
-                O.bodies[int(b)].material = O.materials[tie_mat]
-        mats = mats + (tie_mat,)
     for k, b in enumerate(sphere_ids):
         body = O.bodies[int(b)]
         body.groupMask = FROZEN_MASK if frozen[k] else SHELL_MASK
@@ -729,7 +714,6 @@ def shell_state(p, state):
     kept = (pair,) + tuple(carved[k][rows] for k in ("branch", "overlap", "normal_force",
                                                      "contact_radius"))
     position, radius, free, band = position[whole], radius[whole], free[whole], band[whole]
-    depth_carved = shell.boundary_distance(box, position)
     if p["shell_cloud_diameters"] > 0:
         # the outer layer put back as a loose cloud in a grown box, the walls on its faces (the
         # layer sized for the soft stage's radii instead, 2 % more volume, was measured with
@@ -760,10 +744,8 @@ def shell_state(p, state):
         f"free in a shell of {shell_m:.4g} m ({p['shell_diameters']:g} mean diameters), "
         f"{int(band.sum())} frozen behind it ({band_m:.4g} m), {len(radius) - len(sub)} "
         f"interior spheres stay as tiled")
-    tie_m = p["shell_tie_diameters"] * 2.0 * float(radius.mean())
-    tied = free & (depth_carved >= shell_m - tie_m) if tie_m > 0 else np.zeros_like(free)
     pressed = press_shell(p, box, position[sub], radius[sub], band[sub], shell_m,
-                          clouded[sub], tied[sub])
+                          clouded[sub])
     position = position.copy()
     position[sub] = pressed["position"]
     position -= pressed["lo"]
@@ -778,7 +760,6 @@ def shell_state(p, state):
         pressed["wall_touch"])
     info = dict(cell_info, shell_diameters=float(p["shell_diameters"]),
                 shell_cloud_diameters=float(p["shell_cloud_diameters"]),
-                shell_tie_diameters=float(p["shell_tie_diameters"]),
                 shell_thickness_m=shell_m, frozen_band_m=band_m,
                 shell_free_particles=int(free.sum()),
                 shell_frozen_particles=int(band.sum()),

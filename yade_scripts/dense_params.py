@@ -82,11 +82,6 @@ PARAMS = {
                                        "walls before the stages (0: the walls are pressed onto "
                                        "the carved faces; 3: the direct box's wall layer, "
                                        "docs/packings.md)"),
-    "shell_tie_diameters": dict(kind="float", default=0.0, minimum=0.0,
-                                help="shell: the free spheres within this many mean diameters of "
-                                     "the frozen band, and the band, have the material's "
-                                     "friction from the start (the rest of the shell is "
-                                     "compacted frictionless, as the direct path)"),
     "cell_particles": dict(kind="int", default=10000, minimum=20,
                            help="tiled, shell: spheres in the periodic cell that is copied"),
     "cell_packing": dict(kind="str", default="",
