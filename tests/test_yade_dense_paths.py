@@ -50,16 +50,22 @@ def build(directory, **params):
     return read_packing(directory / "packing.h5")
 
 
+def build_all(jobs: dict) -> dict:
+    """``build`` of each {key: (directory, params)}, two YADE processes at a time (each runs on
+    one thread and the suite's own process waits: the machine's second core does the other)."""
+    from concurrent.futures import ThreadPoolExecutor
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        futures = {key: pool.submit(build, d, **params) for key, (d, params) in jobs.items()}
+        return {key: f.result() for key, f in futures.items()}
+
+
 @pytest.fixture(scope="module")
 def cells(tmp_path_factory):
     """Periodic cells of 400 spheres, both time steps, three seeds."""
-    out = {}
-    for step in ("p_wave", "density_scaling"):
-        for seed in SEEDS:
-            d = tmp_path_factory.mktemp(f"{step}_{seed}")
-            out[step, seed] = build(d, shape="periodic", n_particles=400, seed=seed,
-                                    time_step=step, **FAST)
-    return out
+    return build_all({
+        (step, seed): (tmp_path_factory.mktemp(f"{step}_{seed}"),
+                       dict(shape="periodic", n_particles=400, seed=seed, time_step=step, **FAST))
+        for step in ("p_wave", "density_scaling") for seed in SEEDS})
 
 
 def _mean(cells, step, field):
@@ -88,12 +94,13 @@ def test_density_scaling_needs_fewer_steps(cells):
 
 @pytest.fixture(scope="module")
 def tiled(tmp_path_factory):
-    d = tmp_path_factory.mktemp("tiled")
-    carved = build(d, shape="box", method="tiled", n_particles=3000, cell_particles=300,
-                   seed=4, **FAST)
-    cell = build(tmp_path_factory.mktemp("cell"), shape="periodic", n_particles=300, seed=4,
-                 **FAST)
-    return carved, cell
+    built = build_all({
+        "carved": (tmp_path_factory.mktemp("tiled"),
+                   dict(shape="box", method="tiled", n_particles=3000, cell_particles=300, seed=4,
+                        **FAST)),
+        "cell": (tmp_path_factory.mktemp("cell"),
+                 dict(shape="periodic", n_particles=300, seed=4, **FAST))})
+    return built["carved"], built["cell"]
 
 
 def test_tiled_forces_are_hertz_at_the_real_modulus(tiled):

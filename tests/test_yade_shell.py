@@ -25,7 +25,7 @@ from tdem.yade import yade_environment
 from thermal_kernel.contact_check import hertz_force
 from tdem_post.wall_layers import plane_walls, wall_layers
 
-from test_yade_dense_paths import FAST, build
+from test_yade_dense_paths import FAST, build_all
 
 pytestmark = [pytest.mark.yade,
               pytest.mark.skipif(shutil.which("yade", path=yade_environment()["PATH"]) is None,
@@ -36,11 +36,13 @@ N, CELL, SEED = 2000, 500, 2
 
 @pytest.fixture(scope="module")
 def boxes(tmp_path_factory):
-    shell = build(tmp_path_factory.mktemp("shell"), shape="box", method="shell", n_particles=N,
-                  cell_particles=CELL, seed=SEED, **FAST)
-    direct = build(tmp_path_factory.mktemp("direct"), shape="box", method="direct",
-                   n_particles=N, seed=SEED, **FAST)
-    return shell, direct
+    built = build_all({
+        "shell": (tmp_path_factory.mktemp("shell"),
+                  dict(shape="box", method="shell", n_particles=N, cell_particles=CELL, seed=SEED,
+                       **FAST)),
+        "direct": (tmp_path_factory.mktemp("direct"),
+                   dict(shape="box", method="direct", n_particles=N, seed=SEED, **FAST))})
+    return built["shell"], built["direct"]
 
 
 def _wall_stress(packing):
