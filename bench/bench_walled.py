@@ -146,7 +146,8 @@ def measure(label: str, method: str, folder: Path) -> dict:
     # touching Z 5-7 d̄ from the walls: where the shell path's free shell meets its frozen band
     # (6 d̄ by default) - outside the 5 d̄ profiles, but in series with the flux
     deep = wall_layers(packing, depth_d=10.0)
-    seam = (layer_centres(10.0) > 5.0) & (layer_centres(10.0) < 7.0)
+    deep_d = layer_centres(10.0)
+    seam = (deep_d > 5.0) & (deep_d < 7.0)
     touching = packing.overlap > 0
     z = np.bincount(packing.pair[touching].reshape(-1), minlength=packing.n_particles)
     nonrattler = z > 0

@@ -176,4 +176,3 @@ def test_cloud_layer_puts_the_outer_layer_back_loose_without_overlaps():
     again, _, _ = shell.cloud_layer(box, centres, radius, layer_m, seed=11, solid_fraction=0.25)
     np.testing.assert_array_equal(again, position)
 
-

@@ -506,15 +506,6 @@ def hertz_overlap(p, young):
     return (p["confining_pressure_pa"] / e_star) ** (2.0 / 3.0)
 
 
-def shell_radius_factor(p, young):
-    """The radius factor of the shell path's spheres at modulus ``young``: 1 + (h(E) - h(E_real))
-    / 2 with h Hertz's (p/E*)^(2/3), 1 at the real modulus. (The direct boxes' contacts hold
-    1.61-1.65 h force-weighted, not 1/2: with that gain each stiffening starts at the pressure
-    instead of 6.6x it, but the stages end on the unbalanced force's creep all the same - 18,800
-    steps against 18,583 - and the grown layer lost wall contacts: docs/packings.md.)"""
-    return 1.0 + 0.5 * (hertz_overlap(p, young) - hertz_overlap(p, p["young_pa"]))
-
-
 def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None):
     """method = "shell": the free shell and its frozen band in YADE, the walls on the carved
     surface pressed onto the shell until each carries the confining pressure (a servo per wall,
@@ -553,8 +544,12 @@ def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None):
     # it the softened shell is compressed against a band held at the real modulus's overlaps,
     # and each stiffening stage opens the seam between them (measured: touching Z 3.9-4.4
     # against 4.8-5.7 there, docs/packings.md).
+    # (half of Hertz's typical overlap h = (p/E*)^(2/3) per contact; the direct boxes' contacts
+    # hold 1.61-1.65 h force-weighted: with that gain each stiffening starts at the pressure
+    # instead of 6.6x it, but the stages end on the unbalanced force's creep all the same -
+    # 18,800 steps against 18,583 - and the grown layer lost wall contacts: docs/packings.md)
     def radius_factor(young):
-        return shell_radius_factor(p, young)
+        return 1.0 + 0.5 * (hertz_overlap(p, young) - hertz_overlap(p, p["young_pa"]))
 
     def scale_radii(factor):
         utils.growParticles(factor, updateMass=False, dynamicOnly=True)     # the free shell
@@ -589,7 +584,7 @@ def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None):
         # a wall moves at most this far per control interval: a few overlaps of its column of
         # contacts, or shell_press_step mean radii while it carries less than a quarter of the
         # target (the cut layer's deficit closing: little resistance)
-        # (the contacts hold ~3.3 h per diameter, shell_radius_factor: a servo that gain times
+        # (the contacts hold ~3.3 h per diameter, radius_factor above: a servo that gain times
         # stiffer backs the walls off faster after a stiffening but leaves the stages unsettled,
         # docs/packings.md)
         max_move = r_mean * min(1e-2, 2.0 * layers * overlap_scale)
@@ -744,8 +739,7 @@ def shell_state(p, state):
         f"free in a shell of {shell_m:.4g} m ({p['shell_diameters']:g} mean diameters), "
         f"{int(band.sum())} frozen behind it ({band_m:.4g} m), {len(radius) - len(sub)} "
         f"interior spheres stay as tiled")
-    pressed = press_shell(p, box, position[sub], radius[sub], band[sub], shell_m,
-                          clouded[sub])
+    pressed = press_shell(p, box, position[sub], radius[sub], band[sub], shell_m, clouded[sub])
     position = position.copy()
     position[sub] = pressed["position"]
     position -= pressed["lo"]
