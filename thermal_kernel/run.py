@@ -1,4 +1,10 @@
-"""Running a scene: packing + law -> network -> solver -> ``thermal.h5``."""
+"""Running a scene: packing + law -> network -> solver -> ``thermal.h5``.
+
+The public path from a scene to a result, two ways: :func:`run_scene` writes the run's output
+file (``tdem run``), :func:`run_in_memory` writes nothing and returns the same run as a
+:class:`SceneRun` (temperatures, flows, the network, the neighbour choice): the path the
+validation cases and other library callers take. Both go through the same build
+(:func:`_build_network`), solve (:func:`_solve`) and physics checks (:func:`checked`)."""
 from __future__ import annotations
 
 import contextlib
@@ -14,23 +20,65 @@ import numpy as np
 
 from .atomic import OutputBusyError, output_lock
 from .checkpoint import checkpoint_path, packing_sha256, read_checkpoint, write_checkpoint
-from .network import assemble
+from .network import Network, ThermalProblem, assemble
+from .neighbours import NeighbourChoice
 from .output import scene_text_difference, scene_to_json, write_thermal
-from .packing import read_packing
+from .packing import Packing, read_packing
 from .problem import build_problem
 from .scene import Scene, SceneError
-from .solvers import UnstableTimeStepError, check_physics
+from .solvers import PhysicsCheck, ThermalResult, UnstableTimeStepError, check_physics
 from .solvers.explicit import run_explicit
 from .solvers.implicit import run_implicit, scheme_name
 from .solvers.steady import solve_steady
 
 
-@dataclass
-class RunSummary:
-    output: Path
-    result: object
-    network: object
+@dataclass(frozen=True)
+class SceneRun:
+    """One scene run on one packing (:func:`run_in_memory`, or :func:`run_scene` before it
+    writes): the result with every physics check's flags (temperatures in K and boundary heat
+    flows in W at the output times, the energy ledger), the problem (the law's conductance per
+    dumped contact row, in the packing's order; the boundaries' rows), the assembled network
+    (which particles conduct or are held, capacities), the scene's ``[neighbours]`` choice
+    (None: every dumped row conducts) and the law's parameters as used."""
     scene: Scene
+    packing: Packing
+    problem: ThermalProblem
+    network: Network
+    neighbours: NeighbourChoice | None
+    law_params: dict                       # the law's defaults with the scene's [law_params]
+    initial_temperature_k: np.ndarray      # (N,) the start (a steady solve: of its rattlers)
+    result: ThermalResult
+    check: PhysicsCheck
+    assemble_seconds: float
+
+    @property
+    def final_temperature_k(self) -> np.ndarray:
+        """(N,) the temperatures at the last output time (a steady solve: its one row)."""
+        return self.result.temperature_k[-1]
+
+    @property
+    def conducting(self) -> np.ndarray:
+        """(N,) bool: the particles with at least one conducting contact."""
+        return np.asarray(self.network.degree_w_k) > 0
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """A run written to its output file: the file and the run."""
+    output: Path
+    run: SceneRun
+
+    @property
+    def result(self) -> ThermalResult:
+        return self.run.result
+
+    @property
+    def network(self) -> Network:
+        return self.run.network
+
+    @property
+    def scene(self) -> Scene:
+        return self.run.scene
 
 
 def _progress_bar(total_steps, end_time, quiet, label="explicit"):
@@ -241,15 +289,22 @@ def _check_step_count(scene, dt, what):
                          "max_steps)")
 
 
+def checked(net, T0, result) -> tuple[ThermalResult, PhysicsCheck]:
+    """Every run's physics checks (thermal_kernel.solvers.check_physics) on a run from ``T0``,
+    their flags added to the result's: (result with the flags, check). One home for the file
+    path, the in-memory path and the PETSc backend's rank 0."""
+    check = check_physics(net, T0, result)
+    flags = tuple(result.flags) + tuple(f for f in check.flags if f not in result.flags)
+    return dataclasses.replace(result, flags=flags), check
+
+
 def write_run_output(scene, result, net, T0, packing, info, scene_json, packing_hash,
                      assemble_seconds, run_args_json, extra_attrs=None):
     """Every run's physics checks (thermal_kernel.solvers.check_physics) added to the result's
     flags, and thermal.h5 written with the run's attributes: the one home of both for the
     in-process run and the PETSc backend's rank 0 (thermal_kernel/mpi_run.py, which adds its
     own attributes in extra_attrs). Returns (output path, result with the flags, check)."""
-    check = check_physics(net, T0, result)
-    flags = tuple(result.flags) + tuple(f for f in check.flags if f not in result.flags)
-    result = dataclasses.replace(result, flags=flags)
+    result, check = checked(net, T0, result)
     attrs = {
         "law": scene.law, "method": result.method, "dt": float(result.dt),
         "dt_max": float(result.dt_max), "dt_paper": float(result.dt_paper),
@@ -297,11 +352,15 @@ def write_run_output(scene, result, net, T0, packing, info, scene_json, packing_
     return out, result, check
 
 
-def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume, run_args):
-    scene_json = scene_to_json(scene)       # before the solve: a run is never lost to it
-    packing = read_packing(packing_path or scene.packing)
-    packing_hash = packing_sha256(packing)
+def _build_network(scene: Scene, packing: Packing, conductance_factor=None):
+    """The scene's problem on the packing and its network, and the checks made before anything
+    runs (an explicit run's step count): (problem, info, network, assemble seconds).
+    ``conductance_factor``: (contacts,) multiplies the law's conductances (None: as the law
+    gives them)."""
     problem, info = build_problem(scene, packing)
+    if conductance_factor is not None:
+        problem = dataclasses.replace(
+            problem, conductance_w_k=problem.conductance_w_k * np.asarray(conductance_factor))
     t_assemble = time.perf_counter()
     net = assemble(problem)
     assemble_seconds = time.perf_counter() - t_assemble
@@ -311,7 +370,61 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
             _check_step_count(scene, solver.safety * net.dt_max_s, "solver.end_time")
         else:
             _check_step_count(scene, solver.dt, "solver.dt")
-    T0 = np.full(packing.n_particles, scene.initial_temperature)
+    return problem, info, net, assemble_seconds
+
+
+def _solve(scene: Scene, net, T0, threads, *, progress=None, checkpoint_every=0, resumed=None,
+           n_particles=0, packing_hash=""):
+    """The scene's solver on the network from ``T0``: a steady solve, or the transient through
+    the output times (:func:`run_in_chunks`; checkpoints only with ``checkpoint_every``).
+    (ThermalResult, checkpoint path or None)."""
+    if scene.solver.method == "steady":
+        return solve_steady(net, T0), None
+    return run_in_chunks(
+        lambda start, times: _transient(net, start, times, scene, threads, progress),
+        T0, scene, checkpoint_every, resumed, n_particles, packing_hash,
+        n_contacts=net.n_active_contacts)
+
+
+def _start(scene: Scene, n_particles: int, initial_temperature_k=None) -> np.ndarray:
+    """(N,) the run's start: the scene's initial temperature, or ``initial_temperature_k`` (K,
+    one number or one per particle)."""
+    value = scene.initial_temperature if initial_temperature_k is None else \
+        initial_temperature_k
+    return np.array(np.broadcast_to(np.asarray(value, dtype=np.float64), (n_particles,)))
+
+
+def run_in_memory(scene: Scene, packing: Packing | Path | str | None = None, *,
+                  initial_temperature_k=None, conductance_factor=None,
+                  threads: int | None = None) -> SceneRun:
+    """Run ``scene`` on ``packing`` (a :class:`~thermal_kernel.packing.Packing` already in
+    memory, a packing file, or None: the scene's) and return the run; nothing is written, nothing
+    printed. The same build, solver and physics checks as :func:`run_scene` (whose output file
+    holds the same temperatures and flows).
+
+    ``initial_temperature_k`` (K, one number or (N,)) replaces the scene's initial temperature
+    (a steady solve's start: what its rattlers and floating clusters keep);
+    ``conductance_factor`` ((contacts,), one per dumped row) multiplies the law's conductances
+    (a variant of the law no scene key expresses, e.g. validation's cut interfaces)."""
+    if not isinstance(packing, Packing):
+        packing = read_packing(packing or scene.packing)
+    problem, info, net, assemble_seconds = _build_network(scene, packing, conductance_factor)
+    T0 = _start(scene, packing.n_particles, initial_temperature_k)
+    result, _ = _solve(scene, net, T0, threads, n_particles=packing.n_particles)
+    result, check = checked(net, T0, result)
+    return SceneRun(scene=scene, packing=packing, problem=problem, network=net,
+                    neighbours=info["neighbours"], law_params=info["law_params"],
+                    initial_temperature_k=T0, result=result, check=check,
+                    assemble_seconds=assemble_seconds)
+
+
+def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume, run_args):
+    scene_json = scene_to_json(scene)       # before the solve: a run is never lost to it
+    packing = read_packing(packing_path or scene.packing)
+    packing_hash = packing_sha256(packing)
+    problem, info, net, assemble_seconds = _build_network(scene, packing)
+    solver = scene.solver
+    T0 = _start(scene, packing.n_particles)
     if not quiet:
         print(f"tdem run: {scene.path}: law {scene.law}, method {solver.method}, "
               f"{packing.n_particles} particles, {net.n_active_contacts} conducting contacts "
@@ -321,19 +434,15 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
             print(f"  {info['neighbours'].line()}", flush=True)
     resumed = check_resume(scene, checkpoint_every, resume, packing.n_particles, packing_hash,
                            packing_path or scene.packing)    # before anything runs or prints
-    ckpt = None
-    if solver.method == "steady":
-        result = solve_steady(net, T0)
-    else:
-        bar, progress = _progress_bar(0, solver.end_time, quiet, transient_label(solver))
-        try:
-            result, ckpt = run_in_chunks(
-                lambda start, times: _transient(net, start, times, scene, threads, progress),
-                T0, scene, checkpoint_every, resumed, packing.n_particles, packing_hash,
-                n_contacts=net.n_active_contacts)
-        finally:
-            if bar is not None:
-                bar.close()
+    bar, progress = (None, None) if solver.method == "steady" else \
+        _progress_bar(0, solver.end_time, quiet, transient_label(solver))
+    try:
+        result, ckpt = _solve(scene, net, T0, threads, progress=progress,
+                              checkpoint_every=checkpoint_every, resumed=resumed,
+                              n_particles=packing.n_particles, packing_hash=packing_hash)
+    finally:
+        if bar is not None:
+            bar.close()
     run_args_json = json.dumps(dict(run_args or {}, threads=threads,
                                     checkpoint_every=checkpoint_every, resume=resume,
                                     packing=str(packing_path) if packing_path else None),
@@ -347,7 +456,10 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
     if check.messages:           # a suspect answer is said even with --quiet (one line)
         print(f"tdem: warning: {out}: " + "; ".join(check.messages), file=sys.stderr,
               flush=True)
-    return RunSummary(output=out, result=result, network=net, scene=scene)
+    return RunSummary(output=out, run=SceneRun(
+        scene=scene, packing=packing, problem=problem, network=net,
+        neighbours=info["neighbours"], law_params=info["law_params"], initial_temperature_k=T0,
+        result=result, check=check, assemble_seconds=assemble_seconds))
 
 
 def _print_summary(result, out):
