@@ -29,11 +29,8 @@ import numpy as np
 
 from tdem_post import continuum as fv
 from tdem_post.records import from_dict, to_dict
-from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
-from thermal_kernel.problem import build_problem
-from thermal_kernel.scene import load_scene
-from thermal_kernel.solvers.implicit import run_implicit
+from thermal_kernel.run import run_in_memory
 
 from . import framework as fw
 from . import packings_000 as P
@@ -116,7 +113,14 @@ def source_energy_exact(t_end: float = T_END, samples: int = 20001) -> float:
     return float(Q * LZ * np.trapezoid(area, t))
 
 
-def scene_text(packing: str, ct: float) -> str:
+def output_times(times=None) -> np.ndarray:
+    """The run's output times (s): every T_OUT to T_END, or ``times``."""
+    return np.arange(1, int(round(T_END / T_OUT)) + 1) * T_OUT if times is None else times
+
+
+def scene_text(packing: str, ct: float, dt: float = 0.01, times=None) -> str:
+    """The sheet's scene: Crank-Nicolson with a backward-Euler start (Rannacher) in steps of
+    ``dt`` (s) to each output time (:func:`output_times`)."""
     return fw.scene_toml(
         packing, "haddad", law_params=dict(ct=ct),
         material=dict(conductivity=LAMBDA, density=RHO, heat_capacity=CAP),
@@ -124,7 +128,8 @@ def scene_text(packing: str, ct: float) -> str:
         boundary=[dict(kind="source", name="source", shape="cylinder", value=Q,
                        centre_m=[X_SRC, -Y0, LZ / 2], radius_m=R_SRC, depth_m=LZ,
                        axis=[0, 0, 1], velocity_m_s=[V_SRC, 0, 0])],
-        solver=dict(method="implicit", end_time=T_END, dt=0.01))
+        solver=dict(method="implicit", end_time=T_END, dt=dt, scheme="rannacher",
+                    output_times=[float(t) for t in output_times(times)]))
 
 
 def load_sheet(packing_path):
@@ -187,19 +192,18 @@ def sheet_dem(packing_path, dt: float = 0.01, times=None) -> SheetRun:
     packing = load_sheet(packing_path)
     where = Path("validation/case3_scene.toml")
     c0 = time.perf_counter()
-    scene = load_scene(where, text=scene_text(packing_path, 0.806))
+    scene = fw.case_scene(scene_text(packing_path, 0.806, dt, times), where)
     cts = [fw.held_plane_ct(scene, packing, axis, 0.806, LAMBDA)[2] for axis in "xy"]
     ct = float(np.mean(cts))
-    scene = load_scene(where, text=scene_text(packing_path, ct))
-    problem, _ = build_problem(scene, packing)
-    net = assemble(problem)
+    scene = fw.case_scene(scene_text(packing_path, ct, dt, times), where)
     calib_s = time.perf_counter() - c0
-    times = np.arange(1, int(round(T_END / T_OUT)) + 1) * T_OUT if times is None else times
+    times = output_times(times)
     r0 = time.perf_counter()
-    res = run_implicit(net, np.full(packing.n_particles, T0), times, dt=dt, scheme="rannacher")
-    run_s = time.perf_counter() - r0
-    conducting = np.asarray(net.degree_w_k > 0)
-    sets = probe_sets(packing, conducting)
+    run = run_in_memory(scene, packing)
+    res = run.result
+    run_s = res.wall_seconds                # the solver's; the network's build is set up
+    calib_s += time.perf_counter() - r0 - run_s
+    sets = probe_sets(packing, run.conducting)
     probe_t = {k: res.temperature_k[:, v].mean(axis=1) for k, v in sets.items()}
     xy = {k: packing.position[v, :2] + np.array([0.0, Y0]) for k, v in sets.items()}
     ledger = float(np.max(np.abs(res.ledger_residual_j())) / np.max(np.abs(res.stored_energy_j)))

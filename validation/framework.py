@@ -388,6 +388,15 @@ def scene_toml(packing, law: str, **tables) -> str:
     return "\n".join(lines) + "\n"
 
 
+def case_scene(text: str, where: Path):
+    """A case's scene from its TOML text (:func:`scene_toml`), read and checked as ``tdem run``
+    reads a scene file (``thermal_kernel.scene.load_scene``); ``where`` names it in messages
+    and resolves relative paths (nothing is read there). The case then runs it as a user does,
+    through ``thermal_kernel.run.run_in_memory``."""
+    from thermal_kernel.scene import load_scene
+    return load_scene(where, text=text)
+
+
 def held_planes(scene, packing, axis: str) -> tuple[float, float]:
     """(lo, hi) along ``axis``: the mean centre coordinate of the particles held on the
     ``axis``min and ``axis``max faces (the boundary rule of ``scene``) - the held planes, whose
