@@ -32,14 +32,11 @@ from tdem_post.records import column, from_dict, to_dict
 from tdem_post.flux import (coefficient_of_variation, contact_moments, halo_flux, halo_radii,
                             reference_radius)
 from thermal_kernel.calibrate import cross_section
-from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
-from thermal_kernel.problem import build_problem
-from thermal_kernel.scene import load_scene
-from thermal_kernel.solvers.steady import solve_steady
+from thermal_kernel.run import SceneRun, run_in_memory
 from validation.case4_slab import scene_text as slab_scene_text
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
-    cached, figure_csv, md_table, register_packing
+    cached, case_scene, figure_csv, md_table, register_packing
 
 CASE = CaseInfo(number=7, title="Halo CoV vs halo/DE radius ratio",
                 paper="002 sec. 3, eq. 20-23, Fig. 10-11", paper_n="1e5, 5e5",
@@ -76,22 +73,20 @@ def scene_text(packing: str, ct: float = 0.806, target_z: float | None = Z_PAPER
     return slab_scene_text(packing, ct, target_z=target_z)
 
 
-def _steady(scene, packing):
-    problem, info = build_problem(scene, packing)
-    net = assemble(problem)
-    res = solve_steady(net, np.full(packing.n_particles, 0.5 * (T1 + T2)))
-    return problem, net, res, info.get("neighbours")
+def _steady(scene, packing) -> SceneRun:
+    """The steady slab, its rattlers started (and kept) at the mean of the faces."""
+    return run_in_memory(scene, packing, initial_temperature_k=0.5 * (T1 + T2))
 
 
-def _raw_stats(packing, problem, net, res, q_macro, phi):
+def _raw_stats(run: SceneRun, q_macro, phi):
     """eq. 20 over the free particles at least one radius inside the cube: CoV of |q| per
     particle and per unit solid volume (weights V_p), and the same for the smaller / larger
     half of the radii."""
-    temp = res.temperature_k[-1]
+    packing = run.packing
     moments = contact_moments(packing.n_particles, packing.pair, packing.branch,
-                              problem.conductance_w_k, temp)
+                              run.problem.conductance_w_k, run.final_temperature_k)
     volume = 4.0 / 3.0 * np.pi * packing.radius ** 3
-    free = (np.asarray(net.degree_w_k) > 0) & ~np.asarray(net.held)
+    free = run.conducting & ~np.asarray(run.network.held)
     lo, hi, pos, rad = packing.domain_lo, packing.domain_hi, packing.position, packing.radius
     inside = free & np.all((pos - rad[:, None] >= lo) & (pos + rad[:, None] <= hi), axis=1)
     q = phi * moments / (2.0 * volume[:, None])
@@ -162,18 +157,19 @@ def halo_cov(packing_path, ratios=RATIOS, max_eval=MAX_EVAL, seed=1, kinds=KINDS
     every dumped pair (the Z sensitivity of the scatter)."""
     packing_path = str(Path(packing_path).resolve())
     packing = read_packing(packing_path)
-    scene = load_scene(SCENE_PATH, text=scene_text(packing_path, target_z=target_z))
+    scene = case_scene(scene_text(packing_path, target_z=target_z), SCENE_PATH)
     s0 = time.perf_counter()
-    problem, net, res, choice = _steady(scene, packing)
+    run = _steady(scene, packing)
     steady_s = time.perf_counter() - s0
-    q_cold, q_hot = (float(q) for q in res.boundary_heat_flow_w[-1])
+    choice = run.neighbours
+    q_cold, q_hot = (float(q) for q in run.result.boundary_heat_flow_w[-1])
     area = cross_section(packing, 0)
     q_macro = q_hot / area                                   # W/m^2, from hot (xmax) to cold
     phi = float(packing.attrs["solid_fraction"])
     n = packing.n_particles
-    raw, moments = _raw_stats(packing, problem, net, res, q_macro, phi)
+    raw, moments = _raw_stats(run, q_macro, phi)
     volume = 4.0 / 3.0 * np.pi * packing.radius ** 3
-    free = (np.asarray(net.degree_w_k) > 0) & ~np.asarray(net.held)
+    free = run.conducting & ~np.asarray(run.network.held)
     lo, hi = np.asarray(packing.domain_lo), np.asarray(packing.domain_hi)
     pos, rad = packing.position, packing.radius
     r_mean = reference_radius(rad)
@@ -196,10 +192,10 @@ def halo_cov(packing_path, ratios=RATIOS, max_eval=MAX_EVAL, seed=1, kinds=KINDS
                    halo4=_cov_at(rows["common"], 4.0),
                    halo11=_cov_at(rows["common"], 11.0), **raw)]
     if choice is not None:
-        scene_all = load_scene(SCENE_PATH, text=scene_text(packing_path, target_z=None))
-        p2, n2, r2, _ = _steady(scene_all, packing)
-        q2 = float(r2.boundary_heat_flow_w[-1][1]) / area
-        raw2, m2 = _raw_stats(packing, p2, n2, r2, q2, phi)
+        every = _steady(case_scene(scene_text(packing_path, target_z=None), SCENE_PATH),
+                        packing)
+        q2 = float(every.result.boundary_heat_flow_w[-1][1]) / area
+        raw2, m2 = _raw_stats(every, q2, phi)
         halo = {}
         for ratio in (4.0, 11.0):
             row = next((r for r in rows["common"] if r["ratio"] == ratio), None)
