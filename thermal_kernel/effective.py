@@ -56,18 +56,35 @@ class EffectiveConductivity:
     temperature_k: np.ndarray = field(repr=False)   # the steady field (N,)
 
 
+def _check_convention(length_convention: str) -> None:
+    if length_convention not in LENGTH_CONVENTIONS:
+        raise ValueError(f"length_convention: expected one of {', '.join(LENGTH_CONVENTIONS)}, "
+                         f"got {length_convention!r}")
+
+
 def effective_conductivity(net, inlet: str, outlet: str, *, t_in: float, t_out: float,
                            length_m: float, area_m2: float, length_convention: str,
                            initial_k, where="", tolerance: float = BALANCE_TOLERANCE
                            ) -> EffectiveConductivity:
     """k_eff of the assembled network ``net`` whose boundaries named ``inlet`` and ``outlet``
     hold ``t_in`` and ``t_out``: one steady solve (``initial_k``: the temperatures floating
-    clusters and rattlers keep), the balance checked against ``tolerance`` (:class:`BalanceError`
-    naming ``where`` otherwise)."""
-    if length_convention not in LENGTH_CONVENTIONS:
-        raise ValueError(f"length_convention: expected one of {', '.join(LENGTH_CONVENTIONS)}, "
-                         f"got {length_convention!r}")
+    clusters and rattlers keep), then :func:`steady_effective_conductivity`."""
+    _check_convention(length_convention)          # before the solve
     steady = solve_steady(net, np.asarray(initial_k))
+    return steady_effective_conductivity(
+        steady, net, inlet, outlet, t_in=t_in, t_out=t_out, length_m=length_m,
+        area_m2=area_m2, length_convention=length_convention, where=where,
+        tolerance=tolerance)
+
+
+def steady_effective_conductivity(steady, net, inlet: str, outlet: str, *, t_in: float,
+                                  t_out: float, length_m: float, area_m2: float,
+                                  length_convention: str, where="",
+                                  tolerance: float = BALANCE_TOLERANCE) -> EffectiveConductivity:
+    """k_eff from a steady solve already made (``steady``, a ThermalResult, e.g. a steady
+    scene's ``thermal_kernel.run.run_in_memory(...).result``) on the network ``net``: the
+    balance checked against ``tolerance`` (:class:`BalanceError` naming ``where`` otherwise)."""
+    _check_convention(length_convention)
     flows = steady.boundary_heat_flow_w[-1]
     names = list(steady.boundary_names)
     q_in = float(flows[names.index(inlet)])

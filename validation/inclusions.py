@@ -25,30 +25,38 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from thermal_kernel.boundaries import TemperatureBoundary
-from thermal_kernel.effective import effective_conductivity
-from thermal_kernel.network import assemble
+from thermal_kernel.effective import steady_effective_conductivity
 from thermal_kernel.packing import Packing, read_packing
-from thermal_kernel.problem import build_problem
-from thermal_kernel.scene import Material, SolverConfig, load_scene
+from thermal_kernel.run import run_in_memory
+from thermal_kernel.scene import Material
 
 from validation import framework
 from validation.framework import ROOT
 
-# The matrix of 002 sec. 4 (lambda 33 W/m/K; rho and c do not matter at steady state), law
-# haddad with the paper's C_t (it cancels in k_eff / k_m), harmonic interfaces (002 eq. 24).
-def scene_text(packing) -> str:
-    return framework.scene_toml(
-        packing, "haddad", law_params=dict(ct=0.806),
-        material=dict(conductivity=33.0, density=7800.0, heat_capacity=0.9),
-        initial=dict(temperature=303.15),
-        boundary=[dict(kind="temperature", name="cold", on="ymin", value=298.15),
-                  dict(kind="temperature", name="hot", on="ymax", value=308.15)],
-        solver=dict(method="steady"))
-
-
 K_MATRIX = 33.0
 SINGLE_FRACTION = 4.0 * math.pi / 81.0       # a = L/3 in a cube of side L: 15.51 % (002 sec. 4)
+T_COLD, T_HOT = 298.15, 308.15          # 25 C at y = 0, 35 C at y = L (002 sec. 2.2, 4.2)
+SCENE_PATH = ROOT / "validation" / "inclusions_scene.toml"      # named in messages only
+
+
+# The matrix of 002 sec. 4 (lambda 33 W/m/K; rho and c do not matter at steady state), law
+# haddad with the paper's C_t (it cancels in k_eff / k_m), harmonic interfaces (002 eq. 24).
+def scene_text(packing, *, contrast: float = 1.0, axis: int = 1,
+               target_z: float | None = None) -> str:
+    """The flux test's scene: phase 1 (the inclusions) at ``contrast`` x the matrix's
+    conductivity, the face at the ``axis``' maximum held at 35 C and the other at 25 C (hot
+    listed first: it holds the shared edges), steady; the neighbours cut to the bulk
+    coordination ``target_z`` ([neighbours] target_z_with_gaps; None: every dumped pair)."""
+    name = "xyz"[axis]
+    return framework.scene_toml(
+        packing, "haddad", law_params=dict(ct=0.806),
+        material=dict(conductivity=K_MATRIX, density=7800.0, heat_capacity=0.9),
+        **{"material.1": dict(conductivity=contrast * K_MATRIX)},
+        initial=dict(temperature=303.15),
+        boundary=[dict(kind="temperature", name="hot", on=f"{name}max", value=T_HOT),
+                  dict(kind="temperature", name="cold", on=f"{name}min", value=T_COLD)],
+        solver=dict(method="steady"),
+        neighbours=None if target_z is None else dict(target_z_with_gaps=float(target_z)))
 
 
 # Haddad's bulk coordination with gaps (002 sec. 2.1, Z ~ 7.5), as the dense scenes state it
@@ -59,11 +67,19 @@ def load(path, target_z: float | None = None):
     """(scene, packing) of the flux test on the packing file ``path``, its neighbours cut to the
     bulk coordination ``target_z`` ([neighbours] target_z_with_gaps; None: every dumped pair)."""
     path = str(Path(path).resolve())
-    text = scene_text(path)
-    if target_z is not None:
-        text += f"[neighbours]\ntarget_z_with_gaps = {float(target_z)!r}\n"
-    scene = load_scene(ROOT / "validation" / "inclusions_scene.toml", text=text)
+    scene = framework.case_scene(scene_text(path, target_z=target_z), SCENE_PATH)
     return scene, read_packing(path)
+
+
+def _target_z(scene) -> float | None:
+    """The bulk coordination ``scene``'s [neighbours] asks for (a scene of :func:`load`)."""
+    crit = scene.neighbours
+    if crit is None:
+        return None
+    if not (math.isnan(crit.gap) and crit.bulk_margin_diameters == 2.0):
+        raise ValueError(f"{scene.path}: the flux test's scenes cut the neighbours to a "
+                         f"target_z_with_gaps only (got {crit})")
+    return crit.target_z_with_gaps
 
 
 def centred_inclusion(packing: Packing, fraction: float = SINGLE_FRACTION):
@@ -136,9 +152,6 @@ class FluxResult:
     net: object               # the assembled network (conductances for the flux)
 
 
-T_COLD, T_HOT = 298.15, 308.15          # 25 C at y = 0, 35 C at y = L (002 sec. 2.2, 4.2)
-
-
 def flux_test(scene, packing: Packing, phase, contrast: float, *, factor=None,
               keep=False, axis: int = 1) -> FluxResult:
     """The steady flux test of the composite (phase 1 at ``contrast`` x the matrix) along
@@ -147,31 +160,20 @@ def flux_test(scene, packing: Packing, phase, contrast: float, *, factor=None,
     interface). k_eff = Q L / (A dT) with the domain's length and face
     (:func:`thermal_kernel.effective.effective_conductivity`, heat in = heat out checked)."""
     t0 = time.perf_counter()
-    name = "xyz"[axis]
-    matrix = scene.material(0)
-    inclusion = Material(conductivity=contrast * matrix.conductivity, density=matrix.density,
-                         heat_capacity=matrix.heat_capacity)
-    sc = dataclasses.replace(scene, materials={0: matrix, 1: inclusion},
-                             boundaries=(TemperatureBoundary(name="hot", on=f"{name}max",
-                                                             value=T_HOT),
-                                         TemperatureBoundary(name="cold", on=f"{name}min",
-                                                             value=T_COLD)),
-                             solver=SolverConfig(method="steady"))
+    sc = framework.case_scene(scene_text(scene.packing, contrast=contrast, axis=axis,
+                                         target_z=_target_z(scene)), SCENE_PATH)
     pk = dataclasses.replace(packing, phase=np.asarray(phase, np.int32))
-    problem, _ = build_problem(sc, pk)
-    if factor is not None:
-        problem = dataclasses.replace(problem,
-                                      conductance_w_k=problem.conductance_w_k * factor)
-    net = assemble(problem)
+    run = run_in_memory(sc, pk, initial_temperature_k=0.5 * (T_HOT + T_COLD),
+                        conductance_factor=factor)
     ext = packing.domain_hi - packing.domain_lo
-    result = effective_conductivity(
-        net, "hot", "cold", t_in=T_HOT, t_out=T_COLD, length_m=float(ext[axis]),
-        area_m2=float(np.prod(np.delete(ext, axis))), length_convention="domain",
-        initial_k=np.full(packing.n_particles, 0.5 * (T_HOT + T_COLD)), where=scene.path)
+    result = steady_effective_conductivity(
+        run.result, run.network, "hot", "cold", t_in=T_HOT, t_out=T_COLD,
+        length_m=float(ext[axis]), area_m2=float(np.prod(np.delete(ext, axis))),
+        length_convention="domain", where=scene.path)
     return FluxResult(k_eff=result.k_eff_w_mk, heat_flow_w=result.q_in_w,
                       balance=result.balance, seconds=time.perf_counter() - t0,
                       temperature=np.asarray(result.temperature_k) if keep else None,
-                      net=net if keep else None)
+                      net=run.network if keep else None)
 
 
 def cell_fraction(packing: Packing, phase: np.ndarray, grid: int = 96, k: int = 8) -> float:
