@@ -7,6 +7,9 @@ the same ranks:
 - rank 0's Network: degrees, cluster labels and counts, the explicit bound and its particle,
   the conducting and zero-H contacts, the flags, the held and untied particles' adjacency rows
   (bit for bit), dt_paper (its mean H summed in another order: 1e-14);
+- a scene's ``[neighbours]`` criterion (thermal_kernel/neighbours.py): the choice made on the
+  ranks with collectives -- the gap, the rows kept, the bulk Z's -- equal to the whole build's
+  bit for bit (then the rows above, built from the kept rows and their neighbour counts);
 - the steady temperatures of the backend on both builds (the same matrix: within 1e-12 of the
   change; PETSc's reductions on 3 ranks do not always sum in the same order).
 
@@ -39,10 +42,10 @@ def main(scene_path):
     comm = PETSc.COMM_WORLD.tompi4py()
     rank = comm.Get_rank()
     scene = load_scene(scene_path)
-    whole = None
+    whole = info = None
     if rank == 0:
         packing = read_packing(scene.packing)
-        problem, _ = build_problem(scene, packing)
+        problem, info = build_problem(scene, packing)
         whole = assemble(problem)
     ref = backend.DistributedNetwork(whole, packing.position if rank == 0 else None)
     rb = build_on_ranks(scene, scene.packing, comm)
@@ -65,6 +68,21 @@ def main(scene_path):
         (mine.lo, mine.n_local, mine.cut, mine.n_active_contacts), rank
     if rank == 0:
         a, b = whole, rb.net
+        # the [neighbours] choice: every number of it, to the bit (None: no criterion)
+        mine_choice = rb.info["neighbours"]
+        assert (info["neighbours"] is None) == (mine_choice is None) == (
+            scene.neighbours is None)
+        if mine_choice is not None:
+            s1, s2 = info["neighbours"].summary(), mine_choice.summary()
+            assert s1.keys() == s2.keys()
+            for key in s1:
+                assert s1[key] == s2[key] or (s1[key] != s1[key] and s2[key] != s2[key]), (
+                    key, s1[key], s2[key])
+                assert type(s1[key]) is type(s2[key]), (key, s1[key], s2[key])
+            # rank 0's rows kept: the first slice of the whole build's
+            keep = mine_choice.keep
+            same(info["neighbours"].keep[:keep.size], keep, "neighbours.keep (rank 0's rows)")
+            assert 0 < s1["n_kept"] < s1["n_dumped"], s1      # the criterion does cut rows
         for key in ("degree_w_k", "held", "held_temperature_k", "capacity_j_k",
                     "exchange_g_w_k", "constant_rhs_w", "fixed_particle", "exchange_particle",
                     "conducting", "held_boundary", "constant_boundary_flow_w"):

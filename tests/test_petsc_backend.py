@@ -14,6 +14,7 @@ temperature off), a held particle not eliminated (the implicit matrix not SPD, o
 temperatures drifting), the ledger's partial sums counted twice or missed on a rank, the source
 added on one rank only, a flag lost in the output.
 """
+import json
 from pathlib import Path
 
 import h5py
@@ -81,6 +82,14 @@ start_time = 0.2
 stop_time = 1.4
 '''
 DENSE_TIMES = "end_time = 2.0\noutput_times = [0.5, 1.0, 2.0]\n"
+# the dense box's [neighbours] criterion (issue 23): the gap giving bulk Z 7 (every dumped row:
+# 8.10, 163 bulk particles); 1 mean diameter from the faces
+NEIGHBOURS_Z = "[neighbours]\ntarget_z_with_gaps = 7.0\nbulk_margin_diameters = 1.0\n"
+
+
+def _with_neighbours(rows, law, table):
+    """A scene's rows with another law and a [neighbours] table."""
+    return rows.replace('law = "haddad"\n', f'law = "{law}"\n{table}', 1)
 
 
 def _scene(tmp_path, name, text):
@@ -193,18 +202,23 @@ def test_each_rank_builds_its_own_rows_as_the_whole_build_does(tmp_path, ranks):
     """thermal_kernel/rank_build.py against the whole build on rank 0 (tests/
     mpi_rank_build_check.py, under mpirun): each rank's rows of the matrix and of the boundary
     terms, rank 0's network (degrees, clusters, bounds, flags, the held rows) bit for bit, and
-    the steady temperatures within 1e-12 of the change, on the bed (rattlers) and the dense box
-    (every row kind). Since the build reads per rank, no rank but 0 holds the whole packing.
+    the steady temperatures within 1e-12 of the change, on the bed (rattlers), the dense box
+    (every row kind) and the dense box with a ``[neighbours]`` criterion (the gap chosen for a
+    bulk Z with collectives over the ranks' slices: the gap, rows kept and bulk Z's equal to the
+    whole build's bit for bit; the terreros law, which reads the kept rows' neighbour counts).
+    Since the build reads per rank, no rank but 0 holds the whole packing.
     What could fail: a contact lost or counted twice between the slices and the owners, the
     law given other neighbour counts, a diagonal summed in another order, clusters numbered
-    otherwise than in-process."""
+    otherwise than in-process, a gap one ulp off or a tie split between ranks."""
     import subprocess
 
     from thermal_kernel.solvers.mpi_launch import MPIRUN_LOCAL, mpi_env, mpi_python
     check = Path(__file__).resolve().parent / "mpi_rank_build_check.py"
     steady = '[solver]\nmethod = "steady"\n'
     for name, text in (("bed", f'packing = "{BED}"\nlaw = "pipe"\n{BED_THERMAL}{steady}'),
-                       ("dense", DENSE_ROWS + steady)):
+                       ("dense", DENSE_ROWS + steady),
+                       ("neighbours", _with_neighbours(DENSE_ROWS, "terreros",
+                                                       NEIGHBOURS_Z) + steady)):
         scene = _scene(tmp_path, name, text)
         done = subprocess.run(["mpirun", "-n", str(ranks), *MPIRUN_LOCAL, str(mpi_python()),
                                str(check), str(scene)], env=mpi_env(), capture_output=True,
@@ -229,6 +243,31 @@ def test_the_whole_build_on_rank_0_gives_the_same_temperatures(bed_runs):
     change = float(np.abs(per_rank["T"] - per_rank["T0"][None, :]).max())
     assert np.abs(whole["T"] - per_rank["T"]).max() <= 1e-12 * change
     assert whole["attrs"]["cut_contacts"] == per_rank["attrs"]["cut_contacts"]
+
+
+def test_a_neighbours_scene_runs_on_the_ranks_as_in_process(tmp_path, capsys):
+    """``tdem run --ranks 2`` of a [neighbours] scene (built on the ranks: mpi_run has no
+    whole-build case for it any more): thermal.h5's ``neighbours`` attribute (the gap, rows
+    kept, bulk Z's, as JSON) is the in-process run's string, the steady temperatures within
+    the solver tolerance; a target above what the dump holds is the in-process one line,
+    exit 2."""
+    steady = '[solver]\nmethod = "steady"\n'
+    scene = _scene(tmp_path, "nb", _with_neighbours(DENSE_ROWS, "haddad", NEIGHBOURS_Z) + steady)
+    inproc = _run(scene, tmp_path / "in")
+    petsc = _run(scene, tmp_path / "r2", ranks=2)
+    _assert_same(inproc, petsc, RTOL["steady"])
+    assert petsc["attrs"]["neighbours"] == inproc["attrs"]["neighbours"]
+    chosen = json.loads(petsc["attrs"]["neighbours"])
+    assert chosen["mode"] == "target_z_with_gaps" and chosen["n_kept"] < chosen["n_dumped"]
+    bad = _scene(tmp_path, "bad", _with_neighbours(
+        DENSE_ROWS, "haddad", NEIGHBOURS_Z.replace("7.0", "9.5")) + steady)
+    capsys.readouterr()
+    assert main(["run", str(bad), "--out", str(tmp_path / "o"), "--ranks", "2"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "neighbours.target_z_with_gaps: 9.5 is above the bulk Z" in err[0]
+    assert main(["run", str(bad), "--out", str(tmp_path / "i")]) == 2     # in-process: alike
+    assert capsys.readouterr().err.strip().splitlines() == err
+    assert not (tmp_path / "o" / "thermal.h5").exists()
 
 
 def test_a_bad_contact_row_read_by_the_last_rank_is_one_line(tmp_path, capsys):

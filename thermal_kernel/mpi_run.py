@@ -9,11 +9,12 @@ This is the command a user runs on a cluster (with ``--hostfile``; docs/scaling.
 beside :mod:`.run` (not in ``solvers/``, which never import the scene or the problem builder:
 ``tests/test_boundaries.py``). Every rank reads the scene and
 builds its own rows (:mod:`.rank_build`: its slice of the packing's contacts, sent to the ranks
-owning their particles; the law evaluated on each rank's contacts; the boundary kinds on rank 0,
-their rows sent to every rank; the clusters joined on rank 0); with a ``[neighbours]`` criterion
-or ``--whole-build`` rank 0 alone reads the packing, builds the problem with the one law
-registry and the boundary kinds (:func:`~thermal_kernel.problem.build_problem`) and assembles
-the network, then sends each rank its rows
+owning their particles; a ``[neighbours]`` criterion chosen with collectives over the slices;
+the law evaluated on each rank's contacts; the boundary kinds on rank 0, their rows sent to
+every rank; the clusters joined on rank 0); with ``--whole-build`` (for comparison) rank 0
+alone reads the packing, builds the problem with the one law registry and the boundary kinds
+(:func:`~thermal_kernel.problem.build_problem`) and assembles the network, then sends each
+rank its rows
 (:class:`~thermal_kernel.solvers.petsc_backend.DistributedNetwork`); the solve is distributed
 (:mod:`.solvers.petsc_backend`); rank 0 checks the physics (the in-process
 :func:`~thermal_kernel.solvers.check_physics`) and writes the ordinary ``thermal.h5`` with the
@@ -53,8 +54,8 @@ def _args(argv):
                                         "case: the campaign file's tables, law and packing set)")
     p.add_argument("--whole-build", action="store_true",
                    help="rank 0 reads the packing and builds the whole network, then sends "
-                        "each rank its rows (the build of a [neighbours] scene; for "
-                        "comparison: docs/scaling.md)")
+                        "each rank its rows (for comparison with the build on the ranks: "
+                        "docs/scaling.md)")
     p.add_argument("--status", help="file to write the one-line error to (the launcher's)")
     p.add_argument("--run-args", default="{}", help="the CLI's arguments (JSON), stored")
     return p.parse_args(argv)
@@ -124,7 +125,7 @@ def _run(args, rank, held):
         return str(packing_path)
 
     packing_path = Path(backend.on_root(comm, lock))
-    per_rank = scene.neighbours is None and not args.whole_build
+    per_rank = not args.whole_build
     t0 = time.perf_counter()
     if per_rank:            # each rank reads and builds its own rows (rank_build.py)
         rb = build_on_ranks(scene, packing_path, comm)
@@ -133,9 +134,8 @@ def _run(args, rank, held):
 
     def build():
         """Rank 0 only: the packing, the problem (laws, boundary kinds) and the network when
-        the ranks did not build them ([neighbours]: a gap chosen over every bulk contact),
-        the checks before the run and the checkpoint to resume from. Every rank gets the time
-        resumed from."""
+        the ranks did not build them (``--whole-build``), the checks before the run and the
+        checkpoint to resume from. Every rank gets the time resumed from."""
         scene_json = scene_to_json(scene)
         if not per_rank:
             packing = read_packing(packing_path)
@@ -169,6 +169,8 @@ def _run(args, rank, held):
               f"({net.n_zero_contacts} with H = 0); PETSc on {dist.size} rank(s), "
               f"{dist.cut} contacts cut by the Morton blocks", flush=True)
         print(f"  network: {net.clusters.summary()}", flush=True)
+        if built["info"]["neighbours"] is not None:
+            print(f"  {built['info']['neighbours'].line()}", flush=True)
     ckpt = None
     if solver.method == "steady":
         result = backend.solve_steady(dist, T0, pc=args.pc)

@@ -118,7 +118,12 @@ class NeighbourChoice:
 
 
 def dump_gap_tolerance(packing: Packing) -> float:
-    value = packing.attrs.get("gap_tolerance")
+    return dump_gap_tolerance_of(packing.attrs)
+
+
+def dump_gap_tolerance_of(attrs: dict) -> float:
+    """A packing's ``gap_tolerance`` attribute from its attributes (NaN if absent)."""
+    value = attrs.get("gap_tolerance")
     try:
         return float(value)
     except (TypeError, ValueError):
@@ -145,6 +150,37 @@ def choose_gap(ratio: np.ndarray, weight: np.ndarray, need: float) -> tuple[floa
     return cut - 1.0, k + 1
 
 
+
+# the refusals, in one line naming the scene, the key and the packing (the whole build's and the
+# ranks' alike)
+def _no_bulk(scene, crit, path) -> SceneError:
+    return SceneError(f"{scene.path}: neighbours.bulk_margin_diameters: no particle of {path} is "
+                      f"{crit.bulk_margin_diameters:g} mean diameters from every wall / cut "
+                      "face (expected a smaller margin or a larger packing)")
+
+
+def _check_given_gap(scene, crit, path, tol) -> None:
+    if math.isfinite(tol) and crit.gap > tol * (1 + 1e-12):
+        raise SceneError(f"{scene.path}: neighbours.gap: {crit.gap:g} is beyond the "
+                         f"gap_tolerance {tol:g} {path} was dumped with (the pairs in between "
+                         f"are not in the file); expected a gap <= {tol:g}")
+
+
+def _above_dump(scene, crit, path, tol, z_dumped) -> SceneError:
+    tol_text = f"gap_tolerance {tol:g}" if math.isfinite(tol) else "its gap_tolerance"
+    return SceneError(f"{scene.path}: neighbours.target_z_with_gaps: "
+                      f"{crit.target_z_with_gaps:g} is above the bulk Z {z_dumped:.4f} of every "
+                      f"pair {path} holds (dumped with {tol_text}); expected at most "
+                      f"{z_dumped:.4f} (or a packing dumped with a larger gap_tolerance)")
+
+
+def _below_touching(scene, crit, path, z_touch) -> SceneError:
+    return SceneError(f"{scene.path}: neighbours.target_z_with_gaps: "
+                      f"{crit.target_z_with_gaps:g} is below the bulk Z {z_touch:.4f} of the "
+                      f"touching contacts of {path} alone (a negative gap would cut touching "
+                      f"contacts); expected at least {z_touch:.4f}")
+
+
 def choose_neighbours(scene, packing: Packing) -> NeighbourChoice | None:
     """The scene's [neighbours] criterion on ``packing`` (None: the scene has none, every dumped
     row conducts). Refused in one line naming the scene, the key and the packing: a gap beyond
@@ -157,17 +193,11 @@ def choose_neighbours(scene, packing: Packing) -> NeighbourChoice | None:
     ratio = distance_ratio(packing)
     bulk = bulk_particles(packing, crit.bulk_margin_diameters)
     n_bulk = int(bulk.sum())
-    where = f"{scene.path}: neighbours"
     if n_bulk == 0:
-        raise SceneError(f"{where}.bulk_margin_diameters: no particle of {packing.path} is "
-                         f"{crit.bulk_margin_diameters:g} mean diameters from every wall / cut "
-                         "face (expected a smaller margin or a larger packing)")
+        raise _no_bulk(scene, crit, packing.path)
     z_dumped = bulk_coordination(packing, bulk)
     if not math.isnan(crit.gap):
-        if math.isfinite(tol) and crit.gap > tol * (1 + 1e-12):
-            raise SceneError(f"{where}.gap: {crit.gap:g} is beyond the gap_tolerance {tol:g} "
-                             f"{packing.path} was dumped with (the pairs in between are not in "
-                             f"the file); expected a gap <= {tol:g}")
+        _check_given_gap(scene, crit, packing.path, tol)
         gap, mode = crit.gap, "gap"
     else:
         target = crit.target_z_with_gaps
@@ -176,18 +206,11 @@ def choose_neighbours(scene, packing: Packing) -> NeighbourChoice | None:
         need = target * n_bulk * (1 - 1e-12)
         found = choose_gap(ratio, weight, need)
         if found is None:
-            tol_text = f"gap_tolerance {tol:g}" if math.isfinite(tol) else "its gap_tolerance"
-            raise SceneError(f"{where}.target_z_with_gaps: {target:g} is above the bulk Z "
-                             f"{z_dumped:.4f} of every pair {packing.path} holds (dumped with "
-                             f"{tol_text}); expected at most {z_dumped:.4f} (or a packing "
-                             "dumped with a larger gap_tolerance)")
+            raise _above_dump(scene, crit, packing.path, tol, z_dumped)
         gap = found[0]
         if gap < 0:
-            z_touch = bulk_coordination(packing, bulk, ratio < 1.0)
-            raise SceneError(f"{where}.target_z_with_gaps: {target:g} is below the bulk Z "
-                             f"{z_touch:.4f} of the touching contacts of {packing.path} alone "
-                             "(a negative gap would cut touching contacts); expected at least "
-                             f"{z_touch:.4f}")
+            raise _below_touching(scene, crit, packing.path,
+                                  bulk_coordination(packing, bulk, ratio < 1.0))
         if math.isfinite(tol):
             gap = min(gap, tol)
         mode = "target_z_with_gaps"
@@ -199,3 +222,83 @@ def choose_neighbours(scene, packing: Packing) -> NeighbourChoice | None:
         bulk_z=bulk_coordination(packing, bulk, keep), bulk_z_dumped=z_dumped,
         z_all=2.0 * int(keep.sum()) / n, n_bulk=n_bulk, n_kept=int(keep.sum()),
         n_dumped=packing.n_contacts, dump_gap_tolerance=tol, keep=keep)
+
+
+def choose_neighbours_on_ranks(scene, comm, path, tol: float, n: int, m: int, n_bulk: int,
+                               ratio: np.ndarray, weight: np.ndarray) -> NeighbourChoice | None:
+    """:func:`choose_neighbours` on the ranks (issue 25, :mod:`thermal_kernel.rank_build`):
+    collective over the mpi4py communicator ``comm``; each rank gives its slice of the file's
+    contact rows only -- their ``ratio`` (:func:`distance_ratio`) and ``weight`` (how many of
+    the row's two particles are bulk particles, 0-2) -- and ``n_bulk`` (the bulk particles,
+    counted by rank 0, which holds the particles). No rank holds every row: the whole build's
+    choice is reproduced from collectives, bit for bit (``tests/mpi_rank_build_check.py``):
+
+    - the bulk Z's are exact integer sums of ``weight`` (allreduce) over ``n_bulk``, as the
+      whole build's means of integer counts are;
+    - ``target_z_with_gaps``: the whole build keeps, in the order of the ratios, the rows whose
+      summed weight first reaches ``need`` (ties together): the last row kept has the smallest
+      ratio v with W(v) >= need, W(v) the summed weight of the rows with ratio <= v. Ratios are
+      >= 0, so their float64 bits as int64 are in the same order: a bisection over those bits
+      (W by one allreduce a step, <= 64 steps) finds v exactly; the next ratio is the smallest
+      one above v (an allreduce MIN); the gap is the whole build's arithmetic on the two.
+
+    Refused as the whole build refuses (the same lines, on every rank: every decision is made
+    on allreduced numbers). The choice's ``keep`` is over this rank's rows."""
+    from mpi4py import MPI
+    crit = scene.neighbours
+    if crit is None:
+        return None
+    if n_bulk == 0:
+        raise _no_bulk(scene, crit, path)
+    ratio = np.asarray(ratio, dtype=np.float64)
+    weight = np.asarray(weight, dtype=np.int64)
+
+    def total(x):
+        return int(comm.allreduce(int(x), op=MPI.SUM))
+
+    z_dumped = float(total(weight.sum())) / n_bulk
+    if not math.isnan(crit.gap):
+        _check_given_gap(scene, crit, path, tol)
+        gap, mode = crit.gap, "gap"
+    else:
+        need = crit.target_z_with_gaps * n_bulk * (1 - 1e-12)
+        if not total(weight.sum()) >= need:
+            raise _above_dump(scene, crit, path, tol, z_dumped)
+        order = np.argsort(ratio, kind="stable")
+        s = ratio[order]
+        cum = np.cumsum(weight[order])
+        del order
+
+        def w_at_most(v):           # the summed weight of every rank's rows with ratio <= v
+            k = int(np.searchsorted(s, v, side="right"))
+            return total(cum[k - 1] if k else 0)
+
+        bits = s.view(np.int64)
+        big = np.iinfo(np.int64).max
+        lo = int(comm.allreduce(int(bits[0]) if bits.size else big, op=MPI.MIN)) - 1
+        hi = int(comm.allreduce(int(bits[-1]) if bits.size else -1, op=MPI.MAX))
+        while hi - lo > 1:          # W(lo) < need <= W(hi)
+            mid = lo + (hi - lo) // 2
+            if w_at_most(np.array(mid, dtype=np.int64).view(np.float64)) >= need:
+                hi = mid
+            else:
+                lo = mid
+        v = np.array(hi, dtype=np.int64).view(np.float64)[()]
+        k = int(np.searchsorted(s, v, side="right"))
+        nxt = comm.allreduce(float(s[k]) if k < s.size else math.inf, op=MPI.MIN)
+        cut = 0.5 * (v + np.float64(nxt)) if math.isfinite(nxt) else v * (1 + 1e-12)
+        gap = cut - 1.0
+        if gap < 0:
+            raise _below_touching(scene, crit, path,
+                                  float(total(weight[ratio < 1.0].sum())) / n_bulk)
+        if math.isfinite(tol):
+            gap = min(gap, tol)
+        mode = "target_z_with_gaps"
+    keep = ratio < 1.0 + gap
+    n_kept = total(np.count_nonzero(keep))
+    return NeighbourChoice(
+        gap=float(gap), mode=mode, target_z_with_gaps=float(crit.target_z_with_gaps),
+        bulk_margin_diameters=float(crit.bulk_margin_diameters),
+        bulk_z=float(total(weight[keep].sum())) / n_bulk, bulk_z_dumped=z_dumped,
+        z_all=2.0 * n_kept / n, n_bulk=n_bulk, n_kept=n_kept, n_dumped=m,
+        dump_gap_tolerance=tol, keep=keep)

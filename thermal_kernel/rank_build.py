@@ -12,15 +12,20 @@ over an mpi4py communicator:
    it reads those particles' centres, radii and phases itself);
 2. rank r reads the r-th slice of the file's contact rows (``read_contact_rows``), fetches
    their spheres from the directories and checks the rows against them
-   (``check_contact_rows``, the reader's checks); the neighbour counts are summed at the
+   (``check_contact_rows``, the reader's checks); a scene's ``[neighbours]`` criterion is
+   chosen over every rank's rows with collectives
+   (:func:`~.neighbours.choose_neighbours_on_ranks`: the bulk flags from rank 0, which holds
+   the particles; the gap giving the target bulk Z found by a bisection over the ratios'
+   bits, one allreduce of summed weights a step: the whole build's gap, bit for bit) and each
+   row marked kept or not; the neighbour counts (of the kept rows) are summed at the
    directories and fetched back; each contact goes, with its two spheres' values, to the
    rank(s) owning its particles (one Alltoallv a field): a rank then holds the contacts
    touching its particles, in the file's order (duplicates found there: both copies reach
    the owner of i);
 3. each rank evaluates the scene's law on those contacts (:func:`~.problem.evaluate_law`, the
-   one law registry, on a packing of the contacts' spheres) and builds its rows of
-   A = L + diag(g) with the in-process arithmetic (the same sums in the same order: the rows
-   equal the whole build's bit for bit, ``tests/test_petsc_backend.py``);
+   one law registry, on a packing of the contacts' spheres; H = 0 on the rows not kept) and
+   builds its rows of A = L + diag(g) with the in-process arithmetic (the same sums in the
+   same order: the rows equal the whole build's bit for bit, ``tests/test_petsc_backend.py``);
 4. rank 0 evaluates the law's capacities and runs the boundary kinds
    (:func:`~.problem.boundary_problem`, the one registry) on the whole particles, and sends
    each rank the per-particle and boundary rows of its block;
@@ -32,8 +37,8 @@ over an mpi4py communicator:
    and the output read.
 
 What stays whole: on rank 0 the particles and the network's per-particle arrays (and the
-temperatures it gathers for the output). A scene with a ``[neighbours]`` criterion (a gap
-chosen over every bulk contact) is built whole on rank 0 (mpi_run, also ``--whole-build``).
+temperatures it gathers for the output). ``mpi_run --whole-build`` builds the network whole
+on rank 0 instead (for comparison).
 """
 from __future__ import annotations
 
@@ -44,11 +49,13 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .neighbours import bulk_particles, choose_neighbours_on_ranks, dump_gap_tolerance_of
 from .network import cluster_report, network_of, particle_terms, validate
 from .packing import (CONTACT_BLOCK_ROWS, Packing, PackingError, _check_pairs,
                       check_contact_rows, contact_check_scales, read_contact_rows,
                       read_packing, read_particle_rows)
 from .problem import boundary_problem, evaluate_law
+from .scene import SceneError
 from .solvers.partition import block_starts, particle_order
 
 class RankError(RuntimeError):
@@ -208,6 +215,15 @@ def build_on_ranks(scene, packing_path, comm) -> RankBuild:
     mine = _scatter_blocks(comm, order, starts)
     own_new = _scatter_blocks(comm, new_index, fblock)      # the file block's places
     del new_index
+    # a [neighbours] criterion: rank 0 finds the bulk particles (their distance to every wall
+    # and cut face, the mean radius: the particles whole); each directory gets its block's
+    crit = scene.neighbours
+    n_bulk, own_bulk = 0, np.zeros(int(fblock[rank + 1] - fblock[rank]), dtype=np.uint8)
+    if crit is not None:
+        bulk = (bulk_particles(particles, crit.bulk_margin_diameters) if rank == 0 else None)
+        n_bulk = comm.bcast(int(bulk.sum()) if rank == 0 else None, root=0)
+        own_bulk = _scatter_blocks(comm, bulk, fblock, np.uint8)
+        del bulk
     fb = agree(comm, lambda: read_particle_rows(path, fblock[rank], fblock[rank + 1]))
 
     # 2. this rank's slice of the contact rows, checked against their spheres
@@ -215,8 +231,9 @@ def build_on_ranks(scene, packing_path, comm) -> RankBuild:
     part = agree(comm, lambda: read_contact_rows(path, n, m, ms[rank], ms[rank + 1]))
     ends = np.unique(part["pair"])
     loc = np.searchsorted(ends, part["pair"])
-    pos_e, rad_e, ph_e, new_e = _fetch(comm, ends, fblock, [fb["position"], fb["radius"],
-                                                            fb["phase"], own_new])
+    pos_e, rad_e, ph_e, new_e, bulk_e = _fetch(
+        comm, ends, fblock, [fb["position"], fb["radius"], fb["phase"], own_new, own_bulk])
+    del own_bulk
 
     def check():
         for b0 in range(0, loc.shape[0], CONTACT_BLOCK_ROWS):
@@ -230,17 +247,38 @@ def build_on_ranks(scene, packing_path, comm) -> RankBuild:
     agree(comm, check)
     pos_e = None
     del fb["position"]
-    # the neighbour counts (every dumped row), summed at the directories, fetched back
-    nb_block = _sum_at_directories(comm, ends, np.bincount(loc.reshape(-1),
-                                                           minlength=ends.size), fblock)
+    # the [neighbours] criterion on this slice's rows, the choice made with collectives over
+    # every rank's rows (neighbours.choose_neighbours_on_ranks: the whole build's, bit for bit)
+    # (its refusal, the same on every rank, waits for the pairs' check below: the whole
+    # build's reader refuses a duplicate pair first)
+    keep = choice = refused = None
+    if crit is not None:
+        ratio = (np.linalg.norm(part["branch"], axis=1)
+                 / (rad_e[loc[:, 0]] + rad_e[loc[:, 1]]))
+        weight = bulk_e[loc[:, 0]].astype(np.int64) + bulk_e[loc[:, 1]].astype(np.int64)
+        try:
+            choice = choose_neighbours_on_ranks(scene, comm, path, dump_gap_tolerance_of(
+                head["attrs"]), n, m, n_bulk, ratio, weight)
+            keep = choice.keep
+        except SceneError as e:
+            refused, keep = e, np.zeros(ratio.size, dtype=bool)
+        part["keep"] = keep.astype(np.uint8)    # travels with its contact
+        del ratio, weight
+    # the neighbour counts (every dumped row, or the rows kept), summed at the directories,
+    # fetched back
+    nb_block = _sum_at_directories(comm, ends, np.bincount(
+        (loc if keep is None else loc[keep]).reshape(-1), minlength=ends.size), fblock)
+    del keep
     owner_e = np.searchsorted(starts, new_e, side="right") - 1
     oi, oj = owner_e[loc[:, 0]], owner_e[loc[:, 1]]
     fields = part
     part = loc = rad_e = None
-    del ends, ph_e, new_e, owner_e
+    del ends, ph_e, new_e, owner_e, bulk_e
     got = _exchange_contacts(comm, fields, oi, oj, size)
     del fields, oi, oj
     agree(comm, lambda: _check_pairs(path, got["pair"], n, row=got["contact_row"]))
+    if refused is not None:
+        raise refused
 
     # 3. rank 0: the law's capacities and inputs on the whole particles (its boundary kinds',
     # its output's), then the law on each rank's contacts
@@ -263,8 +301,10 @@ def build_on_ranks(scene, packing_path, comm) -> RankBuild:
                       branch=got["branch"], contact_radius=got["contact_radius"],
                       attrs=head["attrs"], path=path, contact_row=got["contact_row"],
                       file_contacts=m)
+    kept = None if crit is None else got.pop("keep").astype(bool)
     _, _, _, conductance, _ = agree(
-        comm, lambda: evaluate_law(scene, spheres, None, table["nb"]))
+        comm, lambda: evaluate_law(scene, spheres, kept, table["nb"]))
+    kept = None
     pair = got["pair"]
     new_l = table["new"]
     newp = new_l[spheres.pair]          # each contact's two places in the order
@@ -318,7 +358,8 @@ def build_on_ranks(scene, packing_path, comm) -> RankBuild:
 
     def root():
         problem, info = boundary_problem(scene, particles, whole["law"], whole["params"],
-                                         whole["pinput"], whole["capacity"], np.zeros(0))
+                                         whole["pinput"], whole["capacity"], np.zeros(0),
+                                         choice)
         v = validate(problem)
         terms = particle_terms(v)
         edges = np.concatenate(cut_all)
