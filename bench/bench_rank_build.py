@@ -12,7 +12,8 @@ ranks' PYTHONPATH; "after" the checkout's own. The packings: the committed dense
 spheres (runs/out/dense_box_1e5/packing.h5, `tdem pack runs/dense_box_1e5.toml`) and a 1e6
 tiled box made from the same relaxed cell (`tdem pack`, ~20 s when that cell exists, else the
 cell is relaxed first), each between two held faces, haddad's law with every dumped row
-conducting (no [neighbours] criterion: a scene with one still builds whole on rank 0).
+conducting (no [neighbours] criterion: when these rows were measured a scene with one still
+built whole on rank 0; it is built on the ranks now, not measured here).
 ``bench/bench_scaling.py --from-json --write docs/scaling.md`` puts the rows into the doc.
 """
 from __future__ import annotations
