@@ -32,7 +32,7 @@ import numpy as np
 from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 
-from .framework import Action, cell_cpu_seconds, figure_csv, held_planes, md_table, \
+from .framework import Action, case_scene, cell_cpu_seconds, figure_csv, held_planes, md_table, \
     rebuild_saved
 from .framework import (OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
                         optional_packing, previous_numbers, register_packing, today)
@@ -159,8 +159,8 @@ def read_rows(numbers: dict) -> list[CalibRow]:
 
 
 def _scene(variant: str):
-    from thermal_kernel.scene import NeighbourCriterion, load_scene
-    scene = load_scene(ROOT / SCENE)
+    from thermal_kernel.scene import NeighbourCriterion
+    scene = case_scene(None, ROOT / SCENE)
     cut, rule = VARIANTS[variant]
     crit = (NeighbourCriterion(target_z_with_gaps=HADDAD_Z, bulk_margin_diameters=BULK_MARGIN)
             if cut else None)

@@ -388,11 +388,12 @@ def scene_toml(packing, law: str, **tables) -> str:
     return "\n".join(lines) + "\n"
 
 
-def case_scene(text: str, where: Path):
+def case_scene(text: str | None, where: Path):
     """A case's scene from its TOML text (:func:`scene_toml`), read and checked as ``tdem run``
     reads a scene file (``thermal_kernel.scene.load_scene``); ``where`` names it in messages
-    and resolves relative paths (nothing is read there). The case then runs it as a user does,
-    through ``thermal_kernel.run.run_in_memory``."""
+    and resolves relative paths (nothing is read there; ``text`` None: the scene file
+    ``where``). The case then runs it as a user does, through
+    ``thermal_kernel.run.run_in_memory``."""
     from thermal_kernel.scene import load_scene
     return load_scene(where, text=text)
 
