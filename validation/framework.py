@@ -377,7 +377,7 @@ def _toml(value) -> str:
 
 def scene_toml(packing, law: str, **tables) -> str:
     """A case's scene as the TOML text a user would write (docs/scenes.md), for
-    ``thermal_kernel.scene.load_scene(path, text=...)``: ``packing`` and ``law``, then each of
+    :func:`case_scene`: ``packing`` and ``law``, then each of
     ``tables`` in the order given, a dict as a table ``[name]`` and a list of dicts as an array
     of tables ``[[name]]`` (``boundary=[...]``); a table that is None or empty is left out."""
     lines = [f"packing = {_toml(str(packing))}", f"law = {_toml(law)}"]
