@@ -22,7 +22,7 @@ FORBIDDEN = {
 # What YADE's Python (Debian's, numpy but no numba) may import of thermal_kernel: modules of
 # numpy and the standard library only, each checked below. A piece both sides need goes here.
 YADE_SAFE = {"thermal_kernel.placement", "thermal_kernel.packing_stats",
-             "thermal_kernel.contact_check"}
+             "thermal_kernel.contact_check", "thermal_kernel.morton"}
 # The modules that load a file by path (importlib's spec_from_file_location), which no import
 # scan sees, and what they load: anything else loading by path fails the test below.
 LOADS_BY_PATH = {

@@ -31,6 +31,7 @@ import numpy as np
 if __name__ == "__main__":       # run by YADE (yade -x): the package yade_scripts is importable
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0]))))
 
+from thermal_kernel.morton import morton_order  # noqa: E402
 from yade_scripts import params as P  # noqa: E402
 from yade_scripts import shell  # noqa: E402
 from yade_scripts.dense_geometry import (  # noqa: E402
@@ -39,6 +40,9 @@ from yade_scripts.dense_geometry import (  # noqa: E402
     solid_fractions, stiffness_stages, tile_cell)
 from yade_scripts.tdem_dump import write_packing  # noqa: E402
 from yade_scripts.tiling import carve  # noqa: E402
+
+# scenes of more spheres than this enter YADE in Z order (build_scene)
+MORTON_ABOVE = 20_000
 
 # YADE's names, bound by import_yade() when the script runs: importing this file needs no YADE.
 O = geom = utils = Matrix3 = None
@@ -114,8 +118,16 @@ def build_scene(p, centres, radii, box, young):
         for i in ids:
             wall_of_body[i] = w
     collider = InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb()])
-    sphere_ids = [O.bodies.append(utils.sphere(tuple(float(x) for x in c), float(r), material=mat))
-                  for c, r in zip(centres, radii)]
+    # Above MORTON_ABOVE spheres they enter YADE along a Z-order curve of their centres (body
+    # ids in memory order; sphere_ids[k] stays the body of centres[k]): YADE's interaction loop
+    # reads both spheres of every contact, and in a random order at 1e5 spheres each read is a
+    # cache miss. Measured: 80,000 spheres of a relaxed periodic cell at the real modulus, 1.29x
+    # less CPU a step than the random order (0.135 against 0.174 s); 1.25x at 10,000, where the
+    # order is left as it was so that the packings quoted at and below 2e4 stay bit for bit.
+    sphere_ids = np.empty(len(radii), dtype=np.int64)
+    for k in (morton_order(centres) if len(radii) > MORTON_ABOVE else range(len(radii))):
+        sphere_ids[k] = O.bodies.append(utils.sphere(tuple(float(x) for x in centres[k]),
+                                                     float(radii[k]), material=mat))
     O.engines = [
         ForceResetter(),
         collider,
@@ -134,7 +146,7 @@ def build_scene(p, centres, radii, box, young):
             targetDt=1.0), O.engines[-1]]
         # (a property that needs the time stepper already in O.engines)
         O.engines[-1].densityScaling = True
-    return (mat, plane_mat, facet_mat), np.array(sphere_ids), wall_of_body, collider
+    return (mat, plane_mat, facet_mat), sphere_ids, wall_of_body, collider
 
 
 def mean_stress(box):

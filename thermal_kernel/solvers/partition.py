@@ -14,29 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-MORTON_BITS = 21           # per axis: 3 x 21 = 63 bits, one uint64 key
-
-
-def _spread_bits(v: np.ndarray) -> np.ndarray:
-    """Each of the low 21 bits of ``v`` (uint64) moved to every third bit (bit k -> 3k)."""
-    v = v & np.uint64(0x1FFFFF)
-    v = (v | (v << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
-    v = (v | (v << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
-    v = (v | (v << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
-    v = (v | (v << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
-    v = (v | (v << np.uint64(2))) & np.uint64(0x1249249249249249)
-    return v
-
-
-def morton_keys(position_m: np.ndarray) -> np.ndarray:
-    """(N,) uint64 Z-order keys of the (N, 3) centres, each axis scaled to 21 bits over the
-    bounding box (a flat axis gets key bits 0)."""
-    x = np.asarray(position_m, dtype=np.float64)
-    lo, hi = x.min(axis=0), x.max(axis=0)
-    span = np.where(hi > lo, hi - lo, 1.0)
-    q = np.floor((x - lo) / span * ((1 << MORTON_BITS) - 1)).astype(np.uint64)
-    return (_spread_bits(q[:, 0]) | (_spread_bits(q[:, 1]) << np.uint64(1))
-            | (_spread_bits(q[:, 2]) << np.uint64(2)))
+from ..morton import morton_order
 
 
 def particle_order(position_m: np.ndarray, kind: str = "morton") -> np.ndarray:
@@ -47,7 +25,7 @@ def particle_order(position_m: np.ndarray, kind: str = "morton") -> np.ndarray:
         return np.arange(n, dtype=np.int64)
     if kind != "morton":
         raise ValueError(f"order = {kind!r}: use 'morton' or 'index'")
-    return np.argsort(morton_keys(position_m), kind="stable").astype(np.int64)
+    return morton_order(position_m)
 
 
 def block_starts(n: int, size: int) -> np.ndarray:
