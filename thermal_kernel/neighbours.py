@@ -233,18 +233,19 @@ def choose_neighbours_on_ranks(scene, comm, path, tol: float, n: int, m: int, n_
     counted by rank 0, which holds the particles). No rank holds every row: the whole build's
     choice is reproduced from collectives, bit for bit (``tests/mpi_rank_build_check.py``):
 
-    - the bulk Z's are exact integer sums of ``weight`` (allreduce) over ``n_bulk``, as the
-      whole build's means of integer counts are;
+    - the bulk Z's are exact integer sums of ``weight`` over ``n_bulk``, as the whole build's
+      means of integer counts are;
     - ``target_z_with_gaps``: the whole build keeps, in the order of the ratios, the rows whose
       summed weight first reaches ``need`` (ties together): the last row kept has the smallest
       ratio v with W(v) >= need, W(v) the summed weight of the rows with ratio <= v. Ratios are
       >= 0, so their float64 bits as int64 are in the same order: a bisection over those bits
-      (W by one allreduce a step, <= 64 steps) finds v exactly; the next ratio is the smallest
-      one above v (an allreduce MIN); the gap is the whole build's arithmetic on the two.
+      (W summed over the ranks a step, <= 64 steps) finds v exactly; the next ratio is the
+      smallest one above v; the gap is the whole build's arithmetic on the two.
 
-    Refused as the whole build refuses (the same lines, on every rank: every decision is made
-    on allreduced numbers). The choice's ``keep`` is over this rank's rows."""
-    from mpi4py import MPI
+    The collectives are ``comm.allgather`` of one number a rank (summed, or the min / max
+    taken, in Python: exact integers; one call a bisection step). Refused as the whole build
+    refuses (the same lines, on every rank: every decision is made on gathered numbers). The
+    choice's ``keep`` is over this rank's rows."""
     crit = scene.neighbours
     if crit is None:
         return None
@@ -254,7 +255,7 @@ def choose_neighbours_on_ranks(scene, comm, path, tol: float, n: int, m: int, n_
     weight = np.asarray(weight, dtype=np.int64)
 
     def total(x):
-        return int(comm.allreduce(int(x), op=MPI.SUM))
+        return sum(comm.allgather(int(x)))
 
     z_dumped = float(total(weight.sum())) / n_bulk
     if not math.isnan(crit.gap):
@@ -275,8 +276,8 @@ def choose_neighbours_on_ranks(scene, comm, path, tol: float, n: int, m: int, n_
 
         bits = s.view(np.int64)
         big = np.iinfo(np.int64).max
-        lo = int(comm.allreduce(int(bits[0]) if bits.size else big, op=MPI.MIN)) - 1
-        hi = int(comm.allreduce(int(bits[-1]) if bits.size else -1, op=MPI.MAX))
+        lo = min(comm.allgather(int(bits[0]) if bits.size else big)) - 1
+        hi = max(comm.allgather(int(bits[-1]) if bits.size else -1))
         while hi - lo > 1:          # W(lo) < need <= W(hi)
             mid = lo + (hi - lo) // 2
             if w_at_most(np.array(mid, dtype=np.int64).view(np.float64)) >= need:
@@ -285,7 +286,7 @@ def choose_neighbours_on_ranks(scene, comm, path, tol: float, n: int, m: int, n_
                 lo = mid
         v = np.array(hi, dtype=np.int64).view(np.float64)[()]
         k = int(np.searchsorted(s, v, side="right"))
-        nxt = comm.allreduce(float(s[k]) if k < s.size else math.inf, op=MPI.MIN)
+        nxt = min(comm.allgather(float(s[k]) if k < s.size else math.inf))
         cut = 0.5 * (v + np.float64(nxt)) if math.isfinite(nxt) else v * (1 + 1e-12)
         gap = cut - 1.0
         if gap < 0:
