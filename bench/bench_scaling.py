@@ -459,7 +459,7 @@ def document(data) -> str:
       "coordination, chosen over every bulk contact) is chosen with collectives over the "
       "ranks' slices (`thermal_kernel.neighbours.choose_neighbours_on_ranks`: rank 0, which "
       "holds the particles, marks the bulk ones; a bisection over the float bits of "
-      "d/(r_i + r_j), one allreduce of the summed bulk weights a step, finds the whole "
+      "d/(r_i + r_j), the ranks' summed bulk weights gathered a step, finds the whole "
       "build's gap bit for bit), no rank holding every contact; each rank evaluates the "
       "scene's law (the one registry) on the contacts it then holds (H = 0 on the rows the "
       "criterion leaves out) and puts its rows into a PETSc MPIAIJ matrix; rank 0 runs the "

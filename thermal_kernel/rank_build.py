@@ -16,7 +16,7 @@ over an mpi4py communicator:
    chosen over every rank's rows with collectives
    (:func:`~.neighbours.choose_neighbours_on_ranks`: the bulk flags from rank 0, which holds
    the particles; the gap giving the target bulk Z found by a bisection over the ratios'
-   bits, one allreduce of summed weights a step: the whole build's gap, bit for bit) and each
+   bits, the ranks' summed weights gathered a step: the whole build's gap, bit for bit) and each
    row marked kept or not; the neighbour counts (of the kept rows) are summed at the
    directories and fetched back; each contact goes, with its two spheres' values, to the
    rank(s) owning its particles (one Alltoallv a field): a rank then holds the contacts
