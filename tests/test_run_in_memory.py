@@ -13,7 +13,7 @@ import pytest
 from thermal_kernel.output import read_thermal
 from thermal_kernel.packing import read_packing
 from thermal_kernel.run import SceneRun, run_in_memory, run_scene
-from thermal_kernel.scene import load_scene
+from thermal_kernel.scene import SceneError, load_scene
 
 DATA = Path(__file__).parent / "data"
 
@@ -99,3 +99,31 @@ def test_start_and_conductance_factor(tmp_path):
     tied = ~untied
     assert np.array_equal(warm.final_temperature_k[tied], base.final_temperature_k[tied])
     assert np.array_equal(warm.conducting, base.conducting)
+
+
+def test_start_state_continues_a_run(tmp_path):
+    """A Rannacher run continued from its first output time's state (start_state, the scene's
+    later output times) equals the whole run bit for bit: temperatures, flows, ledger and steps
+    (the start-up steps are not repeated); the checks judge it from the ledger's start. A steady
+    scene, or a start given twice, is refused."""
+    def scene(times, name):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(SCENE + '[solver]\nmethod = "implicit"\nscheme = "rannacher"\n'
+                        f'end_time = {times[-1]!r}\ndt = 0.01\noutput_times = {list(times)!r}\n')
+        return load_scene(path, out_dir=tmp_path / name)
+    packing = read_packing(DATA / "dense_box.h5")
+    whole = run_in_memory(scene([0.1, 0.25, 0.5], "whole"), packing)
+    first = run_in_memory(scene([0.1], "first"), packing)
+    rest = run_in_memory(scene([0.25, 0.5], "rest"), packing, start_state=first.result.state)
+    assert np.array_equal(np.vstack([first.result.temperature_k, rest.result.temperature_k]),
+                          whole.result.temperature_k)
+    for key in ("boundary_heat_flow_w", "boundary_energy_j", "stored_energy_j"):
+        assert np.array_equal(getattr(rest.result, key), getattr(whole.result, key)[1:])
+    assert first.result.steps + rest.result.steps == whole.result.steps
+    assert np.array_equal(rest.initial_temperature_k, whole.initial_temperature_k)
+    assert rest.result.flags == whole.result.flags
+    with pytest.raises(SceneError, match="start_state"):
+        run_in_memory(_scene(tmp_path, "steady"), packing, start_state=first.result.state)
+    with pytest.raises(SceneError, match="start_state"):
+        run_in_memory(scene([0.25, 0.5], "rest"), packing, start_state=first.result.state,
+                      initial_temperature_k=300.0)

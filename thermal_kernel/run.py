@@ -26,7 +26,8 @@ from .output import scene_text_difference, scene_to_json, write_thermal
 from .packing import Packing, read_packing
 from .problem import build_problem
 from .scene import Scene, SceneError
-from .solvers import PhysicsCheck, ThermalResult, UnstableTimeStepError, check_physics
+from .solvers import (PhysicsCheck, SolverState, ThermalResult, UnstableTimeStepError,
+                      check_physics)
 from .solvers.explicit import run_explicit
 from .solvers.implicit import run_implicit, scheme_name
 from .solvers.steady import solve_steady
@@ -46,7 +47,8 @@ class SceneRun:
     network: Network
     neighbours: NeighbourChoice | None
     law_params: dict                       # the law's defaults with the scene's [law_params]
-    initial_temperature_k: np.ndarray      # (N,) the start (a steady solve: of its rattlers)
+    initial_temperature_k: np.ndarray      # (N,) the start (a steady solve: of its rattlers;
+    #                                        a continued run: of the run it continues)
     result: ThermalResult
     check: PhysicsCheck
     assemble_seconds: float
@@ -375,8 +377,9 @@ def _build_network(scene: Scene, packing: Packing, conductance_factor=None):
 
 def _solve(scene: Scene, net, T0, threads, *, progress=None, checkpoint_every=0, resumed=None,
            n_particles=0, packing_hash=""):
-    """The scene's solver on the network from ``T0``: a steady solve, or the transient through
-    the output times (:func:`run_in_chunks`; checkpoints only with ``checkpoint_every``).
+    """The scene's solver on the network from ``T0`` (an array; a transient also a
+    SolverState): a steady solve, or the transient through the output times
+    (:func:`run_in_chunks`; checkpoints only with ``checkpoint_every``).
     (ThermalResult, checkpoint path or None)."""
     if scene.solver.method == "steady":
         return solve_steady(net, T0), None
@@ -395,8 +398,8 @@ def _start(scene: Scene, n_particles: int, initial_temperature_k=None) -> np.nda
 
 
 def run_in_memory(scene: Scene, packing: Packing | Path | str | None = None, *,
-                  initial_temperature_k=None, conductance_factor=None,
-                  threads: int | None = None) -> SceneRun:
+                  initial_temperature_k=None, start_state: SolverState | None = None,
+                  conductance_factor=None, threads: int | None = None) -> SceneRun:
     """Run ``scene`` on ``packing`` (a :class:`~thermal_kernel.packing.Packing` already in
     memory, a packing file, or None: the scene's) and return the run; nothing is written, nothing
     printed. The same build, solver and physics checks as :func:`run_scene` (whose output file
@@ -405,12 +408,25 @@ def run_in_memory(scene: Scene, packing: Packing | Path | str | None = None, *,
     ``initial_temperature_k`` (K, one number or (N,)) replaces the scene's initial temperature
     (a steady solve's start: what its rattlers and floating clusters keep);
     ``conductance_factor`` ((contacts,), one per dumped row) multiplies the law's conductances
-    (a variant of the law no scene key expresses, e.g. validation's cut interfaces)."""
+    (a variant of the law no scene key expresses, e.g. validation's cut interfaces);
+    ``start_state`` (a transient run's ``result.state``, e.g. of this scene run with a shorter
+    dt to its first output time) continues that run instead of starting one: its temperatures,
+    time, step count (a Rannacher start-up is not repeated) and energy ledger go on through the
+    scene's output times after it, with the scene's solver settings; the physics checks judge
+    the whole run from the ledger's start (``SceneRun.initial_temperature_k``)."""
     if not isinstance(packing, Packing):
         packing = read_packing(packing or scene.packing)
+    if start_state is not None and (scene.solver.method == "steady"
+                                    or initial_temperature_k is not None):
+        raise SceneError(f"{scene.path}: start_state continues a transient run (solver.method "
+                         f"is {scene.solver.method!r}) and replaces initial_temperature_k")
     problem, info, net, assemble_seconds = _build_network(scene, packing, conductance_factor)
-    T0 = _start(scene, packing.n_particles, initial_temperature_k)
-    result, _ = _solve(scene, net, T0, threads, n_particles=packing.n_particles)
+    if start_state is None:
+        T0 = start = _start(scene, packing.n_particles, initial_temperature_k)
+    else:
+        start = start_state
+        T0 = np.array(start_state.reference_temperature_k, dtype=np.float64)
+    result, _ = _solve(scene, net, start, threads, n_particles=packing.n_particles)
     result, check = checked(net, T0, result)
     return SceneRun(scene=scene, packing=packing, problem=problem, network=net,
                     neighbours=info["neighbours"], law_params=info["law_params"],
