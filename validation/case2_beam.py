@@ -32,11 +32,8 @@ import numpy as np
 from tdem_post.records import column, from_dict, to_dict
 from tdem_post.analytic import rod_mean_temperature, rod_temperature
 from tdem_post.profiles import binned_profile
-from thermal_kernel.network import assemble
 from thermal_kernel.packing import read_packing
-from thermal_kernel.problem import build_problem
-from thermal_kernel.scene import load_scene
-from thermal_kernel.solvers.implicit import run_implicit
+from thermal_kernel.run import run_in_memory
 
 from . import framework as fw
 from . import packings_000 as P
@@ -64,13 +61,19 @@ N_LADDER = (2500, 5000, 10000, P.BEAM_N, 40000)
 QUICK_PACKING = fw.ROOT / "tests" / "data" / "dense_cylinder.h5"
 
 
-def scene_text(packing: str, law: str, ct: float) -> str:
+def scene_text(packing: str, law: str, ct: float, dt: float | None = None,
+               times=()) -> str:
+    """The beam's scene: steady (the calibration's; ``dt`` None), or Crank-Nicolson with a
+    backward-Euler start (Rannacher) in steps of ``dt`` (s) to each of ``times`` (s)."""
+    solver = dict(method="steady") if dt is None else dict(
+        method="implicit", end_time=float(times[-1]), dt=float(dt), scheme="rannacher",
+        output_times=[float(t) for t in times])
     return fw.scene_toml(
         packing, law, law_params=dict(ct=ct) if law == "haddad" else None,
         material=dict(conductivity=LAMBDA, density=RHO, heat_capacity=CAP),
         initial=dict(temperature=T_INIT),
         boundary=[dict(kind="temperature", name="hot", on="zmin", value=T_HOT)],
-        solver=dict(method="steady"))
+        solver=solver)
 
 
 def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: float = 0.0025,
@@ -80,32 +83,33 @@ def beam_case(packing_path, law: str = "haddad", n_bins: int = BINS, dt_fo: floa
     packing = read_packing(packing_path)
     where = Path("validation/case2_scene.toml")
     c0 = time.perf_counter()
-    scene = load_scene(where, text=scene_text(packing_path, law, 0.806))
+    scene = fw.case_scene(scene_text(packing_path, law, 0.806), where)
     z0 = fw.held_planes(scene, packing, "z")[0]
     z_end = float(packing.domain_hi[2])
     length = z_end - z0                               # the rod: held plane -> adiabatic face
     ct = None
     if law == "haddad":
         ct = fw.held_plane_ct(scene, packing, "z", 0.806, LAMBDA)[2]   # case 4's convention
-        scene = load_scene(where, text=scene_text(packing_path, law, ct))
     calib_s = time.perf_counter() - c0
 
-    problem, _ = build_problem(scene, packing)
-    net = assemble(problem)
     times = [fo * length ** 2 / ALPHA for fo in fourier]
     dt = dt_fo * length ** 2 / ALPHA
     r0 = time.perf_counter()
     # the first output interval (the steep start) with steps 10x shorter, then dt: one run
-    # resumed from the first one's state (the ledger and the step count continue)
-    first = run_implicit(net, np.full(packing.n_particles, T_INIT), times[:1], dt=dt / 10,
-                         scheme="rannacher")
-    rest = run_implicit(net, first.state, times[1:], dt=dt, scheme="rannacher")
-    run_s = time.perf_counter() - r0
+    # continued from the first one's state (the ledger and the step count continue)
+    first = run_in_memory(fw.case_scene(scene_text(packing_path, law, ct, dt / 10, times[:1]),
+                                        where), packing).result
+    run = run_in_memory(fw.case_scene(scene_text(packing_path, law, ct, dt, times[1:]), where),
+                        packing, start_state=first.state)
+    rest = run.result
+    run_s = first.wall_seconds + rest.wall_seconds      # the solver's; the builds are set up
+    calib_s += time.perf_counter() - r0 - run_s
     res = _Joined(np.vstack([first.temperature_k, rest.temperature_k]),
                   np.concatenate([first.ledger_residual_j(), rest.ledger_residual_j()]),
                   np.concatenate([first.stored_energy_j, rest.stored_energy_j]),
                   first.steps + rest.steps)
 
+    net = run.network
     conducting = np.asarray(net.conducting)
     z = packing.position[:, 2] - z0
     edges = np.linspace(0.0, length, n_bins + 1)
