@@ -171,3 +171,24 @@ def test_periodic_cell_has_no_axis(tmp_path):
     scene = load_scene(scene_file(tmp_path, DATA / "dense_periodic.h5"), known_laws=LAWS)
     with pytest.raises(SceneError, match="x, y, z: periodic"):
         calibrate_axes(scene, read_packing(DATA / "dense_periodic.h5"), "all")
+
+
+def test_flux_test_keeps_its_conductances_and_field(tmp_path):
+    """FluxTest.conductance_w_k is the law's conductance per dumped row of the solve and
+    effective.temperature_k its field (validation case 5 reads the test's interior from them):
+    the heat entering the hot face's particles through their contacts is the test's Q."""
+    import numpy as np
+
+    from thermal_kernel.calibrate import flux_test
+    from thermal_kernel.problem import boundary_particles
+    packing = read_packing(DATA / "dense_box.h5")
+    scene = load_scene(scene_file(tmp_path, DATA / "dense_box.h5"), known_laws=LAWS)
+    test = flux_test(scene, packing, "x")
+    h, temp = test.conductance_w_k, test.effective.temperature_k
+    assert h.shape == (packing.n_contacts,) and temp.shape == (packing.n_particles,)
+    hot = np.zeros(packing.n_particles, bool)
+    hot[boundary_particles(dataclasses.replace(scene, boundaries=()), packing, "xmin", "b")] = 1
+    i, j = packing.pair[:, 0], packing.pair[:, 1]
+    flow = h * (temp[i] - temp[j])                           # from i to j
+    q = flow[hot[i] & ~hot[j]].sum() - flow[hot[j] & ~hot[i]].sum()
+    assert q == pytest.approx(test.heat_flow_w, rel=1e-9)

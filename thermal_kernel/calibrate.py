@@ -21,7 +21,7 @@ calibration is for.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -57,6 +57,10 @@ class FluxTest:
     law_params: dict
     effective: EffectiveConductivity     # the whole result (length convention "domain")
     neighbours: object = None            # the scene's [neighbours] criterion on this packing
+    # (contacts,) W/K: the law's conductance per dumped contact row of the solve (0 for a row
+    # the [neighbours] criterion leaves out), with effective.temperature_k the test's field: a
+    # reading of the test beyond lambda^e (validation case 5's interior C_t) needs both
+    conductance_w_k: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def effective_w_mk(self) -> float:
@@ -118,7 +122,7 @@ def flux_test(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.
         n_hot=len(boundary_particles(test, packing, faces[0], "boundary[0]")),
         n_cold=len(boundary_particles(test, packing, faces[1], "boundary[1]")),
         law_params=dict(info["law_params"]), effective=effective,
-        neighbours=info["neighbours"])
+        neighbours=info["neighbours"], conductance_w_k=problem.conductance_w_k)
 
 
 def calibrate_ct(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.0,
