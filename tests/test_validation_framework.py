@@ -399,7 +399,7 @@ def test_one_entry_point_for_the_cases():
 
 # Issue 26: the validation modules that still build and solve the kernel's problem themselves,
 # to be ported to thermal_kernel.run.run_in_memory; a module ported leaves this list
-STILL_INTERNAL = {"case4_slab.py", "case5_sphere.py"}
+STILL_INTERNAL = {"case4_slab.py"}
 KERNEL_INTERNALS = {"build_problem", "assemble", "run_implicit", "run_explicit", "solve_steady",
                     "load_scene", "TemperatureBoundary"}
 

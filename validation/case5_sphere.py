@@ -42,16 +42,14 @@ import numpy as np
 from tdem_post.analytic import (sphere_centre_temperature, sphere_shell_mean_temperature,
                                 sphere_temperature)
 from tdem_post.records import column, from_dict, to_dict
-from thermal_kernel.network import assemble
+from thermal_kernel.calibrate import flux_test
 from thermal_kernel.packing import read_packing
-from thermal_kernel.problem import boundary_particles, build_problem
-from thermal_kernel.scene import load_scene
-from thermal_kernel.solvers.explicit import run_explicit
-from thermal_kernel.solvers.implicit import run_implicit
+from thermal_kernel.problem import boundary_particles
+from thermal_kernel.run import run_in_memory
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
     register_packing
-from validation.framework import Judgement, cached, cell_cost_text, figure_csv, fit_order, \
-    held_plane_ct, md_table, scene_toml
+from validation.framework import Judgement, cached, case_scene, cell_cost_text, figure_csv, \
+    fit_order, held_plane_ct, md_table, scene_toml
 
 CASE = CaseInfo(number=5, title="sphere with held surface, eq. 18-19",
                 paper="002 sec. 2.3, eq. 18-19, Fig. 7-8", paper_n="1e5, 1e6",
@@ -198,7 +196,10 @@ def read_numbers(numbers: dict) -> SphereResult:
     return from_dict(SphereResult, numbers, "case 5: numbers")
 
 
-def scene_text(packing: str, ct: float, surface: str | None = "surface") -> str:
+def scene_text(packing: str, ct: float, surface: str | None = "surface",
+               solver: dict | None = None) -> str:
+    """The ball's scene (the cube's, ``surface`` None: no boundary), steady unless ``solver``
+    (its [solver] table: :func:`solver_table`)."""
     return scene_toml(
         packing, "haddad", law_params=dict(ct=float(ct)),
         neighbours=dict(target_z_with_gaps=TARGET_Z),
@@ -206,7 +207,18 @@ def scene_text(packing: str, ct: float, surface: str | None = "surface") -> str:
         initial=dict(temperature=T0_C + KELVIN),
         boundary=[dict(kind="temperature", name="surface", on=surface,
                        value=TS_C + KELVIN)] if surface else [],
-        solver=dict(method="steady"))
+        solver=solver or dict(method="steady"))
+
+
+def solver_table(method: str, times, steps: int | None = None) -> dict:
+    """The run's [solver]: forward Euler at the stability bound's default fraction to each of
+    ``times`` (s), or (``method`` "rannacher") Crank-Nicolson with a backward-Euler start in
+    ``steps`` equal steps to the last of them."""
+    end = float(times[-1])
+    if method == "explicit":
+        return dict(method="explicit", end_time=end, output_times=[float(t) for t in times])
+    return dict(method="implicit", end_time=end, dt=end / steps, scheme="rannacher",
+                output_times=[end])
 
 
 SCENE_PATH = ROOT / "validation" / "case5_scene.toml"        # named in messages only
@@ -217,7 +229,7 @@ def calibrate_box(box_path, axes="xyz", ct_arb=0.806):
     domain length (the paper's) and held planes (mean centre planes of the two held sets)."""
     box_path = str(Path(box_path).resolve())
     packing = read_packing(box_path)
-    scene = load_scene(SCENE_PATH, text=scene_text(box_path, ct_arb, surface=None))
+    scene = case_scene(scene_text(box_path, ct_arb, surface=None), SCENE_PATH)
     t0 = time.perf_counter()
     out = {"axes": axes, "ct_domain": [], "ct_held": [], "balance": []}
     for axis in axes:
@@ -233,27 +245,21 @@ def calibrate_box(box_path, axes="xyz", ct_arb=0.806):
 
 
 def interior_ct(box_path, ct_arb=0.806):
-    """Bulk C_t: the cube's steady flux test along x, read in its interior only (the central
-    half in each direction): lambda_inner = q_x / (dT/dx), q_x the eq. 20 flux averaged over the
-    inner particles (phi sum m / (2 sum V), 002 eq. 22-23 over the region) and dT/dx the slope of
-    their temperatures. No held layer and no adiabatic cut face enters, unlike the two
-    whole-cube conventions (case 7 measures the cut faces' deficit)."""
-    import dataclasses
+    """Bulk C_t: the cube's steady flux test along x (``thermal_kernel.calibrate.flux_test``:
+    its faces held at 1 and 0 K, which no scene file may say), read in its interior only (the
+    central half in each direction): lambda_inner = q_x / (dT/dx), q_x the eq. 20 flux averaged
+    over the inner particles (phi sum m / (2 sum V), 002 eq. 22-23 over the region) and dT/dx
+    the slope of their temperatures. No held layer and no adiabatic cut face enters, unlike the
+    two whole-cube conventions (case 7 measures the cut faces' deficit)."""
     from tdem_post.flux import contact_moments
-    from thermal_kernel.boundaries import TemperatureBoundary
-    from thermal_kernel.solvers.steady import solve_steady
     box_path = str(Path(box_path).resolve())
     packing = read_packing(box_path)
-    scene = load_scene(SCENE_PATH, text=scene_text(box_path, ct_arb, surface=None))
-    scene = dataclasses.replace(scene, boundaries=(
-        TemperatureBoundary(name="hot", on="xmin", value=1.0),
-        TemperatureBoundary(name="cold", on="xmax", value=0.0)))
+    scene = case_scene(scene_text(box_path, ct_arb, surface=None), SCENE_PATH)
     t0 = time.perf_counter()
-    problem, _ = build_problem(scene, packing)
-    net = assemble(problem)
-    temp = solve_steady(net, np.full(packing.n_particles, 0.5)).temperature_k[-1]
+    test = flux_test(scene, packing, "x")
+    temp = test.effective.temperature_k
     m = contact_moments(packing.n_particles, packing.pair, packing.branch,
-                        problem.conductance_w_k, temp)
+                        test.conductance_w_k, temp)
     lo, hi = np.asarray(packing.domain_lo), np.asarray(packing.domain_hi)
     size = hi - lo
     inner = np.all((packing.position - lo > 0.25 * size) & (hi - packing.position > 0.25 * size),
@@ -279,23 +285,20 @@ def sphere_run(packing_path, ct, *, method="explicit", steps=None, threads=1,
     """One thermal run of the sphere; returns the measures (and the final field if asked)."""
     packing_path = str(Path(packing_path).resolve())
     packing = read_packing(packing_path)
-    scene = load_scene(SCENE_PATH, text=scene_text(packing_path, ct))
+    scene = case_scene(scene_text(packing_path, ct), SCENE_PATH)
     centre, r_carve, r_held, r, held = sphere_geometry(packing, scene)
-    a0 = time.perf_counter()
-    problem, _ = build_problem(scene, packing)
-    net = assemble(problem)
-    assemble_s = time.perf_counter() - a0
     scale = r_held ** 2 / PAPER_R ** 2                      # our time per paper time
     times = [t * scale for t in PAPER_TIMES]
-    t_init = np.full(packing.n_particles, T0_C + KELVIN)
-    if method == "explicit":        # warm the kernel's JIT (one step) so run_seconds is the run
-        run_explicit(net, t_init, [0.5 * net.dt_max_s], threads=threads)
-    r0 = time.perf_counter()
-    if method == "explicit":
-        res = run_explicit(net, t_init, times, threads=threads)
-    else:                                                   # Rannacher Crank-Nicolson
-        res = run_implicit(net, t_init, [times[-1]], dt=times[-1] / steps, scheme="rannacher")
-    run_s = time.perf_counter() - r0
+    scene = case_scene(scene_text(packing_path, ct, solver=solver_table(method, times, steps)),
+                       SCENE_PATH)
+    a0 = time.perf_counter()
+    run = run_in_memory(scene, packing, threads=threads)
+    res, net = run.result, run.network
+    # the solver's own seconds (an explicit run compiles its kernel before its clock starts);
+    # the rest is the build (the neighbour choice, the law, the network) and the solver's
+    # set-up, with, the first time in a process, the explicit kernel's compilation
+    run_s = res.wall_seconds
+    assemble_s = time.perf_counter() - a0 - run_s
     free = (np.asarray(net.degree_w_k) > 0) & ~np.asarray(net.held)
     vol = packing.radius ** 3
     ball = free & (r < CENTRE_BALL * r_held)
