@@ -714,20 +714,46 @@ def _paper_texts(by: dict, main: dict) -> dict:
 
 
 def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
-    """The result: the section's tables and text (its sentences on the paper from
-    :func:`_paper_texts`) and the summary's columns. Most of its length is the section's
-    text."""
+    """The result: the section (:func:`_section_setup`, :func:`_section_results`, its sentences
+    on the paper from :func:`_paper_texts`) and the summary's columns."""
     by = {(r.n_nominal, r.label): r for r in rows}
     paper_1e5 = by.get((100_000, "paper"))
     big = by.get((1_000_000, PRIMARY))
-    best_cn = min(speed, key=lambda r: r.run_seconds if abs(r.centre_error_c)
-                  <= 1.1 * abs(main.centre_error_c) + 0.05 else math.inf)
     met = abs(main.centre_error_c) <= 1.0
     facts = _cross_case_facts(main, calib)
+    texts = _paper_texts(by, main)
+    m = SphereResult(
+        n_particles=main.n_particles, ct_ours=main.ct, centre_error_c=main.centre_error_c,
+        max_abs_error_c=main.max_abs_error_c, rms_error_c=main.rms_error_c,
+        paper_conventions=texts["paper_conv"], order_centre_error=orders["centre_error_c"],
+        order_max_abs_error=orders["max_abs_error_c"], order_rms_error=orders["rms_error_c"],
+        rows=tuple(dataclasses.replace(r, shells=None) for r in rows),
+        calibration={str(k): v for k, v in calib.items()},
+        speed=tuple(dataclasses.replace(r, shells=None) for r in speed))
+    section = (_section_setup(rows, calib, facts)
+               + _section_results(rows, speed, main, m, facts, texts, met))
+    also_n = ", ".join(f"{r.n_particles:,}" for r in rows
+                       if r.label == PRIMARY and r is not main)
+    return CaseResult(
+        our_n=f"{main.n_particles:,} (also {also_n})",
+        our_error=(f"centre {main.centre_error_c:+.2f} °C, max {main.max_abs_error_c:.2f} °C "
+                   f"(our C_t {main.ct:.4f})"
+                   + (f"; paper's C_t 0.806: centre {paper_1e5.centre_error_c:+.1f} °C"
+                      if paper_1e5 else "")
+                   + (f"; 1e6: centre {big.centre_error_c:+.2f} °C" if big else "")),
+        wall_time=(f"{_pack_s(main.sphere):.0f} s + {main.run_seconds:.0f} s "
+                   f"(explicit, {main.steps:,} steps; the cell: {cell_cost_text()} CPU once)"),
+        verdict=("goal ≤ 1 °C at 1e5 " + ("met" if met else "not met")
+                 + " with our calibrated C_t; the paper's C_t does not transfer to our packing"),
+        section_md=section,
+        numbers=to_dict(m),
+        command="")
+
+
+def _section_setup(rows, calib, facts) -> str:
+    """The section's first half: the setup, the analytical solution and the cubes' C_t (its
+    table). Text, hence its length."""
     n_fmt = ", ".join(f"{r.n_particles:,}" for r in rows if r.label == PRIMARY)
-    table = md_table(["N", "C_t", "value", "R_h / R_carve (mm)", "centre error",
-                      "centre error vs R_carve", "max error (r/R_h)", "RMS", "steps",
-                      "thermal (s)"], [_row_cells(r) for r in rows])
     cal_table = md_table(
         ["cube N", "C_t bulk (interior)", "C_t (domain)", "C_t (held planes)",
          "held planes x / y / z"],
@@ -735,22 +761,7 @@ def _summary(ctx, rows, calib, speed, main, orders) -> CaseResult:
          + ((f"{c.ct_domain_mean:.4f}", f"{c.ct_held_mean:.4f}",
              " / ".join(f"{v:.4f}" for v in c.ct_held)) if c.ct_held is not None
             else ("—", "—", "—")) for c in calib.values()])
-    speed_table = md_table(
-        ["CN steps", "thermal (s)", "centre error (°C)", "max error (°C)"],
-        [(r.steps, f"{r.run_seconds:.2f}", f"{r.centre_error_c:+.3f}",
-          f"{r.max_abs_error_c:.3f}") for r in speed])
-    t = _paper_texts(by, main)
-    paper_txt, paper_conv, paper_conv_txt = t["paper_txt"], t["paper_conv"], t["paper_conv_txt"]
-    big_txt, big_limit = t["big_txt"], t["big_limit"]
-    m = SphereResult(
-        n_particles=main.n_particles, ct_ours=main.ct, centre_error_c=main.centre_error_c,
-        max_abs_error_c=main.max_abs_error_c, rms_error_c=main.rms_error_c,
-        paper_conventions=paper_conv, order_centre_error=orders["centre_error_c"],
-        order_max_abs_error=orders["max_abs_error_c"], order_rms_error=orders["rms_error_c"],
-        rows=tuple(dataclasses.replace(r, shells=None) for r in rows),
-        calibration={str(k): v for k, v in calib.items()},
-        speed=tuple(dataclasses.replace(r, shells=None) for r in speed))
-    section = f"""
+    return f"""
 Setup (002 sec. 2.3): a ball of aluminium (ρ 2700 kg/m³, λ 185 W/m/K, c 900 J/kg/K) at
 T_0 = 20 °C whose surface is held at T_s = 200 °C from t = 0; law haddad; forward Euler (the
 paper's scheme) at 0.9 × the exact positivity bound. Packings: balls carved from copies of the
@@ -793,7 +804,24 @@ layers along the cube's adiabatic cut faces (case 7 measures it{facts['case7']})
 out {facts['whole_over_bulk']} higher; they are run beside it up to 1e5.
 
 {cal_table}
+"""
 
+
+def _section_results(rows, speed, main, m, facts, texts, met) -> str:
+    """The section's second half: the runs' table, the paper's C_t and conventions, the
+    convergence with N and the implicit runs against their error. Text, hence its length."""
+    table = md_table(["N", "C_t", "value", "R_h / R_carve (mm)", "centre error",
+                      "centre error vs R_carve", "max error (r/R_h)", "RMS", "steps",
+                      "thermal (s)"], [_row_cells(r) for r in rows])
+    speed_table = md_table(
+        ["CN steps", "thermal (s)", "centre error (°C)", "max error (°C)"],
+        [(r.steps, f"{r.run_seconds:.2f}", f"{r.centre_error_c:+.3f}",
+          f"{r.max_abs_error_c:.3f}") for r in speed])
+    best_cn = min(speed, key=lambda r: r.run_seconds if abs(r.centre_error_c)
+                  <= 1.1 * abs(main.centre_error_c) + 0.05 else math.inf)
+    paper_txt, paper_conv_txt = texts["paper_txt"], texts["paper_conv_txt"]
+    big_txt, big_limit = texts["big_txt"], texts["big_limit"]
+    return f"""
 **Results at t = 10 s** (errors T_DEM − T_exact, °C; "centre": volume-weighted mean over the free
 particles within 0.1 R_h of the centre; "max": max |T_p − T_exact(r_p)| over the free particles,
 the paper's Fig. 8c measure, with where it lies as r/R_h; thermal: 1 thread, shared machine):
@@ -843,19 +871,3 @@ What limits us: the packings are one relaxed 10,000-sphere cell repeated (period
 diameters), so N → ∞ does not average new structure in; a packing-to-packing scatter would need
 other cells (seeds), not done here. {big_limit}
 """
-    also_n = ", ".join(f"{r.n_particles:,}" for r in rows
-                       if r.label == PRIMARY and r is not main)
-    return CaseResult(
-        our_n=f"{main.n_particles:,} (also {also_n})",
-        our_error=(f"centre {main.centre_error_c:+.2f} °C, max {main.max_abs_error_c:.2f} °C "
-                   f"(our C_t {main.ct:.4f})"
-                   + (f"; paper's C_t 0.806: centre {paper_1e5.centre_error_c:+.1f} °C"
-                      if paper_1e5 else "")
-                   + (f"; 1e6: centre {big.centre_error_c:+.2f} °C" if big else "")),
-        wall_time=(f"{_pack_s(main.sphere):.0f} s + {main.run_seconds:.0f} s "
-                   f"(explicit, {main.steps:,} steps; the cell: {cell_cost_text()} CPU once)"),
-        verdict=("goal ≤ 1 °C at 1e5 " + ("met" if met else "not met")
-                 + " with our calibrated C_t; the paper's C_t does not transfer to our packing"),
-        section_md=section,
-        numbers=to_dict(m),
-        command="")
