@@ -493,11 +493,10 @@ def _figure_speed(ctx, dt_runs, conv):
 
 def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, extra=None) -> CaseResult:
     """The three figures (:func:`_figure_profiles`, :func:`_figure_convergence`,
-    :func:`_figure_speed`), the section and the summary's columns. Most of its length is the
-    section's text."""
+    :func:`_figure_speed`), the section (:func:`_section_setup`, :func:`_section_results`)
+    and the summary's columns."""
     extra = extra or {}
     main = [runs[(main_n, s, "haddad")] for s in seeds]
-    radius_r = float(np.mean([r.radius_over_mean_radius for r in main]))
     terr = [runs[(main_n, s, "terreros")] for s in seeds]
     per_time = np.array([r.max_error_over_dT_per_time for r in main])   # (seeds, times)
     worst = float(per_time.max())
@@ -511,28 +510,41 @@ def _report(ctx, ladder, seeds, runs, main_n, dt_runs, pack_s, extra=None) -> Ca
 
     n_ok = {n: int(sum(runs[(n, s, "haddad")].max_error_over_dT < 0.01 for s in seeds))
             for n in ladder}
-    ntab = md_table(["N (mean of seeds)", "max error, mean / min / max of seeds",
-                     "seeds under 1 %", "thermal s (calibration + run)"],
-                    [(f"{row[0]:,.0f}", f"{100 * row[1]:.2f} / {100 * row[2]:.2f} / "
-                      f"{100 * row[3]:.2f} %", f"{n_ok[n]} of {len(seeds)}", f"{row[4]:.1f}")
-                     for n, row in zip(ladder, conv)])
-    signed = np.array([(np.array(r.profile_k) - np.array(r.exact_k)) / DT_K
-                       for r in main])                        # (seeds, times, bins)
-    bias_first = float(signed[:, 0, 0].mean())
-    bias_all = float(np.nanmean(signed))
-    bias_note = (" The error is this bias more than noise: heat enters through the held "
-                 "layer more slowly than through the continuum's face (the boundary resistance "
-                 "of a cut face that case 4 measured on the cube slab; the held-plane C_t "
-                 "spreads it over the whole beam but cannot put it at the end)."
-                 if bias_first < -0.5 * worst else "")
-    per_time_txt = ", ".join(f"{times_ms[k]:.3g} ms {100 * per_time[:, k].max():.2f} %"
-                             for k in range(len(FOURIER)))
-    seed_txt = ", ".join(f"{100 * r.max_error_over_dT:.2f} %" for r in main)
-    rms_txt = ", ".join(
-        f"{100 * np.mean([r.particle_rms_over_dT_per_time[k] for r in main]):.2f} %"
-        for k in range(len(FOURIER)))
     met = worst < 0.01
-    section = f"""\
+    section = (_section_setup(main, conv, times_ms, terr_worst, dt_rows)
+               + _section_results(main, per_time, times_ms, conv, order, n_ok, main_n,
+                                  (f_prof, f_conv, f_speed), extra))
+    numbers = to_dict(BeamResult(
+        max_error_over_dT=worst, max_error_over_dT_per_time=tuple(per_time.max(axis=0).tolist()),
+        per_seed=tuple(r.max_error_over_dT for r in main), n_particles=tuple(n_actual),
+        ct_held_plane=tuple(cts), terreros_max_error_over_dT=terr_worst,
+        convergence=tuple(tuple(c) for c in conv.tolist()), convergence_order=order,
+        dt_error_over_dT=tuple(dt_rows[:, 3].tolist()), fourier=FOURIER,
+        paper_times_ms=tuple(times_ms),
+        series={series: {str(s): w for s, w in beams.items()}
+                for series, beams in extra.items()}))
+    thermal_s = sum(r.run_seconds + r.calibration_seconds for r in runs.values())
+    return CaseResult(
+        our_n=f"{int(np.mean(n_actual)):,} × {len(seeds)} seeds (ladder "
+              f"{int(conv[0, 0]):,}–{int(conv[-1, 0]):,})",
+        our_error=f"max {100 * worst:.2f} % of ΔT over {len(FOURIER)} times and {len(seeds)} seeds "
+                  f"(haddad, C_t calibrated); terreros {100 * terr_worst:.1f} %",
+        wall_time=f"{pack_s:.0f} s (5 cells by YADE + carving) + {thermal_s:.0f} s",
+        verdict=("goal < 1 % of ΔT met on all seeds" if met else
+                 f"goal < 1 % of ΔT met on {n_ok[main_n]} of {len(seeds)} seeds at "
+                 f"{int(np.mean(n_actual)):,}, {n_ok[max(ladder)]} of {len(seeds)} at "
+                 f"{int(conv[-1, 0]):,}")
+        + f"; a cold bias at the hot end (held layer); error ~ N^{order:.2f}",
+        section_md=section, numbers=numbers, command="")
+
+
+def _section_setup(main, conv, times_ms, terr_worst, dt_rows) -> str:
+    """The section's first half: the setup, the packings and the law (and the time step's
+    own error). Text, hence its length."""
+    radius_r = float(np.mean([r.radius_over_mean_radius for r in main]))
+    n_actual = [r.n_particles for r in main]
+    cts = [r.ct_held_plane for r in main]
+    return f"""\
 Setup (000 sec. 5.1, Table 2): a cylindrical beam, length / diameter 9.454 (2.18445 mm /
 2 × 0.1155303 mm), 298 K initially, its end held at 798 K from t = 0, adiabatic elsewhere;
 λ 134 W/m/K, ρ 2790 kg/m³, c 880 J/kg/K. Compared with eq. 8 (`tdem_post.analytic.rod_temperature`,
@@ -562,9 +574,43 @@ Crank–Nicolson with Rannacher start-up, dt = 0.0025 L²/α (0.00025 L²/α up 
 output, where the profile is steepest); its own error (against dt/4) is
 {100 * dt_rows[-1, 3]:.3f} % of ΔT, far under the packing's.
 
-**Result** (max over {BINS} bins of |T − T_eq.8| / ΔT, ΔT = 500 K, all {len(seeds)} seeds): \
+"""
+
+
+def _section_results(main, per_time, times_ms, conv, order, n_ok, main_n, figures,
+                     extra) -> str:
+    """The section's second half: the errors against eq. 8 (per time, per seed, the hot end's
+    bias), the N ladder's table, the figures and the further series. Text, hence its
+    length."""
+    f_prof, f_conv, f_speed = figures
+    n_seeds = len(main)                   # n_ok: per N of the ladder, in its order
+    radius_r = float(np.mean([r.radius_over_mean_radius for r in main]))
+    worst = float(per_time.max())
+    met = worst < 0.01
+    ntab = md_table(["N (mean of seeds)", "max error, mean / min / max of seeds",
+                     "seeds under 1 %", "thermal s (calibration + run)"],
+                    [(f"{row[0]:,.0f}", f"{100 * row[1]:.2f} / {100 * row[2]:.2f} / "
+                      f"{100 * row[3]:.2f} %", f"{n_ok[n]} of {n_seeds}", f"{row[4]:.1f}")
+                     for n, row in zip(n_ok, conv)])
+    signed = np.array([(np.array(r.profile_k) - np.array(r.exact_k)) / DT_K
+                       for r in main])                        # (seeds, times, bins)
+    bias_first = float(signed[:, 0, 0].mean())
+    bias_all = float(np.nanmean(signed))
+    bias_note = (" The error is this bias more than noise: heat enters through the held "
+                 "layer more slowly than through the continuum's face (the boundary resistance "
+                 "of a cut face that case 4 measured on the cube slab; the held-plane C_t "
+                 "spreads it over the whole beam but cannot put it at the end)."
+                 if bias_first < -0.5 * worst else "")
+    per_time_txt = ", ".join(f"{times_ms[k]:.3g} ms {100 * per_time[:, k].max():.2f} %"
+                             for k in range(len(FOURIER)))
+    seed_txt = ", ".join(f"{100 * r.max_error_over_dT:.2f} %" for r in main)
+    rms_txt = ", ".join(
+        f"{100 * np.mean([r.particle_rms_over_dT_per_time[k] for r in main]):.2f} %"
+        for k in range(len(FOURIER)))
+    return f"""\
+**Result** (max over {BINS} bins of |T − T_eq.8| / ΔT, ΔT = 500 K, all {n_seeds} seeds): \
 **{100 * worst:.2f} %**
-(goal < 1 %: {'met' if met else f'met on {n_ok[main_n]} of {len(seeds)} seeds, not on all'}). Per \
+(goal < 1 %: {'met' if met else f'met on {n_ok[main_n]} of {n_seeds} seeds, not on all'}). Per \
 time: {per_time_txt}. Per seed: {seed_txt}.
 Signed, next to the hot end at the first time the beam is \
 {'colder' if bias_first < 0 else 'hotter'} than eq. 8 by
@@ -596,25 +642,3 @@ a radius of the cut face are held at 798 K, a layer of finite thickness the cont
 have) and the sphere-scale heterogeneity of the conductance, which the calibration removes only on
 average. The beam is thin ({radius_r:.1f} mean diameters across), so each bin holds few spheres.
 """
-    numbers = to_dict(BeamResult(
-        max_error_over_dT=worst, max_error_over_dT_per_time=tuple(per_time.max(axis=0).tolist()),
-        per_seed=tuple(r.max_error_over_dT for r in main), n_particles=tuple(n_actual),
-        ct_held_plane=tuple(cts), terreros_max_error_over_dT=terr_worst,
-        convergence=tuple(tuple(c) for c in conv.tolist()), convergence_order=order,
-        dt_error_over_dT=tuple(dt_rows[:, 3].tolist()), fourier=FOURIER,
-        paper_times_ms=tuple(times_ms),
-        series={series: {str(s): w for s, w in beams.items()}
-                for series, beams in extra.items()}))
-    thermal_s = sum(r.run_seconds + r.calibration_seconds for r in runs.values())
-    return CaseResult(
-        our_n=f"{int(np.mean(n_actual)):,} × {len(seeds)} seeds (ladder "
-              f"{int(conv[0, 0]):,}–{int(conv[-1, 0]):,})",
-        our_error=f"max {100 * worst:.2f} % of ΔT over {len(FOURIER)} times and {len(seeds)} seeds "
-                  f"(haddad, C_t calibrated); terreros {100 * terr_worst:.1f} %",
-        wall_time=f"{pack_s:.0f} s (5 cells by YADE + carving) + {thermal_s:.0f} s",
-        verdict=("goal < 1 % of ΔT met on all seeds" if met else
-                 f"goal < 1 % of ΔT met on {n_ok[main_n]} of {len(seeds)} seeds at "
-                 f"{int(np.mean(n_actual)):,}, {n_ok[max(ladder)]} of {len(seeds)} at "
-                 f"{int(conv[-1, 0]):,}")
-        + f"; a cold bias at the hot end (held layer); error ~ N^{order:.2f}",
-        section_md=section, numbers=numbers, command="")
