@@ -218,7 +218,7 @@ def build_on_ranks(scene, packing_path, comm) -> RankBuild:
     # a [neighbours] criterion: rank 0 finds the bulk particles (their distance to every wall
     # and cut face, the mean radius: the particles whole); each directory gets its block's
     crit = scene.neighbours
-    n_bulk, own_bulk = 0, np.zeros(int(fblock[rank + 1] - fblock[rank]), dtype=np.uint8)
+    n_bulk, own_bulk = 0, None
     if crit is not None:
         bulk = (bulk_particles(particles, crit.bulk_margin_diameters) if rank == 0 else None)
         n_bulk = comm.bcast(int(bulk.sum()) if rank == 0 else None, root=0)
@@ -231,8 +231,10 @@ def build_on_ranks(scene, packing_path, comm) -> RankBuild:
     part = agree(comm, lambda: read_contact_rows(path, n, m, ms[rank], ms[rank + 1]))
     ends = np.unique(part["pair"])
     loc = np.searchsorted(ends, part["pair"])
-    pos_e, rad_e, ph_e, new_e, bulk_e = _fetch(
-        comm, ends, fblock, [fb["position"], fb["radius"], fb["phase"], own_new, own_bulk])
+    pos_e, rad_e, ph_e, new_e, *bulk_e = _fetch(
+        comm, ends, fblock, [fb["position"], fb["radius"], fb["phase"], own_new]
+        + ([] if own_bulk is None else [own_bulk]))      # the bulk flags: [neighbours] only
+    bulk_e = bulk_e[0] if bulk_e else None
     del own_bulk
 
     def check():
