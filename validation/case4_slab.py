@@ -31,8 +31,8 @@ import numpy as np
 from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 
-from .framework import (ROOT, CaseInfo, CaseResult, Context, optional_packing, register_packing,
-                        previous_numbers, today)
+from .framework import (ROOT, CaseInfo, CaseResult, Context, case_scene, optional_packing,
+                        previous_numbers, register_packing, today)
 from .framework import Action, Judgement, cell_cost_text, figure_csv, fit_order, \
     held_plane_ct, held_planes, judged, md_table, rebuild_saved, scene_toml
 
@@ -76,7 +76,9 @@ HOW = "tdem validate 4"
 TARGET_Z = 7.5
 
 
-def scene_text(packing: str, ct: float, target_z: float | None = None) -> str:
+def scene_text(packing: str, ct: float, target_z: float | None = None,
+               solver: dict | None = None) -> str:
+    """The slab's scene: the steady solve unless ``solver`` (a [solver] table) says otherwise."""
     return scene_toml(
         packing, "haddad", law_params=dict(ct=ct),
         neighbours=None if target_z is None else dict(target_z_with_gaps=float(target_z)),
@@ -84,7 +86,7 @@ def scene_text(packing: str, ct: float, target_z: float | None = None) -> str:
         initial=dict(temperature=T1),
         boundary=[dict(kind="temperature", name="cold", on="xmin", value=T1),
                   dict(kind="temperature", name="hot", on="xmax", value=T2)],
-        solver=dict(method="steady"))
+        solver=solver or dict(method="steady"))
 
 
 def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 0.806,
@@ -93,16 +95,12 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
     from tdem_post.analytic import slab_mean_temperature
     from tdem_post.profiles import binned_profile
     from thermal_kernel.calibrate import cross_section
-    from thermal_kernel.network import assemble
     from thermal_kernel.packing import read_packing
-    from thermal_kernel.problem import build_problem
-    from thermal_kernel.scene import load_scene
-    from thermal_kernel.solvers.explicit import run_explicit
-    from thermal_kernel.solvers.steady import solve_steady
+    from thermal_kernel.run import run_in_memory
     packing_path = str(Path(packing_path).resolve())
     scene_path = ROOT / "validation" / "case4_scene.toml"     # a name for messages only
     packing = read_packing(packing_path)
-    scene = load_scene(scene_path, text=scene_text(packing_path, ct_arb, target_z))
+    scene = case_scene(scene_text(packing_path, ct_arb, target_z), scene_path)
     c0 = time.perf_counter()
     # held-plane slab: mean centre planes of the two held sets
     x0, x1 = held_planes(scene, packing, "x")
@@ -113,15 +111,14 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
     area = cross_section(packing, 0)
     calib_s = time.perf_counter() - c0
 
-    scene = load_scene(scene_path, text=scene_text(packing_path, ct_held, target_z))
-    problem, info = build_problem(scene, packing)
-    choice = info.get("neighbours")
-    net = assemble(problem)
+    # forward Euler (as the paper) at the bound's default fraction to the paper's Fourier numbers
     times = [fo * length ** 2 / ALPHA for fo in FOURIER]
     r0 = time.perf_counter()
-    result = run_explicit(net, np.full(packing.n_particles, T1), times, threads=threads)
-    run_s = time.perf_counter() - r0
-
+    run = run_in_memory(case_scene(scene_text(packing_path, ct_held, target_z, dict(
+        method="explicit", end_time=times[-1], output_times=times)), scene_path), packing,
+        threads=threads)
+    run_s = time.perf_counter() - r0 - run.assemble_seconds      # the steps, not the build
+    result, net, choice = run.result, run.network, run.neighbours
     conducting = np.asarray(net.conducting)
     x = packing.position[:, 0] - x0
     edges = np.linspace(0.0, length, n_bins + 1)
@@ -134,7 +131,10 @@ def slab_case(packing_path, n_bins: int = 10, threads: int = 1, ct_arb: float = 
 
     # the steady profile on the same network against the linear one (% of dT)
     s0 = time.perf_counter()
-    steady = solve_steady(net, np.full(packing.n_particles, 0.5 * (T1 + T2))).temperature_k[-1]
+    steady_run = run_in_memory(case_scene(scene_text(packing_path, ct_held, target_z),
+                                          scene_path), packing,
+                               initial_temperature_k=0.5 * (T1 + T2), threads=threads)
+    steady = steady_run.final_temperature_k
     sedges = np.linspace(0.0, length, STEADY_BINS + 1)
     sprof = binned_profile(x, packing.radius, steady, sedges, weights=conducting)
     linear = T1 + (T2 - T1) * 0.5 * (sedges[1:] + sedges[:-1]) / length
