@@ -579,48 +579,84 @@ def _class_table(main) -> str:
 
 
 def _summary(recs, main, slopes, quick=False) -> CaseResult:
-    """The result: the section (its tables from :func:`_tables` and :func:`_class_table`, the
-    target from :func:`_judged`) and the summary's columns. Most of its length is the section's
-    text."""
+    """The result: the section (:func:`_section_setup`, :func:`_section_results`; the tables
+    from :func:`_tables`, the target from :func:`_judged`) and the summary's columns."""
     ns = [r.n_particles for r in recs]
     table, raw_lines, z_lines, ratio_lines, (r5, r2, r5o, r2o) = _tables(recs, slopes)
     n_main = main.n_particles
     raw_n, raw_v = main.raw.cov_number, main.raw.cov_volume
     c4, c11 = _at(main, 4.0), _at(main, 11.0)
     o4, o11 = _at(main, 4.0, kind="own"), _at(main, 11.0, kind="own")
-    mean_x4 = _at(main, 4.0, "mean_x")
-    us4, us11 = (1e6 * _at(main, x, "seconds_per_particle") for x in (4.0, 11.0))
-    frac11 = 100 * _at(main, 11.0, "n_inside") / n_main
-    frac11o = 100 * _at(main, 11.0, "n_inside", "own") / n_main
     met, at_paper, judged = _judged(recs, quick)
-    class_table = _class_table(main)
+    speed = _speed_text(recs, r5, r2)
+    section = (_section_setup(ns, main, table, raw_lines)
+               + _section_results(main, z_lines, ratio_lines, met, judged, speed))
+    return CaseResult(
+        our_n=", ".join(f"{n:,}" for n in ns),
+        our_error=(f"N {n_main:,}, halo ratio × r̄: CoV {_pct(c4)} at 4, {_pct(c11)} at 11 "
+                   f"(own radius {_pct(o4)} / {_pct(o11)}); raw {_pct(raw_n, 1)} per particle, "
+                   f"{_pct(raw_v, 1)} volume-weighted; 5 % at ratio "
+                   f"{r5.get(n_main, float('nan')):.1f}, 2 % at "
+                   f"{r2.get(n_main, float('nan')):.1f}"),
+        wall_time=(f"{_pack(main.name)} + {main.steady_seconds:.0f} s steady + "
+                   f"{sum(r.seconds for k in KINDS for r in _rows(main, k)):.0f} s Halo "
+                   f"({len(RATIOS)} ratios × 2 radii)"),
+        verdict=(("target met" if met else "target missed" if met is False else "quick run")
+                 + f": CoV {_pct(c4)} at ratio 4 (≤ 5 %), {_pct(c11)} at 11 (≤ 2 %) with the "
+                 f"common halo radius; N-independent as in the paper; raw {_pct(raw_n, 0)} "
+                 f"per particle / {_pct(raw_v, 0)} volume-weighted (paper 27 %)"),
+        section_md=section,
+        numbers=to_dict(HaloResult(
+            n_particles=n_main, cov_raw=raw_n, cov_raw_volume_weighted=raw_v, cov_ratio4=c4,
+            cov_ratio11=c11, cov_ratio4_own=o4, cov_ratio11_own=o11,
+            ratio_at_5pct=_by_n(r5), ratio_at_2pct=_by_n(r2), ratio_at_5pct_own=_by_n(r5o),
+            ratio_at_2pct_own=_by_n(r2o), slopes=slopes,
+            target={f"{n}_{r:g}": v for (n, r), (v, _) in judged.items()},
+            records=tuple(recs))),
+        command="tdem validate 7",
+        at_paper_n=at_paper, speed_vs_error=speed, target_met=met)
+
+
+def _z_text(main) -> str:
+    """The paragraph on the raw and Halo scatter through the two neighbour criteria at the
+    main N ("" when the record has only one)."""
+    n_main = main.n_particles
     z = main.z_rows
     z75, zall = (z[0], z[1]) if len(z) > 1 else (None, None)
-    z_text = ("" if z75 is None else
-              f"Through 002's coordination (bulk Z {z75.z_bulk:.2f}, relative gap ≤ "
-              f"{z75.gap:.3f}) the raw CoV at {n_main:,} is {_pct(z75.cov_number, 1)} per "
-              f"particle and {_pct(z75.cov_volume, 1)} volume-weighted; through every dumped "
-              f"pair (bulk Z {zall.z_bulk:.2f}) {_pct(zall.cov_number, 1)} and "
-              f"{_pct(zall.cov_volume, 1)}: "
-              + ("fewer links per sphere *raise* the raw scatter (each sphere's flux is an "
-                 "average over fewer contacts), so a higher Z does not explain why ours is "
-                 "above the paper's 27 % (before issue 23 this section said it might)."
-                 if z75.cov_number > zall.cov_number else
-                 "fewer links lower the raw scatter here.")
-              + f" The Halo CoV follows: {_pct(z75.halo4)} / {_pct(z75.halo11)} at "
-              f"ratios 4 / 11 through Z 7.5 against {_pct(zall.halo4)} / "
-              f"{_pct(zall.halo11)} through every dumped pair.")
+    return ("" if z75 is None else
+            f"Through 002's coordination (bulk Z {z75.z_bulk:.2f}, relative gap ≤ "
+            f"{z75.gap:.3f}) the raw CoV at {n_main:,} is {_pct(z75.cov_number, 1)} per "
+            f"particle and {_pct(z75.cov_volume, 1)} volume-weighted; through every dumped "
+            f"pair (bulk Z {zall.z_bulk:.2f}) {_pct(zall.cov_number, 1)} and "
+            f"{_pct(zall.cov_volume, 1)}: "
+            + ("fewer links per sphere *raise* the raw scatter (each sphere's flux is an "
+               "average over fewer contacts), so a higher Z does not explain why ours is "
+               "above the paper's 27 % (before issue 23 this section said it might)."
+               if z75.cov_number > zall.cov_number else
+               "fewer links lower the raw scatter here.")
+            + f" The Halo CoV follows: {_pct(z75.halo4)} / {_pct(z75.halo11)} at "
+            f"ratios 4 / 11 through Z 7.5 against {_pct(zall.halo4)} / "
+            f"{_pct(zall.halo11)} through every dumped pair.")
+
+
+def _speed_text(recs, r5, r2) -> str:
+    """The summary's speed-against-error column (and the section's last words on it), at the
+    smallest N."""
     speed_n = min(recs, key=lambda r: r.n_particles)
     t11 = _at(speed_n, 11.0, "seconds_per_particle") * speed_n.n_particles
-    speed = ("the CoV does not depend on N (the paper's finding, and ours: "
-             + ", ".join(f"{_pct(_at(r, 11.0))} at 11 on {r.n_particles:,}" for r in recs)
-             + f"); at N {speed_n.n_particles:,}: packing {_pack(speed_n.name)} + steady "
-             f"{speed_n.steady_seconds:.0f} s + Halo 11 (common) for every sphere ≈ "
-             f"{t11:.0f} s (from {1e6 * _at(speed_n, 11.0, 'seconds_per_particle'):.0f} µs per "
-             f"sphere); 5 % is reached at ratio {r5[speed_n.n_particles]:.1f}, 2 % at "
-             f"{r2[speed_n.n_particles]:.1f}")
-    miss = [f"{_pct(v)} at ratio {r:g} on {n:,}" for (n, r), (v, ok) in judged.items() if not ok]
-    section = f"""
+    return ("the CoV does not depend on N (the paper's finding, and ours: "
+            + ", ".join(f"{_pct(_at(r, 11.0))} at 11 on {r.n_particles:,}" for r in recs)
+            + f"); at N {speed_n.n_particles:,}: packing {_pack(speed_n.name)} + steady "
+            f"{speed_n.steady_seconds:.0f} s + Halo 11 (common) for every sphere ≈ "
+            f"{t11:.0f} s (from {1e6 * _at(speed_n, 11.0, 'seconds_per_particle'):.0f} µs per "
+            f"sphere); 5 % is reached at ratio {r5[speed_n.n_particles]:.1f}, 2 % at "
+            f"{r2[speed_n.n_particles]:.1f}")
+
+
+def _section_setup(ns, main, table, raw_lines) -> str:
+    """The section's first half: the setup, the two halo radii, the CoV table by ratio and the
+    raw scatter. Text, hence its length."""
+    return f"""
 Setup (002 sec. 3): the cube of case 4 at steady state (faces normal to x held at 25 and 35 °C,
 adiabatic sides, λ 33 W/m/K, law haddad, conducting through the dumped neighbours of Haddad's
 bulk coordination Z 7.5 as the dense scenes state it — every dumped pair beside it below), on
@@ -658,6 +694,24 @@ CoV, the scatter per unit of solid, is the closer one to the paper's 27 %. 002 g
 distribution for its LSA packings ("polydisperse"); the narrower the radii, the closer the two
 statistics.
 
+"""
+
+
+def _section_results(main, z_lines, ratio_lines, met, judged, speed) -> str:
+    """The section's second half: the scatter against the coordination, by size class, against
+    N and the ratio, the target and the speed against error, with the figures. Text, hence its
+    length."""
+    n_main = main.n_particles
+    c4, c11 = _at(main, 4.0), _at(main, 11.0)
+    o4, o11 = _at(main, 4.0, kind="own"), _at(main, 11.0, kind="own")
+    mean_x4 = _at(main, 4.0, "mean_x")
+    us4, us11 = (1e6 * _at(main, x, "seconds_per_particle") for x in (4.0, 11.0))
+    frac11 = 100 * _at(main, 11.0, "n_inside") / n_main
+    frac11o = 100 * _at(main, 11.0, "n_inside", "own") / n_main
+    class_table = _class_table(main)
+    z_text = _z_text(main)
+    miss = [f"{_pct(v)} at ratio {r:g} on {n:,}" for (n, r), (v, ok) in judged.items() if not ok]
+    return f"""\
 **Scatter against the coordination** (the scenes' neighbour criterion, Haddad's bulk Z 7.5:
 the dumped pairs within the relative gap that gives it, `[neighbours] target_z_with_gaps`;
 beside it every dumped pair; the same packing; Halo columns: common radius, on up to 5,000
@@ -713,30 +767,6 @@ What limits us: the cube's boundary layer one halo deep is excluded from the sta
 face a halo is truncated (eq. 23's volume counts only the particles inside, so the average stays
 consistent, but it is no longer centred on p) — case 9 measures what that does to a point value.
 """
-    return CaseResult(
-        our_n=", ".join(f"{n:,}" for n in ns),
-        our_error=(f"N {n_main:,}, halo ratio × r̄: CoV {_pct(c4)} at 4, {_pct(c11)} at 11 "
-                   f"(own radius {_pct(o4)} / {_pct(o11)}); raw {_pct(raw_n, 1)} per particle, "
-                   f"{_pct(raw_v, 1)} volume-weighted; 5 % at ratio "
-                   f"{r5.get(n_main, float('nan')):.1f}, 2 % at "
-                   f"{r2.get(n_main, float('nan')):.1f}"),
-        wall_time=(f"{_pack(main.name)} + {main.steady_seconds:.0f} s steady + "
-                   f"{sum(r.seconds for k in KINDS for r in _rows(main, k)):.0f} s Halo "
-                   f"({len(RATIOS)} ratios × 2 radii)"),
-        verdict=(("target met" if met else "target missed" if met is False else "quick run")
-                 + f": CoV {_pct(c4)} at ratio 4 (≤ 5 %), {_pct(c11)} at 11 (≤ 2 %) with the "
-                 f"common halo radius; N-independent as in the paper; raw {_pct(raw_n, 0)} "
-                 f"per particle / {_pct(raw_v, 0)} volume-weighted (paper 27 %)"),
-        section_md=section,
-        numbers=to_dict(HaloResult(
-            n_particles=n_main, cov_raw=raw_n, cov_raw_volume_weighted=raw_v, cov_ratio4=c4,
-            cov_ratio11=c11, cov_ratio4_own=o4, cov_ratio11_own=o11,
-            ratio_at_5pct=_by_n(r5), ratio_at_2pct=_by_n(r2), ratio_at_5pct_own=_by_n(r5o),
-            ratio_at_2pct_own=_by_n(r2o), slopes=slopes,
-            target={f"{n}_{r:g}": v for (n, r), (v, _) in judged.items()},
-            records=tuple(recs))),
-        command="tdem validate 7",
-        at_paper_n=at_paper, speed_vs_error=speed, target_met=met)
 
 
 def _by_n(values: dict) -> dict[str, float]:
