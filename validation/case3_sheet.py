@@ -444,8 +444,8 @@ def _figure_speed(ctx, conv, worst, cont_s, fields, est, rise_pt, grids):
 
 def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, point_index,
             grids, pack_s) -> CaseResult:
-    """The rows per N (:func:`_rows_by_n`), the three figures, the section and the summary's
-    columns. Most of its length is the section's text."""
+    """The rows per N (:func:`_rows_by_n`), the three figures, the section
+    (:func:`_section_setup`, :func:`_section_results`) and the summary's columns."""
     from .framework import fit_order
     names = list(POINTS)
     # continuum convergence at the check-points themselves (rows 0..2)
@@ -466,22 +466,35 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
     f_conv = _figure_convergence(ctx, conv, order, const, names)
     f_speed = _figure_speed(ctx, conv, worst, cont_s, fields, est, rise_pt, grids)
 
-    src_txt = "; ".join(f"{row.n:,.0f} spheres {row.source_energy_ratio:.4f} (seeds "
-                        f"{row.source_energy_ratio_range[0]:.4f}–"
-                        f"{row.source_energy_ratio_range[1]:.4f})" for row in table)
-    nx_f, dt_f = grids[-1]
-    tab = md_table(
-        ["N (mean)"] + [f"{p}: {what}" for p in names for what in (
-            "error (mean / max of seeds)", "error of the seed mean", "dispersion")]
-        + ["thermal s"],
-        [[f"{row.n:,.0f}"] + [cell for p in names for cell in (
-            f"{100 * row.at(p).err_mean_of_seeds:.2f} / {100 * row.at(p).err_max:.2f} %",
-            f"{100 * row.at(p).err_of_seed_mean:.2f} %", f"{100 * row.at(p).dispersion:.2f} %")]
-         + [f"{row.seconds:.1f}"] for row in table])
     last = table[-1]
     worst_big = max(last.at(p).err_mean_of_seeds for p in names)
     cts = [d.ct for d in dems.values()]
-    section = f"""\
+    section = (_section_setup(rise_pt, grids, est, rich_pt, grid_diff, cts, dt_err)
+               + _section_results(table, names, order, (f_t, f_conv, f_speed)))
+    numbers = to_dict(SheetResult(
+        table=tuple(table), convergence=tuple(tuple(c) for c in conv.tolist()), order=order,
+        continuum_richardson_over_rise=tuple(rich_pt.tolist()),
+        continuum_order=float(est.order), continuum_seconds=tuple(cont_s),
+        continuum_grid_vs_finest=tuple(tuple(g) for g in grid_diff), dem_dt_error=dt_err,
+        rise_k=tuple(rise_pt.tolist()), ct=tuple(cts), worst_error_largest_n=worst_big))
+    thermal_s = sum(d.run_seconds + d.calibration_seconds for d in dems.values())
+    return CaseResult(
+        our_n=" / ".join(f"{row.n:,.0f}" for row in table) + f" × {len(seeds)} seeds",
+        our_error=f"at {table[-1].n:,.0f}: A {100 * last.A.err_mean_of_seeds:.1f} %, "
+                  f"B {100 * last.B.err_mean_of_seeds:.1f} %, C "
+                  f"{100 * last.C.err_mean_of_seeds:.1f} % of the peak rise (vs our "
+                  f"continuum, converged to {100 * rich_pt.max():.2f} %); dispersion "
+                  + " / ".join(f"{100 * last.at(p).dispersion:.1f} %" for p in names),
+        wall_time=f"{pack_s:.0f} s (carving; the cells are case 2's) + {thermal_s:.0f} s "
+                  f"(continuum {sum(cont_s):.0f} s)",
+        verdict=f"error falls as N^{order:.2f}; continuum reference converged",
+        section_md=section, numbers=numbers, command="")
+
+
+def _section_setup(rise_pt, grids, est, rich_pt, grid_diff, cts, dt_err) -> str:
+    """The section's first half: the setup, the continuum reference and its convergence, the
+    DEM's sheets, law, source and time step. Text, hence its length."""
+    return f"""\
 Setup (000 sec. 5.2, Tables 3–5): sheet 50 × 30 × 2 mm (x in [0, 50], y in [−15, 15] mm),
 aluminium (λ 134 W/m/K, ρ 2790 kg/m³, c 880 J/kg/K), 25 °C initially, adiabatic everywhere; a
 cylindrical source of radius 4 mm through the whole 2 mm depth, 1e11 W/m³ (10.05 kW), its axis on
@@ -517,6 +530,27 @@ Implicit run (Rannacher CN, dt 0.01 s; at dt 0.005 s the probes move by at most
 the conducting spheres within 1 mm of it in the plane; the reference: the continuum at the same
 centres, averaged alike.
 
+"""
+
+
+def _section_results(table, names, order, figures) -> str:
+    """The section's second half: the errors and dispersion per N (a table), the figures, the
+    convergence, the source's energy, the errors in kelvin, speed against error and what limits
+    us. Text, hence its length."""
+    f_t, f_conv, f_speed = figures
+    src_txt = "; ".join(f"{row.n:,.0f} spheres {row.source_energy_ratio:.4f} (seeds "
+                        f"{row.source_energy_ratio_range[0]:.4f}–"
+                        f"{row.source_energy_ratio_range[1]:.4f})" for row in table)
+    tab = md_table(
+        ["N (mean)"] + [f"{p}: {what}" for p in names for what in (
+            "error (mean / max of seeds)", "error of the seed mean", "dispersion")]
+        + ["thermal s"],
+        [[f"{row.n:,.0f}"] + [cell for p in names for cell in (
+            f"{100 * row.at(p).err_mean_of_seeds:.2f} / {100 * row.at(p).err_max:.2f} %",
+            f"{100 * row.at(p).err_of_seed_mean:.2f} %", f"{100 * row.at(p).dispersion:.2f} %")]
+         + [f"{row.seconds:.1f}"] for row in table])
+    last = table[-1]
+    return f"""\
 **Errors** (max over time of |T_DEM − T_ref| / the reference's peak rise at the point) and
 **dispersion** (Fig. 11: the standard deviation over the 5 seeds, averaged over time, / the peak
 rise):
@@ -558,21 +592,3 @@ at the sphere scale), and a check-point's temperature is that of one or two sphe
 with N; at 20,000 the sphere size (mean radius ~0.28 mm) is still comparable to the paper's FEM
 cell (0.5 mm).
 """
-    numbers = to_dict(SheetResult(
-        table=tuple(table), convergence=tuple(tuple(c) for c in conv.tolist()), order=order,
-        continuum_richardson_over_rise=tuple(rich_pt.tolist()),
-        continuum_order=float(est.order), continuum_seconds=tuple(cont_s),
-        continuum_grid_vs_finest=tuple(tuple(g) for g in grid_diff), dem_dt_error=dt_err,
-        rise_k=tuple(rise_pt.tolist()), ct=tuple(cts), worst_error_largest_n=worst_big))
-    thermal_s = sum(d.run_seconds + d.calibration_seconds for d in dems.values())
-    return CaseResult(
-        our_n=" / ".join(f"{row.n:,.0f}" for row in table) + f" × {len(seeds)} seeds",
-        our_error=f"at {table[-1].n:,.0f}: A {100 * last.A.err_mean_of_seeds:.1f} %, "
-                  f"B {100 * last.B.err_mean_of_seeds:.1f} %, C "
-                  f"{100 * last.C.err_mean_of_seeds:.1f} % of the peak rise (vs our "
-                  f"continuum, converged to {100 * rich_pt.max():.2f} %); dispersion "
-                  + " / ".join(f"{100 * last.at(p).dispersion:.1f} %" for p in names),
-        wall_time=f"{pack_s:.0f} s (carving; the cells are case 2's) + {thermal_s:.0f} s "
-                  f"(continuum {sum(cont_s):.0f} s)",
-        verdict=f"error falls as N^{order:.2f}; continuum reference converged",
-        section_md=section, numbers=numbers, command="")
