@@ -189,8 +189,6 @@ def dem_points(name, path, ctx, axes=(1, 0, 2), target_z=TARGET_Z):
     centres, radius = I.centred_inclusion(pk)
     phase = I.phase_of(pk, centres, radius)
     tree = cKDTree(pk.position)
-    volume = 4.0 / 3.0 * np.pi * pk.radius ** 3
-    phi = float(pk.attrs["solid_fraction"])
     samples = {k: {"A": [], "B": [], "C": []} for k in KEYS}
     homogeneous = {k: {"A": [], "B": [], "C": []} for k in KEYS}   # single phase: q / 3300 - 1
     local = {k: {"A": [], "B": [], "C": []} for k in KEYS}   # q x 3300 / q_single, same halo
@@ -213,12 +211,7 @@ def dem_points(name, path, ctx, axes=(1, 0, 2), target_z=TARGET_Z):
         conducting = np.flatnonzero(np.asarray(res.net.degree_w_k) > 0)
         ctree = cKDTree(pk.position[conducting])
         if axis == 1:
-            t_pts = []
-            for p in lo + np.array(list(POINTS.values())) * size:
-                idx = conducting[ctree.query(p, k=32)[1]]
-                A = np.column_stack([np.ones(len(idx)), pk.position[idx] - p])
-                coef = np.linalg.lstsq(A, T[idx], rcond=None)[0]
-                t_pts.append(coef[0] - 273.15)
+            t_pts = _point_temperatures(pk, T, conducting, ctree)
         eq = equivalent_points(axis)
         labels = [lab for lab, pts in eq.items() for _ in pts]
         pts = lo + np.array([pt for pts in eq.values() for pt in pts]) * size
@@ -232,19 +225,7 @@ def dem_points(name, path, ctx, axes=(1, 0, 2), target_z=TARGET_Z):
                                     single.net.problem.conductance_w_k, single.temperature)
         scale = calib["xyz"[axis]] * float(size[axis]) / PAPER_L   # calibrated, x L / 0.1 m
         t1 = time.perf_counter()
-        values, values_1 = {}, {}
-        for kind in KINDS:
-            for ratio in HALOS:
-                key = _key(kind, ratio)
-                if key in values:
-                    continue
-                for m, out in ((moments, values), (moments_1, values_1)):
-                    if ratio == 0:
-                        flux = phi * m[nearest] / (2.0 * volume[nearest, None])
-                    else:
-                        flux = halo_flux(pk.position, pk.radius, m, volume, phi, ratio,
-                                         particles=nearest, tree=tree, halo_radius=kind)
-                    out[key] = np.linalg.norm(flux, axis=1) * scale
+        values, values_1 = _point_fluxes(pk, tree, (moments, moments_1), nearest, scale)
         halo_s += time.perf_counter() - t1
         q_nominal = I.K_MATRIX * (I.T_HOT - I.T_COLD) / PAPER_L        # 3,300 W/m^2
         for key, v in values.items():
@@ -264,6 +245,41 @@ def dem_points(name, path, ctx, axes=(1, 0, 2), target_z=TARGET_Z):
                 halo_s=halo_s, balance=balance,
                 mean_radius_over_l=float(pk.radius.mean() / size[1]),
                 pack_s=framework.pack_seconds(name))
+
+
+def _point_temperatures(pk, T, conducting, ctree) -> list[float]:
+    """T (°C) at A, B, C: a linear least-squares fit over the 32 conducting particles nearest
+    each point, evaluated there."""
+    lo, size = pk.domain_lo, pk.domain_hi - pk.domain_lo
+    t_pts = []
+    for p in lo + np.array(list(POINTS.values())) * size:
+        idx = conducting[ctree.query(p, k=32)[1]]
+        A = np.column_stack([np.ones(len(idx)), pk.position[idx] - p])
+        coef = np.linalg.lstsq(A, T[idx], rcond=None)[0]
+        t_pts.append(coef[0] - 273.15)
+    return t_pts
+
+
+def _point_fluxes(pk, tree, moments, nearest, scale) -> tuple[dict, dict]:
+    """|q| of the particles ``nearest`` the points per reading (raw eq. 20 and each Halo of
+    :data:`KINDS` × :data:`HALOS`), scaled by ``scale``, from the composite's and the
+    single-phase cube's contact moments (``moments``, a pair): two dicts by reading."""
+    volume = 4.0 / 3.0 * np.pi * pk.radius ** 3
+    phi = float(pk.attrs["solid_fraction"])
+    values, values_1 = {}, {}
+    for kind in KINDS:
+        for ratio in HALOS:
+            key = _key(kind, ratio)
+            if key in values:
+                continue
+            for m, out in zip(moments, (values, values_1)):
+                if ratio == 0:
+                    flux = phi * m[nearest] / (2.0 * volume[nearest, None])
+                else:
+                    flux = halo_flux(pk.position, pk.radius, m, volume, phi, ratio,
+                                     particles=nearest, tree=tree, halo_radius=kind)
+                out[key] = np.linalg.norm(flux, axis=1) * scale
+    return values, values_1
 
 
 def _errors(r, ref_T, ref_q):
@@ -593,15 +609,25 @@ def _case7_cov() -> str:
 
 
 def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, every=(), quick=False):
-    """The section (its tables from :func:`_point_tables`, :func:`_every_md`) and the summary's
-    columns (:func:`_speed`). Most of its length is the section's text."""
+    """The section (:func:`_section_setup`, :func:`_section_results`; the tables from
+    :func:`_point_tables`, :func:`_every_md`) and the summary's columns (:func:`_at_paper`,
+    :func:`_speed`)."""
     rs = sorted(runs, key=lambda r: r.n)
     t_rows, q_rows, sc_rows, h_rows = _point_tables(rs, ref_T, ref_q, ref, dT, q0, grids)
     judged = {r.n: r.judged for r in rs}
     main_run = _near(rs, 150_000) or rs[-1]
-    five = _near(rs, 500_000)
     met = None if quick else judged[main_run.n]["met"]
     key = _key(*MAIN)
+    at_paper = _at_paper(main_run, _near(rs, 500_000), key)
+    speed = _speed(rs, judged, key)
+    section = (_section_setup(rs, grids, fv_s, t_rows, q_rows, _every_md(every, key))
+               + _section_results(rs, main_run, key, sc_rows, h_rows, met))
+    return section, at_paper, speed, met
+
+
+def _at_paper(main_run, five, key) -> str:
+    """The summary's column at the paper's N: |q| against 002's FE at A, B, C and T, at
+    150,000 (and 500,000, ``five``, when run)."""
 
     def errs(r, k=key):
         return " / ".join(f"{100 * v:+.1f} %" for v in r.err_q_fe[k])
@@ -614,24 +640,16 @@ def _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, every=(), quick=False
         at_paper += (f"; N {five.n:,}: {errs(five)} (paper +0.5 / +1.0 / −4.1 %), T max "
                      f"{100 * max(five.err_T):.2f} %")
     at_paper += (f"; own radius at {main_run.n:,}: {errs(main_run, 'own_11')}")
-    speed = _speed(rs, judged, key)
-    timing = "; ".join(
-        f"{r.n:,}: solves {', '.join(f'{a} {v:.1f} s' for a, v in r.solve_s.items())}, "
-        f"Halo {r.halo_s:.1f} s" for r in rs)
-    miss = []
-    for r in rs:
-        j = judged[r.n]
-        bad = [lab for lab, ok in zip("ABC", j["points"]) if not ok]
-        if bad:
-            miss.append(f"{r.n:,}: {', '.join(bad)}")
-    sc_main = main_run.scatter[key]
-    every_md = _every_md(every, key)
+    return at_paper
+
+
+def _causes(rs, m, key) -> str:
+    """The paragraph on the causes of the errors at A, B and C at the main N ``m``."""
 
     def series(field, i):
         return ", ".join(f"{100 * getattr(r, field)[key][i]:+.1f} %" for r in rs)
 
-    m = main_run
-    causes = f"""**Causes, measured.** *At A* the error is a bias, not scatter (symmetric mean
+    return f"""**Causes, measured.** *At A* the error is a bias, not scatter (symmetric mean
 {100 * m.scatter[key]['A']['mean_err']:+.1f} ± {100 * m.scatter[key]['A']['std']:.1f} % at
 {m.n:,}). The homogeneous cube already gives {100 * m.homogeneous_err[key][0]:+.1f} % at the
 centre: the layers along the cube's cut faces conduct less, so the interior carries more than
@@ -649,7 +667,12 @@ falls as the halo shrinks against L ({series('err_q', 1)} against FV at the same
 error is within the paper's at every N. With the own radius the halo of a large sphere near B
 reaches 11 × its radius (up to 18 r̄): the +23 % at B on 1e5 before issue 23 came from that.
 """
-    section = f"""**Setup.** The cube of case 8 with its centred inclusion a = L/3 at c = 5
+
+
+def _section_setup(rs, grids, fv_s, t_rows, q_rows, every_md) -> str:
+    """The section's first half: the setup, the halo, the measure and the references, the T and
+    |q| tables at A, B, C and the figure. Text, hence its length."""
+    return f"""**Setup.** The cube of case 8 with its centred inclusion a = L/3 at c = 5
 (33 / 165 W/m/K), y = 0 at 25 °C, y = L at 35 °C, adiabatic sides (002 sec. 4.2), on cubes
 tiled from the shared 10,000-sphere cell at the paper's N (150,000 and 500,000) and at 1e5
 and 1e6 beside them. DEM: one steady solve (law `haddad`, conducting through the dumped
@@ -681,6 +704,26 @@ Temperature (°C) at A, B, C (error: |T − T_FV| / T_FV in °C, 002's measure; 
 {every_md}
 ![T and the flux error at A, B, C](img/validation_case9_points.png)
 
+"""
+
+
+def _section_results(rs, main_run, key, sc_rows, h_rows, met) -> str:
+    """The section's second half: the scatter of a point value over the symmetric points, the
+    single-phase cube at the same points, the causes, the target and the timing. Text, hence
+    its length."""
+    judged = {r.n: r.judged for r in rs}
+    timing = "; ".join(
+        f"{r.n:,}: solves {', '.join(f'{a} {v:.1f} s' for a, v in r.solve_s.items())}, "
+        f"Halo {r.halo_s:.1f} s" for r in rs)
+    miss = []
+    for r in rs:
+        j = judged[r.n]
+        bad = [lab for lab, ok in zip("ABC", j["points"]) if not ok]
+        if bad:
+            miss.append(f"{r.n:,}: {', '.join(bad)}")
+    sc_main = main_run.scatter[key]
+    causes = _causes(rs, main_run, key)
+    return f"""\
 **A point value carries the halo's scatter.** One particle's Halo flux scatters about the
 field like case 7's CoV ({_case7_cov()} at ratio 11 in a uniform field). Measured here on the points
 equivalent to A, B and C by the symmetry of the problem (A the centre; B the four mid-face
@@ -724,4 +767,3 @@ N = {', '.join(f"{r.n:,}" for r in rs)}, so the halo of 11 r̄ is cut by that fa
 ~1e6 (eq. 23 then averages over the particles inside only). Errors are at the three points
 only; 002's 19.6 % is the maximum over the section's map.
 """
-    return section, at_paper, speed, met
