@@ -449,8 +449,7 @@ def _needed_n(runs, series, key, goal=0.005):
 def finish(ctx: Context, runs: list, total: float, fft: FftRayleigh | None = None) -> CaseResult:
     """Figures, section and summary row from the measured series (also used to rebuild them
     from a saved result: ``finish(ctx, numbers["runs"], seconds, fft)``; ``fft`` None: the FFT
-    check computed, or read from its cache). Most of its length is the section's text (its
-    table from :func:`_table`, its limits from :func:`_limits`)."""
+    check computed, or read from its cache); the section from :func:`_section`."""
     runs = read_runs(runs)
     fft = fft or _fft_check(ctx)
     orders = _plots(ctx, runs)
@@ -467,12 +466,42 @@ def finish(ctx: Context, runs: list, total: float, fft: FftRayleigh | None = Non
         periodic_harmonic_max_error=max_err(h_big, "err_rayleigh") if h_big else None,
         periodic_cut_max_error=max_err(c_big, "err_rayleigh") if c_big else None,
         fft_rayleigh=fft)
+    fsec = [r for r in runs if r.series == "faces"]
+    pack = ", ".join(f"{r.name} {r.pack_s:.0f} s" for r in fsec if r.pack_s)
+    section = _section(runs, fft, orders, key)
+    errs = [m.faces_max_error, m.periodic_harmonic_max_error, m.periodic_cut_max_error]
+    our_err = (f"faces {100 * errs[0]:.2f} % (N {f_big.n:,})"
+               + (f"; periodic {100 * errs[1]:.2f} % harmonic (N {h_big.n:,}) / "
+                  f"{100 * errs[2]:.2f} % cut (N {c_big.n:,})" if h_big and c_big else ""))
+    met = min(e for e in errs if e is not None) <= 0.005
+    return CaseResult(
+        our_n=" / ".join(f"{r.n:,}" for r in sorted(fsec, key=lambda r: r.n))
+        + (f"; periodic {min(r.n for r in runs if r.series != 'faces'):,}–"
+           f"{h_big.n:,}" if h_big else ""),
+        our_error=our_err,
+        wall_time=f"packing {pack or 'shared'} + thermal {total:.0f} s",
+        verdict=("goal 0.5 % met" if met else "goal 0.5 % not met")
+        + (f": worst at c = {min(CONTRASTS):g}; without it the max is "
+           f"{100 * max(abs(getattr(x, key['faces'])) for x in f_big.rows[1:]):.2f} % (faces, "
+           f"N {f_big.n:,})"
+           + (f", {100 * max(abs(x.err_rayleigh) for x in h_big.rows[1:]):.2f} % "
+              f"(periodic, N {h_big.n:,})" if h_big else "") if f_big else "")
+        + "; 0.5 % is reached near N ≈ "
+        + (f"{_needed_n(runs, 'faces', 'err_maxwell'):.0e} (faces)" if _needed_n(
+            runs, 'faces', 'err_maxwell') else "?"),
+        section_md=section, numbers=to_dict(m),
+        command="`tdem validate 8 --action paper-n`, `--action extend` add to the saved result")
+
+
+def _section(runs, fft, orders, key) -> str:
+    """The section: the setup, the three series, the error table (:func:`_table`), the
+    figures, convergence and the limits (:func:`_limits`). Text, hence its length."""
     img = "img/validation_case8_"
     limits = _limits(runs, key)
     fsec = [r for r in runs if r.series == "faces"]
     fd = ", ".join(f"{r.name} {r.f_particles:.4f} / {r.f_cells:.4f}" for r in fsec)
     pack = ", ".join(f"{r.name} {r.pack_s:.0f} s" for r in fsec if r.pack_s)
-    section = f"""\
+    return f"""\
 **Setup.** 002 sec. 4.1: a cube of side L with one centred sphere of radius a = L/3
 (f = 4π/81 = 15.51 %), matrix λ 33 W/m/K, inclusion c λ for c = \
 {', '.join(f'{c:g}' for c in CONTRASTS)},
@@ -514,28 +543,6 @@ error (wall time per steady solve, one thread on a machine shared with other job
 Packings: {pack or 'shared packings of validation/framework.py'}; the periodic blocks are built
 in memory from runs/out/dense_box_1e5/cell.h5 in seconds.
 """
-    errs = [m.faces_max_error, m.periodic_harmonic_max_error, m.periodic_cut_max_error]
-    our_err = (f"faces {100 * errs[0]:.2f} % (N {f_big.n:,})"
-               + (f"; periodic {100 * errs[1]:.2f} % harmonic (N {h_big.n:,}) / "
-                  f"{100 * errs[2]:.2f} % cut (N {c_big.n:,})" if h_big and c_big else ""))
-    met = min(e for e in errs if e is not None) <= 0.005
-    return CaseResult(
-        our_n=" / ".join(f"{r.n:,}" for r in sorted(fsec, key=lambda r: r.n))
-        + (f"; periodic {min(r.n for r in runs if r.series != 'faces'):,}–"
-           f"{h_big.n:,}" if h_big else ""),
-        our_error=our_err,
-        wall_time=f"packing {pack or 'shared'} + thermal {total:.0f} s",
-        verdict=("goal 0.5 % met" if met else "goal 0.5 % not met")
-        + (f": worst at c = {min(CONTRASTS):g}; without it the max is "
-           f"{100 * max(abs(getattr(x, key['faces'])) for x in f_big.rows[1:]):.2f} % (faces, "
-           f"N {f_big.n:,})"
-           + (f", {100 * max(abs(x.err_rayleigh) for x in h_big.rows[1:]):.2f} % "
-              f"(periodic, N {h_big.n:,})" if h_big else "") if f_big else "")
-        + "; 0.5 % is reached near N ≈ "
-        + (f"{_needed_n(runs, 'faces', 'err_maxwell'):.0e} (faces)" if _needed_n(
-            runs, 'faces', 'err_maxwell') else "?"),
-        section_md=section, numbers=to_dict(m),
-        command="`tdem validate 8 --action paper-n`, `--action extend` add to the saved result")
 
 
 def add_paper_n() -> None:
