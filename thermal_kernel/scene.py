@@ -211,6 +211,27 @@ def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Sce
     base = path.resolve().parent
     out_dir = Path(out_dir) if out_dir else base / "out" / path.stem
 
+    packing, pack = _packing_or_pack(top, base)
+    law, law_params = _law(top, known_laws)
+    materials, young, poisson = _materials(top.sub("material", required=True))
+    initial_temperature = _initial(top.sub("initial", required=True))
+    boundaries = _boundaries(top)
+    solver = _solver(top.sub("solver", required=True))
+    neighbours = _neighbours(top.sub("neighbours"))
+    output = _output(top.sub("output"), out_dir)
+    top.done()
+    return Scene(path=path, packing=packing, pack=pack, law=law, law_params=law_params,
+                 materials=materials, young_pa=young, poisson=poisson,
+                 initial_temperature=initial_temperature, boundaries=tuple(boundaries),
+                 solver=solver, output=output, neighbours=neighbours, text=text)
+
+
+# One helper per table of the scene, called by load_scene in the order the tables are read
+# (the first error found is the one reported); each pops its keys and refuses the unknown ones.
+
+def _packing_or_pack(top: _Table, base: Path) -> tuple[Path | None, dict | None]:
+    """``packing = "file.h5"`` (resolved against the scene's folder) or a ``[pack]`` table:
+    ``(packing, pack)``, one of them None."""
     pack = None
     packing = None
     if top.has("packing") and top.has("pack"):
@@ -221,16 +242,24 @@ def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Sce
             top.fail("pack", "expected a table")
     else:
         packing = base / top.string("packing")
+    return packing, pack
 
+
+def _law(top: _Table, known_laws) -> tuple[str, dict]:
+    """``law`` (one of ``known_laws``) and its ``[law_params]``, checked against the law."""
     law = top.string("law")
     if law not in known_laws:
         top.fail("law", f"unknown law {law!r} (known: {', '.join(known_laws)})")
     law_params = top.table.pop("law_params", {})
     if not isinstance(law_params, dict):
         top.fail("law_params", "expected a table")
-    _check_law_params(_Table(path, "law_params", law_params), law)
+    _check_law_params(_Table(top.path, "law_params", law_params), law)
+    return law, law_params
 
-    mat = top.sub("material", required=True)
+
+def _materials(mat: _Table) -> tuple[dict, float, float]:
+    """``[material]`` and its phases ``[material.N]`` (each phase's missing keys from the
+    default): ``({phase id: Material}, young_pa, poisson)``, NaN where not given."""
     phases = {}
     for key in [k for k, v in mat.table.items() if isinstance(v, dict)]:
         try:
@@ -238,7 +267,7 @@ def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Sce
         except ValueError:
             mat.fail(key, "expected a phase id (an integer, e.g. [material.1]) or a key "
                           "conductivity | density | heat_capacity | young_pa | poisson")
-        phases[phase_id] = _Table(path, mat.where(key), mat.table.pop(key))
+        phases[phase_id] = _Table(mat.path, mat.where(key), mat.table.pop(key))
     default = Material(conductivity=mat.number("conductivity", positive=True),
                        density=mat.number("density", positive=True),
                        heat_capacity=mat.number("heat_capacity", positive=True))
@@ -260,28 +289,38 @@ def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Sce
             heat_capacity=t.number("heat_capacity", default=default.heat_capacity,
                                    positive=True))
         t.done()
+    return materials, young, poisson
 
-    init = top.sub("initial", required=True)
+
+def _initial(init: _Table) -> float:
+    """``[initial] temperature`` (K)."""
     initial_temperature = init.number("temperature", positive=True)
     if initial_temperature > TEMPERATURE_MAX_K:
         init.fail("temperature", f"expected a temperature in (0, {TEMPERATURE_MAX_K:g}] K (no "
                                  f"solid above), got {initial_temperature!r}")
     init.done()
+    return initial_temperature
 
+
+def _boundaries(top: _Table) -> list:
+    """The ``[[boundary]]`` entries, each parsed by its kind; their names distinct."""
     from .boundaries import parse_boundary     # each kind parses its own table
     raw_boundaries = top.table.pop("boundary", [])
     if not isinstance(raw_boundaries, list):
         top.fail("boundary", "expected [[boundary]] entries (an array of tables)")
     boundaries = []
     for k, raw in enumerate(raw_boundaries):
-        boundaries.append(parse_boundary(_Table(path, f"boundary[{k}]", raw)))
+        boundaries.append(parse_boundary(_Table(top.path, f"boundary[{k}]", raw)))
     names = [b.name for b in boundaries]
     if len(set(names)) != len(names):
         dup = sorted(n for n in names if names.count(n) > 1)[0]
         top.fail("boundary", f"two boundaries share the name {dup!r}"
                              " (give each a distinct name = \"...\")")
+    return boundaries
 
-    sol = top.sub("solver", required=True)
+
+def _solver(sol: _Table) -> SolverConfig:
+    """``[solver]``: the method, times, step, scheme and limits, checked together."""
     method = sol.string("method", choices=METHODS)
     if method == "steady":
         end_time = sol.number("end_time", default=math.nan) if sol.has("end_time") else math.nan
@@ -336,20 +375,17 @@ def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Sce
                        f"{max_steps:.6g} (a longer dt, a shorter end_time, or a larger "
                        "max_steps)")
     sol.done()
+    return solver
 
-    neighbours = _neighbours(top.sub("neighbours"))
 
+def _output(outt: _Table | None, out_dir: Path) -> Path:
+    """``[output] path`` (relative to ``out_dir``; default ``out_dir/thermal.h5``)."""
     output = out_dir / "thermal.h5"
-    outt = top.sub("output")
     if outt is not None:
         rel = outt.string("path", default="thermal.h5")
         output = Path(rel) if Path(rel).is_absolute() else out_dir / rel
         outt.done()
-    top.done()
-    return Scene(path=path, packing=packing, pack=pack, law=law, law_params=law_params,
-                 materials=materials, young_pa=young, poisson=poisson,
-                 initial_temperature=initial_temperature, boundaries=tuple(boundaries),
-                 solver=solver, output=output, neighbours=neighbours, text=text)
+    return output
 
 
 def sol_has_times(end_time: float, dt: float) -> bool:
