@@ -285,102 +285,151 @@ def read_thermal(path, *, data: bool = True) -> ThermalRun:
     def fail(field, what):
         raise ThermalFileError(f"{path}: {field}: {what}")
 
-    if not path.is_file():
-        raise ThermalFileError(f"{path}: file not found" + (" (a folder; expected a run's "
-                               "thermal.h5)" if path.is_dir() else ""))
-    try:
-        f = h5py.File(path, "r")
-    except OSError:
-        raise ThermalFileError(f"{path}: not an HDF5 file; expected a run's thermal.h5") \
-            from None
-    with f:
+    with _open_thermal(path) as f:
         attrs = {k: _text(v) for k, v in f.attrs.items()}
-        fmt = attrs.get("format", "")
-        if fmt != FORMAT or "time" not in f or "temperature" not in f:
-            what = (" (a packing: run a scene on it with `tdem run`, then post the run)"
-                    if fmt == "tdem-packing" else "")
-            fail("format", f"expected a run's output ({FORMAT}, with datasets time and "
-                           f"temperature), got {fmt or 'no format'!r}{what}")
-        version = attrs.get("format_version")
-        version = int(version) if isinstance(version, np.integer) else version
-        if version not in (1, 2) or isinstance(version, (bool, np.bool_)):
-            fail("format_version", f"expected 1 or {FORMAT_VERSION}, got {version!r}")
-        version = int(version)
+        version = _format_version(f, attrs, fail)
 
         def attr(key, kind, missing=""):
-            if key not in attrs:
-                fail(key, "missing" + missing)
-            value = attrs[key]
-            if kind is str and not isinstance(value, str):
-                fail(key, f"expected a string, got {value!r}")
-            if kind is float:
-                if isinstance(value, (bool, np.bool_)) or not isinstance(
-                        value, (int, float, np.integer, np.floating)):
-                    fail(key, f"expected a number, got {value!r}")
-                value = float(value)
-            if kind is int:
-                if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int,
-                                                                                 np.integer)):
-                    fail(key, f"expected an integer, got {value!r}")
-                value = int(value)
-            return value
+            return _attr(attrs, key, kind, fail, missing)
 
-        rerun = " (a run made by an older tdem: run it again)"
-        scene_text = attr("scene", str)
-        packing = attr("packing", str)
-        sha = attr("packing_sha256", str, rerun)
-        if len(sha) != 64 or any(c not in "0123456789abcdef" for c in sha):
-            fail("packing_sha256", f"expected a sha256 in hex (64 digits), got {sha!r}")
-        law = attr("law", str)
-        raw_params = attr("law_params", str)
-        if version >= 2:
-            try:
-                law_params = json.loads(raw_params)
-            except json.JSONDecodeError:
-                law_params = None
-            scene_json = attr("scene_json", str)
-            try:
-                run_args = json.loads(attr("run_args", str))
-            except json.JSONDecodeError:
-                run_args = None
-            if not isinstance(run_args, dict):
-                fail("run_args", f"expected a JSON object, got {attrs['run_args']!r}")
-        else:       # law_params was a Python repr of a dict of numbers and strings
-            try:
-                law_params = ast.literal_eval(raw_params)
-            except (ValueError, SyntaxError):
-                law_params = None
-            scene_json, run_args = "", {}
-        if not isinstance(law_params, dict):
-            fail("law_params", f"expected a JSON object of the law's parameters, got "
-                               f"{raw_params!r}" + ("" if version >= 2 else rerun))
+        prov = _provenance(attrs, version, attr, fail)
         n = attr("n_particles", int)
-        time = f["time"]
-        temperature = f["temperature"]
-        if time.ndim != 1:
-            fail("time", f"expected a 1-D dataset, got shape {time.shape}")
-        if temperature.shape != (time.shape[0], n):
-            fail("temperature", f"expected shape ({time.shape[0]}, {n}) (output times, "
-                                f"n_particles), got {temperature.shape}")
-        if "initial_temperature" not in f or f["initial_temperature"].shape != (n,):
-            fail("initial_temperature", f"expected a dataset of shape ({n},)")
-        if "boundary_names" not in f:
-            fail("boundary_names", "missing")
-        names = tuple(_text(s) for s in f["boundary_names"][()])
-        if "capacity" not in f or f["capacity"].shape != (n,):
-            fail("capacity", f"expected a dataset of shape ({n},) (J/K)")
+        names = _check_datasets(f, n, fail)
         run = dict(method=attr("method", str), dt=attr("dt", float), flags=attr("flags", str),
                    wall_seconds=float(attrs.get("wall_seconds", math.nan)))
         check_run_values(f, attrs, run["method"], run["dt"], run["flags"], fail)
         arrays = {}
         if data:
-            arrays = dict(times=time[()], temperature=temperature[()],
+            arrays = dict(times=f["time"][()], temperature=f["temperature"][()],
                           initial_temperature=f["initial_temperature"][()],
                           capacity=f["capacity"][()])
         scene_path = attr("scene_path", str)
         agreed = attrs.get("scene_text_agrees")
         agreed = (isinstance(agreed, (int, np.integer)) and not isinstance(agreed, bool)
                   and int(agreed) == 1)
+    scene = _stored_scene(path, version, prov, scene_path, agreed, fail)
+    return ThermalRun(path=path, format_version=version, scene=scene,
+                      scene_json=prov["scene_json"], packing_path=Path(prov["packing"]),
+                      packing_sha256=prov["sha"], law=prov["law"],
+                      law_params=prov["law_params"], run_args=prov["run_args"], n_particles=n,
+                      boundary_names=names, **run, **arrays)
+
+
+# read_thermal's pieces, in the order it checks the file (the first fault found is reported):
+# the file itself, its format and version, the provenance attributes, the datasets' shapes,
+# the stored scene against the run.
+
+_RERUN = " (a run made by an older tdem: run it again)"
+
+
+def _open_thermal(path: Path):
+    """The file open for reading (h5py.File), or a ThermalFileError: missing, a folder, not
+    HDF5."""
+    if not path.is_file():
+        raise ThermalFileError(f"{path}: file not found" + (" (a folder; expected a run's "
+                               "thermal.h5)" if path.is_dir() else ""))
+    try:
+        return h5py.File(path, "r")
+    except OSError:
+        raise ThermalFileError(f"{path}: not an HDF5 file; expected a run's thermal.h5") \
+            from None
+
+
+def _format_version(f, attrs: dict, fail) -> int:
+    """The run output's format (not a packing's) and its version, 1 or 2."""
+    fmt = attrs.get("format", "")
+    if fmt != FORMAT or "time" not in f or "temperature" not in f:
+        what = (" (a packing: run a scene on it with `tdem run`, then post the run)"
+                if fmt == "tdem-packing" else "")
+        fail("format", f"expected a run's output ({FORMAT}, with datasets time and "
+                       f"temperature), got {fmt or 'no format'!r}{what}")
+    version = attrs.get("format_version")
+    version = int(version) if isinstance(version, np.integer) else version
+    if version not in (1, 2) or isinstance(version, (bool, np.bool_)):
+        fail("format_version", f"expected 1 or {FORMAT_VERSION}, got {version!r}")
+    return int(version)
+
+
+def _attr(attrs: dict, key: str, kind, fail, missing=""):
+    """Attribute ``key``, present and of ``kind`` (str, float or int; a bool is neither
+    number)."""
+    if key not in attrs:
+        fail(key, "missing" + missing)
+    value = attrs[key]
+    if kind is str and not isinstance(value, str):
+        fail(key, f"expected a string, got {value!r}")
+    if kind is float:
+        if isinstance(value, (bool, np.bool_)) or not isinstance(
+                value, (int, float, np.integer, np.floating)):
+            fail(key, f"expected a number, got {value!r}")
+        value = float(value)
+    if kind is int:
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+            fail(key, f"expected an integer, got {value!r}")
+        value = int(value)
+    return value
+
+
+def _provenance(attrs: dict, version: int, attr, fail) -> dict:
+    """The run's provenance attributes: the scene text, the packing and its hash, the law and
+    its parameters, the resolved scene and the run's arguments (version 2; a version-1 file
+    has its law_params as a Python repr and neither of the last two)."""
+    scene_text = attr("scene", str)
+    packing = attr("packing", str)
+    sha = attr("packing_sha256", str, _RERUN)
+    if len(sha) != 64 or any(c not in "0123456789abcdef" for c in sha):
+        fail("packing_sha256", f"expected a sha256 in hex (64 digits), got {sha!r}")
+    law = attr("law", str)
+    raw_params = attr("law_params", str)
+    if version >= 2:
+        try:
+            law_params = json.loads(raw_params)
+        except json.JSONDecodeError:
+            law_params = None
+        scene_json = attr("scene_json", str)
+        try:
+            run_args = json.loads(attr("run_args", str))
+        except json.JSONDecodeError:
+            run_args = None
+        if not isinstance(run_args, dict):
+            fail("run_args", f"expected a JSON object, got {attrs['run_args']!r}")
+    else:       # law_params was a Python repr of a dict of numbers and strings
+        try:
+            law_params = ast.literal_eval(raw_params)
+        except (ValueError, SyntaxError):
+            law_params = None
+        scene_json, run_args = "", {}
+    if not isinstance(law_params, dict):
+        fail("law_params", f"expected a JSON object of the law's parameters, got "
+                           f"{raw_params!r}" + ("" if version >= 2 else _RERUN))
+    return dict(scene_text=scene_text, packing=packing, sha=sha, law=law,
+                law_params=law_params, scene_json=scene_json, run_args=run_args)
+
+
+def _check_datasets(f, n: int, fail) -> tuple:
+    """The datasets' shapes against ``n`` particles (time, temperature, initial temperature,
+    capacity) and the boundaries' names, which it returns."""
+    time = f["time"]
+    temperature = f["temperature"]
+    if time.ndim != 1:
+        fail("time", f"expected a 1-D dataset, got shape {time.shape}")
+    if temperature.shape != (time.shape[0], n):
+        fail("temperature", f"expected shape ({time.shape[0]}, {n}) (output times, "
+                            f"n_particles), got {temperature.shape}")
+    if "initial_temperature" not in f or f["initial_temperature"].shape != (n,):
+        fail("initial_temperature", f"expected a dataset of shape ({n},)")
+    if "boundary_names" not in f:
+        fail("boundary_names", "missing")
+    names = tuple(_text(s) for s in f["boundary_names"][()])
+    if "capacity" not in f or f["capacity"].shape != (n,):
+        fail("capacity", f"expected a dataset of shape ({n},) (J/K)")
+    return names
+
+
+def _stored_scene(path: Path, version: int, prov: dict, scene_path: str, agreed: bool, fail):
+    """The run's scene: from its resolved JSON, its stored text checked against it (version
+    2), or the stored text parsed (version 1); its law the run's."""
+    scene_text, scene_json, law = prov["scene_text"], prov["scene_json"], prov["law"]
     if version >= 2:
         scene = dataclasses.replace(scene_from_json(scene_json, fail), text=scene_text)
         _check_scene_text(path, scene_text, scene_path, scene_json, law, agreed, fail)
@@ -389,14 +438,11 @@ def read_thermal(path, *, data: bool = True) -> ThermalRun:
         try:
             scene = load_scene(scene_path, out_dir=path.parent, text=scene_text)
         except SceneError as e:
-            fail("scene", f"the stored scene text no longer parses ({e}){rerun}")
+            fail("scene", f"the stored scene text no longer parses ({e}){_RERUN}")
     if scene.law != law:
         fail("scene_json" if version >= 2 else "scene",
              f"the scene's law {scene.law!r} is not the run's law {law!r}")
-    return ThermalRun(path=path, format_version=version, scene=scene, scene_json=scene_json,
-                      packing_path=Path(packing), packing_sha256=sha, law=law,
-                      law_params=law_params, run_args=run_args, n_particles=n,
-                      boundary_names=names, **run, **arrays)
+    return scene
 
 
 def _numeric(ds, field, fail):
