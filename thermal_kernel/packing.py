@@ -215,110 +215,19 @@ def read_packing_image(image, name) -> Packing:
 
 
 def _read_open(f, path, contacts=True) -> Packing:
+    """The packing in the open file ``f``, read and checked group by group (the root's
+    attributes, particles, contacts, walls, wall contacts, domain: the first fault found is
+    the one reported), then the checks across groups."""
     with f:
-        fmt = f.attrs.get("format")
-        if isinstance(fmt, bytes):
-            fmt = fmt.decode()
-        if fmt != FORMAT:
-            _fail(path, "format", f"expected attribute format = {FORMAT!r}, got {fmt!r}")
-        version = f.attrs.get("format_version")
-        if isinstance(version, np.generic):
-            version = version.item()
-        if version is None or not np.issubdtype(np.asarray(version).dtype, np.integer) \
-                or int(version) != FORMAT_VERSION:
-            _fail(path, "format_version",
-                  f"unknown format version {version!r} (this tdem reads {FORMAT_VERSION})")
-        attrs = {}
-        for key, value in f.attrs.items():
-            if isinstance(value, bytes):
-                value = value.decode()
-            elif isinstance(value, np.generic):
-                value = value.item()
-            attrs[key] = value
-        for key in REQUIRED_ATTRS:
-            if key not in attrs:
-                _fail(path, key, "missing root attribute")
-        for key in REQUIRED_ATTRS[2:]:
-            value = attrs[key]
-            if isinstance(value, (bool, str)) or not isinstance(value, (int, float)):
-                _fail(path, key, f"expected a number, got {value!r}")
-            if key not in NAN_ALLOWED_ATTRS and not math.isfinite(value):
-                _fail(path, key, f"expected a finite number, got {value!r}")
-        _check_attr_ranges(path, attrs)
-
-        position = _dataset(f, path, "particles/position", "f", (None, 3))
+        attrs = _read_attrs(f, path)
+        position, radius, phase, yade_id = _read_particles(f, path)
         n = position.shape[0]
-        radius = _dataset(f, path, "particles/radius", "f", (n,))
-        phase = _dataset(f, path, "particles/phase", "i", (n,))
-        yade_id = _dataset(f, path, "particles/yade_id", "i", (n,), optional=True)
-        if n == 0:
-            _fail(path, "particles/position", "expected at least one particle")
-        if np.any(radius <= 0):
-            i = int(np.flatnonzero(radius <= 0)[0])
-            _fail(path, "particles/radius", f"particle {i} has radius {radius[i]!r}; "
-                                            "expected > 0")
-
-        rows = None if contacts else slice(0, 0)         # no rows: kinds and shapes only
-        pair = _dataset(f, path, "contacts/pair", "i", (None, 2), rows=rows)
-        m = pair.shape[0] if contacts else int(f["contacts/pair"].shape[0])
-        overlap = _dataset(f, path, "contacts/overlap", "f", (m,), rows=rows)
-        normal_force = _dataset(f, path, "contacts/normal_force", "f", (m,), rows=rows)
-        branch = _dataset(f, path, "contacts/branch", "f", (m, 3), rows=rows)
-        contact_radius = _dataset(f, path, "contacts/contact_radius", "f", (m,), optional=True,
-                                  rows=rows)
-        _check_pairs(path, pair, n)
-        _check_tensile(path, normal_force)
-
-        wall_name = _dataset(f, path, "walls/name", "S", (None,))
-        w = len(wall_name)
-        wall_kind = _dataset(f, path, "walls/kind", "S", (w,))
-        wall_point = _dataset(f, path, "walls/point", "f", (w, 3))
-        wall_normal = _dataset(f, path, "walls/normal", "f", (w, 3))
-        wall_radius = _dataset(f, path, "walls/radius", "f", (w,))
-        for i, kind in enumerate(wall_kind):
-            if kind not in packing_h5.WALL_KINDS:
-                _fail(path, "walls/kind", f"wall {i} has kind {kind!r}; expected one of "
-                                          f"{', '.join(packing_h5.WALL_KINDS)}")
-            if kind in ("cylinder", "sphere") and not (np.isfinite(wall_radius[i])
-                                                       and wall_radius[i] > 0):
-                _fail(path, "walls/radius", f"{kind} wall {i} has radius {wall_radius[i]!r}; "
-                                            "expected > 0")
-        if len(set(wall_name)) != w:
-            _fail(path, "walls/name", "duplicate wall name")
-        norms = np.linalg.norm(wall_normal, axis=1) if w else np.zeros(0)
-        if np.any(np.abs(norms - 1.0) > 1e-6):
-            i = int(np.flatnonzero(np.abs(norms - 1.0) > 1e-6)[0])
-            _fail(path, "walls/normal", f"wall {i} normal has length {norms[i]:.6g}; "
-                                        "expected a unit vector")
-
-        wall_particle = _dataset(f, path, "wall_contacts/particle", "i", (None,))
-        k = wall_particle.shape[0]
-        wall_index = _dataset(f, path, "wall_contacts/wall", "i", (k,))
-        wall_overlap = _dataset(f, path, "wall_contacts/overlap", "f", (k,))
-        wall_normal_force = _dataset(f, path, "wall_contacts/normal_force", "f", (k,))
-        wall_contact_radius = _dataset(f, path, "wall_contacts/contact_radius", "f", (k,),
-                                       optional=True)
-        _check_index(path, "wall_contacts/particle", wall_particle, n, "particle")
-        _check_index(path, "wall_contacts/wall", wall_index, w, "wall")
-        if np.any(wall_normal_force < 0):
-            _fail(path, "wall_contacts/normal_force", "tensile (negative) force; expected >= 0")
-
-        if "domain" not in f:
-            _fail(path, "domain", "missing group")
-        dattrs = f["domain"].attrs
-        dom = {}
-        for key, kind in (("lo", "f"), ("hi", "f"), ("periodic", "b")):
-            if key not in dattrs:
-                _fail(path, f"domain/{key}", "missing attribute")
-            value = np.asarray(dattrs[key])
-            if value.shape != (3,):
-                _fail(path, f"domain/{key}", f"expected 3 values, got shape {value.shape}")
-            if kind == "f" and not np.all(np.isfinite(value.astype(float))):
-                _fail(path, f"domain/{key}", "non-finite value")
-            dom[key] = value.astype(bool) if kind == "b" else value.astype(np.float64)
-        if np.any(dom["hi"] <= dom["lo"]):
-            _fail(path, "domain/hi", f"expected hi > lo, got lo={dom['lo']}, hi={dom['hi']}")
-
+        pair, overlap, normal_force, branch, contact_radius, m = _read_contacts(
+            f, path, n, contacts)
+        wall_name, wall_kind, wall_point, wall_normal, wall_radius = _read_walls(f, path)
+        (wall_particle, wall_index, wall_overlap, wall_normal_force,
+         wall_contact_radius) = _read_wall_contacts(f, path, n, len(wall_name))
+        dom = _read_domain(f, path)
     _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_particle,
                     wall_overlap, dom["lo"], dom["hi"], dom["periodic"])
     _check_forces_and_walls(path, position, radius, pair, overlap, normal_force, branch,
@@ -338,6 +247,138 @@ def _read_open(f, path, contacts=True) -> Packing:
                    domain_hi=dom["hi"], periodic=dom["periodic"], attrs=attrs,
                    contact_radius=contact_radius, wall_contact_radius=wall_contact_radius,
                    yade_id=yade_id, path=path, file_contacts=None if contacts else m)
+
+
+def _read_attrs(f, path) -> dict:
+    """The root attributes: the format and its version, the required ones present and
+    numbers (finite but where NaN is allowed), within their ranges."""
+    fmt = f.attrs.get("format")
+    if isinstance(fmt, bytes):
+        fmt = fmt.decode()
+    if fmt != FORMAT:
+        _fail(path, "format", f"expected attribute format = {FORMAT!r}, got {fmt!r}")
+    version = f.attrs.get("format_version")
+    if isinstance(version, np.generic):
+        version = version.item()
+    if version is None or not np.issubdtype(np.asarray(version).dtype, np.integer) \
+            or int(version) != FORMAT_VERSION:
+        _fail(path, "format_version",
+              f"unknown format version {version!r} (this tdem reads {FORMAT_VERSION})")
+    attrs = {}
+    for key, value in f.attrs.items():
+        if isinstance(value, bytes):
+            value = value.decode()
+        elif isinstance(value, np.generic):
+            value = value.item()
+        attrs[key] = value
+    for key in REQUIRED_ATTRS:
+        if key not in attrs:
+            _fail(path, key, "missing root attribute")
+    for key in REQUIRED_ATTRS[2:]:
+        value = attrs[key]
+        if isinstance(value, (bool, str)) or not isinstance(value, (int, float)):
+            _fail(path, key, f"expected a number, got {value!r}")
+        if key not in NAN_ALLOWED_ATTRS and not math.isfinite(value):
+            _fail(path, key, f"expected a finite number, got {value!r}")
+    _check_attr_ranges(path, attrs)
+    return attrs
+
+
+def _read_particles(f, path) -> tuple:
+    """particles/: position, radius (> 0), phase and the optional yade_id; at least one."""
+    position = _dataset(f, path, "particles/position", "f", (None, 3))
+    n = position.shape[0]
+    radius = _dataset(f, path, "particles/radius", "f", (n,))
+    phase = _dataset(f, path, "particles/phase", "i", (n,))
+    yade_id = _dataset(f, path, "particles/yade_id", "i", (n,), optional=True)
+    if n == 0:
+        _fail(path, "particles/position", "expected at least one particle")
+    if np.any(radius <= 0):
+        i = int(np.flatnonzero(radius <= 0)[0])
+        _fail(path, "particles/radius", f"particle {i} has radius {radius[i]!r}; "
+                                        "expected > 0")
+    return position, radius, phase, yade_id
+
+
+def _read_contacts(f, path, n, contacts) -> tuple:
+    """contacts/: pair, overlap, normal_force, branch and the optional contact_radius, the
+    pairs' indices and the forces checked, and the number of rows; ``contacts`` False: the
+    kinds and shapes only, no rows read."""
+    rows = None if contacts else slice(0, 0)         # no rows: kinds and shapes only
+    pair = _dataset(f, path, "contacts/pair", "i", (None, 2), rows=rows)
+    m = pair.shape[0] if contacts else int(f["contacts/pair"].shape[0])
+    overlap = _dataset(f, path, "contacts/overlap", "f", (m,), rows=rows)
+    normal_force = _dataset(f, path, "contacts/normal_force", "f", (m,), rows=rows)
+    branch = _dataset(f, path, "contacts/branch", "f", (m, 3), rows=rows)
+    contact_radius = _dataset(f, path, "contacts/contact_radius", "f", (m,), optional=True,
+                              rows=rows)
+    _check_pairs(path, pair, n)
+    _check_tensile(path, normal_force)
+    return pair, overlap, normal_force, branch, contact_radius, m
+
+
+def _read_walls(f, path) -> tuple:
+    """walls/: name, kind (known; a cylinder or sphere with a radius > 0), point, unit normal
+    and radius; the names distinct."""
+    wall_name = _dataset(f, path, "walls/name", "S", (None,))
+    w = len(wall_name)
+    wall_kind = _dataset(f, path, "walls/kind", "S", (w,))
+    wall_point = _dataset(f, path, "walls/point", "f", (w, 3))
+    wall_normal = _dataset(f, path, "walls/normal", "f", (w, 3))
+    wall_radius = _dataset(f, path, "walls/radius", "f", (w,))
+    for i, kind in enumerate(wall_kind):
+        if kind not in packing_h5.WALL_KINDS:
+            _fail(path, "walls/kind", f"wall {i} has kind {kind!r}; expected one of "
+                                      f"{', '.join(packing_h5.WALL_KINDS)}")
+        if kind in ("cylinder", "sphere") and not (np.isfinite(wall_radius[i])
+                                                   and wall_radius[i] > 0):
+            _fail(path, "walls/radius", f"{kind} wall {i} has radius {wall_radius[i]!r}; "
+                                        "expected > 0")
+    if len(set(wall_name)) != w:
+        _fail(path, "walls/name", "duplicate wall name")
+    norms = np.linalg.norm(wall_normal, axis=1) if w else np.zeros(0)
+    if np.any(np.abs(norms - 1.0) > 1e-6):
+        i = int(np.flatnonzero(np.abs(norms - 1.0) > 1e-6)[0])
+        _fail(path, "walls/normal", f"wall {i} normal has length {norms[i]:.6g}; "
+                                    "expected a unit vector")
+    return wall_name, wall_kind, wall_point, wall_normal, wall_radius
+
+
+def _read_wall_contacts(f, path, n, w) -> tuple:
+    """wall_contacts/: particle and wall (in range), overlap, normal force (>= 0) and the
+    optional contact_radius."""
+    wall_particle = _dataset(f, path, "wall_contacts/particle", "i", (None,))
+    k = wall_particle.shape[0]
+    wall_index = _dataset(f, path, "wall_contacts/wall", "i", (k,))
+    wall_overlap = _dataset(f, path, "wall_contacts/overlap", "f", (k,))
+    wall_normal_force = _dataset(f, path, "wall_contacts/normal_force", "f", (k,))
+    wall_contact_radius = _dataset(f, path, "wall_contacts/contact_radius", "f", (k,),
+                                   optional=True)
+    _check_index(path, "wall_contacts/particle", wall_particle, n, "particle")
+    _check_index(path, "wall_contacts/wall", wall_index, w, "wall")
+    if np.any(wall_normal_force < 0):
+        _fail(path, "wall_contacts/normal_force", "tensile (negative) force; expected >= 0")
+    return wall_particle, wall_index, wall_overlap, wall_normal_force, wall_contact_radius
+
+
+def _read_domain(f, path) -> dict:
+    """domain/ attributes lo, hi (finite, hi > lo) and periodic, three values each."""
+    if "domain" not in f:
+        _fail(path, "domain", "missing group")
+    dattrs = f["domain"].attrs
+    dom = {}
+    for key, kind in (("lo", "f"), ("hi", "f"), ("periodic", "b")):
+        if key not in dattrs:
+            _fail(path, f"domain/{key}", "missing attribute")
+        value = np.asarray(dattrs[key])
+        if value.shape != (3,):
+            _fail(path, f"domain/{key}", f"expected 3 values, got shape {value.shape}")
+        if kind == "f" and not np.all(np.isfinite(value.astype(float))):
+            _fail(path, f"domain/{key}", "non-finite value")
+        dom[key] = value.astype(bool) if kind == "b" else value.astype(np.float64)
+    if np.any(dom["hi"] <= dom["lo"]):
+        _fail(path, "domain/hi", f"expected hi > lo, got lo={dom['lo']}, hi={dom['hi']}")
+    return dom
 
 
 # Relative round-off allowed in the geometric checks below (positions of ~1e4 radii from the
