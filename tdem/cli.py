@@ -342,7 +342,7 @@ def _cmd_plot(args):
 def _cmd_validate(args):
     from validation.run import validate
     return validate(args.cases, force=args.force, quick=args.quick, list_only=args.list_only,
-                    threads=_threads(args), action=args.action)
+                    threads=_threads(args), action=args.action, ranks=args.ranks)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -451,3 +451,81 @@ def test_a_run_on_ranks_ended_by_sigterm_keeps_the_in_process_checkpoint(tmp_pat
         assert np.abs(state["temperature_k"][()] - ref.temperature_k).max() <= 1e-12 * change
         np.testing.assert_allclose(state["boundary_energy_j"][()], ref.boundary_energy_j,
                                    rtol=1e-9)
+
+
+# ------------------------------------------------------------------ validation on the ranks
+def _case4_quick(ranks):
+    """Case 4's quick instance (`tdem validate 4 --quick`, ``--ranks`` when ranks > 0): its
+    row's numbers."""
+    from thermal_kernel.run import ranks_of_run_in_memory
+    from validation import case4_slab
+    from validation.framework import Context
+    with ranks_of_run_in_memory(ranks):
+        return case4_slab.run(Context(number=4, quick=True)).numbers["rows"][0]
+
+
+def test_validation_case4_quick_on_two_ranks_gives_the_in_process_numbers():
+    """`tdem validate 4 --quick --ranks 2`: case 4's slab on tests/data/dense_box.h5 (Haddad,
+    [neighbours] bulk Z 7.5, two held faces), its explicit run to the paper's three Fourier
+    numbers and its steady profile run by run_in_memory on 2 ranks, gives the in-process
+    case's numbers: the same steps and neighbour choice, the profile's temperatures and errors
+    within 1e-12 of ΔT (explicit), the steady profile within 1e-10 of ΔT. (Its C_t flux test
+    stays in-process: equal.)"""
+    from validation.case4_slab import T1, T2
+    inproc, ranks = _case4_quick(0), _case4_quick(2)
+    for key in ("n_particles", "steps", "neighbour_gap", "bulk_z_with_gaps", "ct_held",
+                "ct_domain", "length_held_m"):
+        assert ranks[key] == inproc[key], key
+    a, b = np.array(inproc["profile"]), np.array(ranks["profile"])
+    np.testing.assert_array_equal(a[:, :3], b[:, :3])           # Fo, t, x / L
+    assert np.abs(a[:, 3:] - b[:, 3:]).max() <= 1e-12 * (T2 - T1)   # T_dem, T_exact, error
+    assert abs(ranks["max_err_over_dT"] - inproc["max_err_over_dT"]) <= 1e-12
+    assert np.abs(np.subtract(ranks["steady_pct"], inproc["steady_pct"])).max() <= 1e-10 * 100
+
+
+def test_run_in_memory_on_two_ranks_takes_a_start_factors_and_phases():
+    """run_in_memory(..., ranks=2) with what validation passes beside the scene -- a start per
+    particle, a conductance factor per dumped row, phases changed in memory (cases 7-10) --
+    gives the in-process run: temperatures within 1e-12 of the change (explicit), flows, flags
+    identical, the problem and network the in-process build's. Refused before any rank starts,
+    one line: a continued run (start_state) and a packing changed otherwise than its phases."""
+    import dataclasses
+
+    from thermal_kernel.packing import read_packing
+    from thermal_kernel.run import run_in_memory
+    from thermal_kernel.scene import SceneError, load_scene
+    scene = load_scene(DATA / "rows.toml", text=DENSE_ROWS + '[solver]\nmethod = "explicit"\n'
+                       + DENSE_TIMES)
+    rng = np.random.default_rng(25)
+    packing = read_packing(DENSE)
+    packing = dataclasses.replace(packing, phase=(1 - packing.phase).astype(np.int32))
+    kw = dict(initial_temperature_k=298.15 + rng.uniform(-5.0, 5.0, packing.n_particles),
+              conductance_factor=rng.uniform(0.5, 2.0, packing.pair.shape[0]))
+    inproc = run_in_memory(scene, packing, **kw)
+    petsc = run_in_memory(scene, packing, ranks=2, **kw)
+    a, b = inproc.result, petsc.result
+    change = np.abs(a.temperature_k - inproc.initial_temperature_k).max()
+    assert np.abs(a.temperature_k - b.temperature_k).max() <= 1e-12 * change
+    np.testing.assert_array_equal(inproc.initial_temperature_k, petsc.initial_temperature_k)
+    assert np.abs(a.boundary_heat_flow_w - b.boundary_heat_flow_w).max() <= 1e-9 * np.abs(
+        a.boundary_heat_flow_w).max()
+    assert a.flags == b.flags and a.steps == b.steps and a.dt == b.dt
+    assert b.info["backend"] == "petsc" and b.info["ranks"] == 2
+    np.testing.assert_array_equal(inproc.problem.conductance_w_k, petsc.problem.conductance_w_k)
+    with pytest.raises(SceneError, match="start_state: a run on MPI ranks cannot continue"):
+        run_in_memory(scene, packing, ranks=2, start_state=a.state)
+    moved = dataclasses.replace(packing, radius=packing.radius * 1.01)
+    with pytest.raises(SceneError, match=r"differs from its file .* \(radius\)"):
+        run_in_memory(scene, moved, ranks=2)
+
+
+def test_validate_passes_its_ranks_to_the_cases(monkeypatch):
+    """`tdem validate 4 --quick --ranks 2` reaches run_cases with ranks=2 (the cases' scenes
+    then run on the ranks, the test above); without --ranks, in-process (None)."""
+    import validation.run as vrun
+    seen = []
+    monkeypatch.setattr(vrun, "run_cases", lambda numbers, cases, **kw: seen.append(kw["ranks"])
+                        or 0)
+    assert main(["validate", "4", "--quick", "--ranks", "2"]) == 0
+    assert main(["validate", "4", "--quick"]) == 0
+    assert seen == [2, None]

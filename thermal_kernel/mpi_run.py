@@ -3,6 +3,7 @@
     mpirun -n N .venv-mpi/bin/python -m thermal_kernel.mpi_run SCENE [--packing P]
         [--out DIR] [--pc gamg|hypre] [--quiet] [--checkpoint-every K] [--resume]
         [--whole-build] [--status FILE] [--run-args JSON] [--scene-data JSON]
+        [--scene-text FILE] [--initial-temperature NPY] [--conductance-factor NPY] [--phase NPY]
 
 This is the command a user runs on a cluster (with ``--hostfile``; docs/scaling.md).
 ``tdem run --ranks N`` (:mod:`.solvers.mpi_launch`) starts it from the project's venv. It lives
@@ -23,6 +24,12 @@ and ``run_seconds``. Transient runs go through the in-process chunk loop
 (:func:`~thermal_kernel.run.run_in_chunks`): rank 0 shows the in-process progress bar, writes
 the in-process checkpoint (``--checkpoint-every``) and resumes from one (``--resume``).
 
+``thermal_kernel.run.run_in_memory(..., ranks=N)`` starts it too, with files it writes: the
+scene's text (``--scene-text``; SCENE names it, its paths resolve as the original's), the
+start (``--initial-temperature``, read by rank 0), a factor per dumped contact row
+(``--conductance-factor``, each rank reading its contacts' rows) and the particles' phases
+changed in memory (``--phase``).
+
 Bad input: one line (``tdem: error: ...``) from rank 0, exit 2; with ``--status`` (the
 launcher's) rank 0 writes the line there instead and every rank exits 0 (a non-zero exit makes
 mpirun print a banner of its own): the launcher prints it and exits 2.
@@ -31,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import sys
 import time
@@ -56,6 +64,12 @@ def _args(argv):
                    help="rank 0 reads the packing and builds the whole network, then sends "
                         "each rank its rows (for comparison with the build on the ranks: "
                         "docs/scaling.md)")
+    # thermal_kernel.run.run_in_memory's inputs (files it writes; the scene named by SCENE)
+    p.add_argument("--scene-text", help="file holding the scene's text (SCENE names it)")
+    p.add_argument("--initial-temperature", help=".npy, (N,) K: the start, read by rank 0")
+    p.add_argument("--conductance-factor", help=".npy, one per dumped contact row: multiplies "
+                                                "the law's conductances (each rank its rows)")
+    p.add_argument("--phase", help=".npy, (N,): the particles' phases instead of the file's")
     p.add_argument("--status", help="file to write the one-line error to (the launcher's)")
     p.add_argument("--run-args", default="{}", help="the CLI's arguments (JSON), stored")
     return p.parse_args(argv)
@@ -108,8 +122,10 @@ def _run(args, rank, held):
     data = None
     if args.scene_data:                     # a campaign's case (tdem/campaign.py)
         data = json.loads(Path(args.scene_data).read_text(encoding="utf-8"))
+    text = (Path(args.scene_text) if args.scene_text else
+            Path(args.scene) if data else None)
     scene = load_scene(args.scene, out_dir=Path(args.out) if args.out else None,  # every rank
-                       text=Path(args.scene).read_text(encoding="utf-8") if data else None,
+                       text=None if text is None else text.read_text(encoding="utf-8"),
                        data=data)
     solver = scene.solver
     built = {}
@@ -128,7 +144,8 @@ def _run(args, rank, held):
     per_rank = not args.whole_build
     t0 = time.perf_counter()
     if per_rank:            # each rank reads and builds its own rows (rank_build.py)
-        rb = build_on_ranks(scene, packing_path, comm)
+        rb = build_on_ranks(scene, packing_path, comm, conductance_factor=args.conductance_factor,
+                            phase=args.phase)
         if rank == 0:
             built.update(packing=rb.particles, info=rb.info, net=rb.net)
 
@@ -139,7 +156,12 @@ def _run(args, rank, held):
         scene_json = scene_to_json(scene)
         if not per_rank:
             packing = read_packing(packing_path)
+            if args.phase:
+                packing = dataclasses.replace(packing, phase=np.load(args.phase))
             problem, info = build_problem(scene, packing)
+            if args.conductance_factor:
+                problem = dataclasses.replace(problem, conductance_w_k=problem.conductance_w_k
+                                              * np.load(args.conductance_factor))
             built.update(packing=packing, info=info, net=assemble(problem))
         packing, net = built["packing"], built["net"]
         if solver.method == "explicit":
@@ -150,7 +172,8 @@ def _run(args, rank, held):
         resumed = check_resume(scene, args.checkpoint_every, args.resume, packing.n_particles,
                                packing_hash, packing_path)
         built.update(scene_json=scene_json, packing_hash=packing_hash, assemble_t0=t0,
-                     resumed=resumed, T0=np.full(packing.n_particles, scene.initial_temperature))
+                     resumed=resumed, T0=np.full(packing.n_particles, scene.initial_temperature)
+                     if args.initial_temperature is None else np.load(args.initial_temperature))
         return None if resumed is None else resumed[0].time_s
 
     resumed_at = backend.on_root(comm, build)

@@ -8,10 +8,12 @@ validation cases and other library callers take. Both go through the same build
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import dataclasses
 import json
 import math
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -397,9 +399,30 @@ def _start(scene: Scene, n_particles: int, initial_temperature_k=None) -> np.nda
     return np.array(np.broadcast_to(np.asarray(value, dtype=np.float64), (n_particles,)))
 
 
+_RANKS = contextvars.ContextVar("run_in_memory_ranks", default=None)
+
+
+@contextlib.contextmanager
+def ranks_of_run_in_memory(ranks: int | None):
+    """Within the block, :func:`run_in_memory` called without ``ranks`` runs on ``ranks`` MPI
+    ranks (0: in-process whatever the scene's backend; None: as the scene says): how ``tdem
+    validate --ranks R`` reaches the cases' runs (validation/run.py)."""
+    token = _RANKS.set(ranks)
+    try:
+        yield
+    finally:
+        _RANKS.reset(token)
+
+
+def ranks_in_effect() -> int | None:
+    """The ranks :func:`ranks_of_run_in_memory` set for this block (None: none set)."""
+    return _RANKS.get()
+
+
 def run_in_memory(scene: Scene, packing: Packing | Path | str | None = None, *,
                   initial_temperature_k=None, start_state: SolverState | None = None,
-                  conductance_factor=None, threads: int | None = None) -> SceneRun:
+                  conductance_factor=None, threads: int | None = None,
+                  ranks: int | None = None) -> SceneRun:
     """Run ``scene`` on ``packing`` (a :class:`~thermal_kernel.packing.Packing` already in
     memory, a packing file, or None: the scene's) and return the run; nothing is written, nothing
     printed. The same build, solver and physics checks as :func:`run_scene` (whose output file
@@ -413,7 +436,21 @@ def run_in_memory(scene: Scene, packing: Packing | Path | str | None = None, *,
     dt to its first output time) continues that run instead of starting one: its temperatures,
     time, step count (a Rannacher start-up is not repeated) and energy ledger go on through the
     scene's output times after it, with the scene's solver settings; the physics checks judge
-    the whole run from the ledger's start (``SceneRun.initial_temperature_k``)."""
+    the whole run from the ledger's start (``SceneRun.initial_temperature_k``).
+
+    ``ranks`` (None: :func:`ranks_of_run_in_memory`'s, else 1 when the scene says ``[solver]
+    backend = "petsc"``, else in-process; 0: in-process) > 0 runs the scene on that many MPI
+    ranks through PETSc, as ``tdem run --ranks`` does (:func:`_on_ranks`)."""
+    if ranks is None:
+        ranks = _RANKS.get()
+    if ranks is None:
+        ranks = 1 if scene.solver.backend == "petsc" else 0
+    if int(ranks) < 0:
+        raise SceneError(f"{scene.path}: ranks: expected a number of MPI ranks >= 1 (0: "
+                         f"in-process), got {ranks}")
+    if ranks:
+        return _on_ranks(scene, packing, int(ranks), initial_temperature_k, start_state,
+                         conductance_factor)
     if not isinstance(packing, Packing):
         packing = read_packing(packing or scene.packing)
     if start_state is not None and (scene.solver.method == "steady"
@@ -432,6 +469,117 @@ def run_in_memory(scene: Scene, packing: Packing | Path | str | None = None, *,
                     neighbours=info["neighbours"], law_params=info["law_params"],
                     initial_temperature_k=T0, result=result, check=check,
                     assemble_seconds=assemble_seconds)
+
+
+def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conductance_factor):
+    """:func:`run_in_memory` on ``ranks`` MPI ranks: ``thermal_kernel.mpi_run`` through the
+    launcher (:func:`~.solvers.mpi_launch.run_on_ranks`, ``.venv-mpi``) into a temporary folder,
+    its ``thermal.h5`` read back. The ranks get the scene's text, the packing's file, and as
+    .npy files the start (``initial_temperature_k``), the factor per dumped row
+    (``conductance_factor``) and the phases when the packing in memory changed them (any other
+    change to the file's packing is refused). What differs from the in-process run: the
+    problem, network and neighbour choice are the in-process build's (made here too; the ranks
+    build theirs, checked to agree on the conducting contacts and the choice), the result is the
+    ranks' temperatures, flows and energies as thermal.h5 holds them (the stored energy
+    recomputed from them, ``info`` the backend's entries, no ``state``), the check is
+    :func:`checked` on them, ``assemble_seconds`` is everything but the ranks' solve
+    (``result.wall_seconds``): the launch, both builds, the files; ``threads`` is not used (a
+    rank runs one thread). Refused: ``start_state`` (the ranks cannot continue a state)."""
+    import h5py
+
+    from .output import scene_text_difference
+    from .solvers.mpi_launch import run_on_ranks
+    wall0 = time.perf_counter()
+    if start_state is not None:
+        raise SceneError(f"{scene.path}: start_state: a run on MPI ranks cannot continue "
+                         "another run's state; expected an in-process run for it (ranks=0)")
+    if scene_text_difference(scene.text, str(scene.path), scene_to_json(scene), scene.law,
+                             scene.output.parent) is not None:
+        raise SceneError(f"{scene.path}: the scene was changed after it was read and the ranks "
+                         "read its text; expected a scene read from its text (load_scene)")
+    path = packing.path if isinstance(packing, Packing) else packing or scene.packing
+    if path is None:
+        raise SceneError(f"{scene.path}: the packing has no file and the ranks read one; "
+                         "expected a packing read from its file")
+    path = Path(path)
+    phase = None
+    if isinstance(packing, Packing):
+        phase = _changed_phase(scene, packing, path)
+    else:
+        packing = read_packing(path)
+    problem, info, net, _ = _build_network(scene, packing, conductance_factor)
+    T0 = _start(scene, packing.n_particles, initial_temperature_k)
+    with tempfile.TemporaryDirectory(prefix="tdem-ranks-") as tmp:
+        tmp = Path(tmp)
+        (tmp / "scene.toml").write_text(scene.text, encoding="utf-8")
+        inputs = {"scene-text": tmp / "scene.toml"}
+        if initial_temperature_k is not None:
+            np.save(tmp / "initial.npy", T0)
+            inputs["initial-temperature"] = tmp / "initial.npy"
+        if conductance_factor is not None:
+            np.save(tmp / "factor.npy", np.broadcast_to(np.asarray(
+                conductance_factor, dtype=np.float64), problem.conductance_w_k.shape))
+            inputs["conductance-factor"] = tmp / "factor.npy"
+        if phase is not None:
+            np.save(tmp / "phase.npy", phase)
+            inputs["phase"] = tmp / "phase.npy"
+        from .scene import load_scene
+        output = load_scene(scene.path, out_dir=tmp / "out", text=scene.text).output
+        run_on_ranks(scene.path, ranks, packing=path, out=tmp / "out", quiet=True,
+                     inputs=inputs)
+        with h5py.File(output, "r") as f:
+            a = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
+            temps = f["temperature"][:]
+            data = dict(times=f["time"][:], temperature_k=temps,
+                        boundary_heat_flow_w=f["boundary_heat_flow"][:],
+                        boundary_energy_j=f["boundary_energy"][:],
+                        source_energy_j=f["source_energy"][:])
+            T0 = f["initial_temperature"][:]
+    if (int(a["n_conducting_contacts"]) != net.n_active_contacts
+            or a["neighbours"] != json.dumps(None if info["neighbours"] is None else
+                                             info["neighbours"].summary(), sort_keys=True,
+                                             default=float)):
+        raise RuntimeError(f"{scene.path}: the ranks' network differs from the in-process "
+                           f"build's ({a['n_conducting_contacts']} conducting contacts against "
+                           f"{net.n_active_contacts}; neighbours {a['neighbours']})")
+    if a["method"] == "steady":       # no rows in thermal.h5: the in-process result's NaN
+        nb = data["boundary_heat_flow_w"].shape[1]
+        data.update(boundary_energy_j=np.full((1, nb), np.nan), source_energy_j=np.full(1, np.nan))
+    result = ThermalResult(
+        method=a["method"], **data,
+        stored_energy_j=np.array([float(np.dot(net.capacity_j_k, T - T0)) for T in temps]),
+        boundary_names=tuple(problem.boundary_names), source_boundary=problem.source_boundary,
+        dt=float(a["dt"]), dt_max=float(a["dt_max"]), dt_paper=float(a["dt_paper"]),
+        steps=int(a["steps"]), wall_seconds=float(a["wall_seconds"]),
+        contact_updates_per_second=float(a["contact_updates_per_second"]),
+        flags=tuple(f for f in a["flags"].split(",") if f),
+        info=dict(backend=str(a["backend"]), ranks=int(a["ranks"]),
+                  cut_contacts=int(a["cut_contacts"]), linear_solver=str(a["linear_solver"]),
+                  run_seconds=float(a["run_seconds"])))
+    result, check = checked(net, T0, result)
+    return SceneRun(scene=scene, packing=packing, problem=problem, network=net,
+                    neighbours=info["neighbours"], law_params=info["law_params"],
+                    initial_temperature_k=T0, result=result, check=check,
+                    assemble_seconds=time.perf_counter() - wall0 - result.wall_seconds)
+
+
+def _changed_phase(scene, packing, path):
+    """A packing in memory against its file (the ranks read the file): None when equal, the
+    phases when only they differ; any other change is refused."""
+    disk = read_packing(path)
+    def equal(a, b):
+        a, b = np.asarray(a), np.asarray(b)
+        return np.array_equal(a, b, equal_nan=a.dtype.kind == "f" and b.dtype.kind == "f")
+
+    same = {f.name: equal(getattr(packing, f.name), getattr(disk, f.name))
+            for f in dataclasses.fields(Packing)
+            if isinstance(getattr(disk, f.name), np.ndarray)}
+    changed = sorted(k for k, ok in same.items() if not ok and k != "phase")
+    if changed:
+        raise SceneError(f"{scene.path}: the packing in memory differs from its file {path} "
+                         f"({', '.join(changed)}) and the ranks read the file; expected the "
+                         "file's packing (only its phases may change)")
+    return None if same.get("phase", True) else np.asarray(packing.phase, dtype=np.int32)
 
 
 def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume, run_args):

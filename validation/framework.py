@@ -502,11 +502,15 @@ def cached(path: Path, make, version: int, arrays: tuple[str, ...] = ()) -> dict
     """A run's record from ``path`` (JSON) when it was made by this ``version`` of its case, else
     ``make()`` saved there with its version: a case resumes run by run. Keys starting with "_"
     stay out of the JSON; with ``arrays`` (names), the record's ``"_field"`` (a tuple of arrays)
-    is kept in the .npz beside it under those names and read back."""
+    is kept in the .npz beside it under those names and read back. Under ``tdem validate
+    --ranks R`` the record is ``<stem>.ranksR<suffix>``: runs on ranks are cached apart."""
     import numpy as np
 
     from thermal_kernel.atomic import replacing
+    from thermal_kernel.run import ranks_in_effect
     path = Path(path)
+    if ranks_in_effect():
+        path = path.with_name(f"{path.stem}.ranks{ranks_in_effect()}{path.suffix}")
     npz = path.with_suffix(".npz")
     if path.exists():
         rec = json.loads(path.read_text())

@@ -8,7 +8,10 @@ line, or skipped). A case whose ``validation/results/caseN.json`` exists is skip
 ``--force``: an interrupted ``make validate`` resumes with the first unfinished case. A failing
 case does not stop the others; the exit code is 1 if any failed, 2 for bad input (an unknown
 case number), 0 otherwise. ``--quick`` runs each case's smallest instance (``ctx.quick``)
-without saving it and without touching the documents.
+without saving it and without touching the documents. ``--ranks N`` runs every scene a case
+runs through ``thermal_kernel.run.run_in_memory`` on N MPI ranks (the PETSc backend, as ``tdem
+run --ranks``; refused there: a run continued from another's state, case 2); the default, and
+the kernel's other calls (flux tests, calibrations), in-process whatever a scene's backend.
 
 After a (non-quick) run, ``assemble()`` rewrites docs/validation.md between its markers and
 leaves every line outside them as written:
@@ -36,6 +39,7 @@ from pathlib import Path
 
 from thermal_kernel.errors import UserError
 from thermal_kernel.atomic import write_text_atomic
+from thermal_kernel.run import ranks_of_run_in_memory
 
 from . import framework
 from .framework import CaseInfo, Context, ResultError, save_result
@@ -165,8 +169,10 @@ def list_cases(cases: dict) -> None:
 
 
 def run_cases(numbers: list[int], cases: dict, force: bool = False, quick: bool = False,
-              threads: int = 1) -> int:
-    """Run ``numbers`` in order; return the number of cases that failed."""
+              threads: int = 1, ranks: int | None = None) -> int:
+    """Run ``numbers`` in order; return the number of cases that failed. ``ranks``: the cases'
+    scenes (``run_in_memory``) run on that many MPI ranks (None: in-process, whatever a
+    scene's backend)."""
     failed = 0
     for k, n in enumerate(numbers, 1):
         mod = cases[n]
@@ -174,12 +180,13 @@ def run_cases(numbers: list[int], cases: dict, force: bool = False, quick: bool 
         if not quick and not force and framework.load_result(n) is not None:
             print(f"{head}: skipped (done: {_status(n)}; --force runs it again)", flush=True)
             continue
-        print(f"{head}: {mod.CASE.title} ({mod.CASE.paper}){' [quick]' if quick else ''} ...",
-              flush=True)
+        print(f"{head}: {mod.CASE.title} ({mod.CASE.paper}){' [quick]' if quick else ''}"
+              f"{f' [{ranks} MPI ranks]' if ranks else ''} ...", flush=True)
         ctx = Context(number=n, quick=quick, threads=threads)
         t0 = time.perf_counter()
         try:
-            result = mod.run(ctx)
+            with ranks_of_run_in_memory(ranks or 0):
+                result = mod.run(ctx)
         except KeyboardInterrupt:
             raise
         except BaseException as e:              # SystemExit from a packing build included
@@ -220,35 +227,47 @@ def _case_numbers(texts: list[str], cases: dict) -> list[int]:
     return sorted(numbers)
 
 
-def run_action(number: int, mod, name: str, quick: bool = False, threads: int = 1) -> int:
+def run_action(number: int, mod, name: str, quick: bool = False, threads: int = 1,
+               ranks: int | None = None) -> int:
     """``tdem validate N --action NAME``: the case's extra step ``name`` (its ACTIONS)."""
     actions = getattr(mod, "ACTIONS", {})
     if name not in actions:
         steps = "; ".join(f"{k}: {a.help}" for k, a in actions.items()) or "none"
         raise UserError(f"validate: --action: case {number} has no step {name!r} (its steps: "
                         f"{steps})")
-    actions[name].step(Context(number=number, quick=quick, threads=threads))
+    with ranks_of_run_in_memory(ranks or 0):
+        actions[name].step(Context(number=number, quick=quick, threads=threads))
     return 0
 
 
 def validate(case_texts: list[str], force: bool = False, quick: bool = False,
-             list_only: bool = False, threads: int = 1, action: str | None = None) -> int:
-    """What `tdem validate` does; raises UserError for bad input; returns the exit code."""
+             list_only: bool = False, threads: int = 1, action: str | None = None,
+             ranks: int | None = None) -> int:
+    """What `tdem validate` does; raises UserError for bad input; returns the exit code.
+    ``ranks``: every scene a case runs through ``run_in_memory`` runs on that many MPI ranks
+    (the PETSc backend; None: in-process, the default, whatever a scene's backend); the
+    kernel's other calls (flux tests, calibrations) stay in-process."""
     cases = discover()
     if list_only:
         list_cases(cases)
         return 0
     numbers = _case_numbers(case_texts, cases)
+    if ranks is not None:
+        from thermal_kernel.solvers.mpi_launch import missing
+        why = missing() if ranks >= 1 else f"expected a number of MPI ranks >= 1, got {ranks}"
+        if why:
+            raise UserError(f"validate: --ranks: {why}")
     if action is not None:
         if len(case_texts) != 1:
             raise UserError("validate: --action: expected one case number (the step is that "
                             f"case's), got {len(case_texts)}")
-        return run_action(numbers[0], cases[numbers[0]], action, quick=quick, threads=threads)
+        return run_action(numbers[0], cases[numbers[0]], action, quick=quick, threads=threads,
+                          ranks=ranks)
     if not quick:       # the document is assembled from every saved result: all readable,
         # but for those this run writes again (--force), checked before any case runs
         _refuse({n: e for n, e in unreadable_results().items()
                  if not (force and n in numbers)})
-    failed = run_cases(numbers, cases, force=force, quick=quick, threads=threads)
+    failed = run_cases(numbers, cases, force=force, quick=quick, threads=threads, ranks=ranks)
     if not quick:
         assemble(cases)
         print(f"tdem validate: wrote {_rel(DOC)} and the summary in {_rel(README)}"
@@ -276,6 +295,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="list the cases and whether each has a result")
     p.add_argument("--threads", type=int, default=1,
                    help="numba threads of the cases that use them (ctx.threads), default 1")
+    p.add_argument("--ranks", type=int, default=None, metavar="N",
+                   help="run the cases' scenes on N MPI ranks with PETSc (as tdem run --ranks; "
+                        "needs .venv-mpi); default in-process")
     p.add_argument("--action", metavar="NAME",
                    help="one extra step of one case instead of its run (the case's ACTIONS, "
                         "listed by --list: e.g. rebuild its section from the saved result)")
@@ -287,7 +309,7 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     try:
         return validate(a.cases, force=a.force, quick=a.quick, list_only=a.list_only,
-                        threads=a.threads, action=a.action)
+                        threads=a.threads, action=a.action, ranks=a.ranks)
     except UserError as e:
         print(f"tdem: error: {e}", file=sys.stderr)
         return 2

@@ -67,7 +67,7 @@ def mpi_env() -> dict:
 
 def command(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg",
             run_args=None, status=None, checkpoint_every=0, resume=False,
-            scene_data=None) -> list[str]:
+            scene_data=None, inputs=None) -> list[str]:
     cmd = ["mpirun", "-n", str(int(ranks)), *MPIRUN_LOCAL, "-x", "OMP_NUM_THREADS",
            "-x", "NUMBA_NUM_THREADS", str(mpi_python()), "-m", "thermal_kernel.mpi_run",
            str(scene)]
@@ -89,19 +89,23 @@ def command(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg"
         cmd.append("--resume")
     if scene_data:
         cmd += ["--scene-data", str(scene_data)]
+    for option, path in (inputs or {}).items():     # run_in_memory's inputs (mpi_run's options)
+        cmd += [f"--{option}", str(path)]
     return cmd
 
 
 def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg",
                  run_args=None, checkpoint_every=0, resume=False, data=None,
-                 output=None) -> None:
+                 output=None, inputs=None) -> None:
     """Run the scene on ``ranks`` MPI ranks (output: the scene's thermal.h5, as in-process;
     rank 0 writes the in-process checkpoint every ``checkpoint_every`` output times, and
     ``resume`` continues from one). ``data``: the scene's tables, already parsed, instead of
     the file's (a campaign's case: the campaign file with law and packing set; JSON-able).
     A bad input is one line (UserError); so is mpirun failing. Interrupted (KeyboardInterrupt:
     Ctrl-C, SIGTERM), mpirun and the ranks are ended and, given the run's ``output`` path, the
-    interrupt says what the in-process run says (not written, the checkpoint kept)."""
+    interrupt says what the in-process run says (not written, the checkpoint kept). ``inputs``:
+    {mpi_run option: file} (``thermal_kernel.run.run_in_memory``'s scene text, start and
+    conductance factors, written by it)."""
     if int(ranks) < 1:
         raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
     if shutil.which("mpirun") is None:
@@ -119,7 +123,7 @@ def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="
                                 "(a TOML date does not)") from None
         cmd = command(scene, ranks, packing=packing, out=out, quiet=quiet, pc=pc,
                       run_args=run_args, status=status, checkpoint_every=checkpoint_every,
-                      resume=resume, scene_data=scene_data)
+                      resume=resume, scene_data=scene_data, inputs=inputs)
         sys.stdout.flush()
         proc = subprocess.Popen(cmd, env=mpi_env(), cwd=os.getcwd())
         try:
