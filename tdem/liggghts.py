@@ -172,8 +172,7 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
     the atoms, the pairs, the walls' rows and positions, then the statistics
     (thermal_kernel/packing_stats.py) and the file."""
     from thermal_kernel import packing_stats
-    from thermal_kernel.atomic import write_bytes_atomic
-    from thermal_kernel.packing import Packing, PackingError, packing_image, read_packing_image
+    from thermal_kernel.packing import Packing
 
     out, wall_spec = _options(atoms_path, pairs_path, walls_path, out, walls, young, poisson,
                               density, pressure, law)
@@ -201,18 +200,9 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
     solid_fraction = packing_stats.solid_fraction(radius, lo, hi, radius[w_part], w_over)
     mean_z = 2.0 * len(i) / n
     if pressure is None:
-        pressure, how = packing_stats.wall_pressure(
-            [(name, axis) for name, axis, _, _ in wall_spec], w_wall, w_force, lo, hi)
-        inferred.append(f"pressure_pa: {how}" if how else
-                        "pressure_pa: NaN (no wall, no --pressure-pa)")
-
+        pressure = _wall_pressure(wall_spec, w_wall, w_force, lo, hi, inferred)
     r_star = radius[i] * radius[j] / (radius[i] + radius[j])
-    if law == "hertz":
-        check = packing_stats.hertz_check(
-            force, radius[i], radius[j], delta, young, poisson,
-            "hertz (E* from --young, --poisson; particle-particle contacts)")
-    else:
-        check = {"force_law": "none given (--law none): not checked", "force_law_contacts": 0}
+    check = _force_law_check(law, force, radius[i], radius[j], delta, young, poisson)
     attrs = dict(
         generator="tdem import liggghts", seed=int(seed), solid_fraction=solid_fraction,
         mean_coordination=mean_z, pressure_pa=float(pressure), young_pa=float(young),
@@ -240,8 +230,38 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
         wall_overlap=w_over, wall_normal_force=w_force, domain_lo=lo, domain_hi=hi,
         periodic=periodic, attrs=attrs, contact_radius=np.sqrt(r_star * delta),
         wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)), yade_id=None)
-    # built in memory and validated by the reader before anything is written; then written at
-    # once under a temporary name and renamed (an OSError, e.g. a full disk, leaves no file)
+    _write_checked(packing, out)
+    return packing
+
+
+def _wall_pressure(wall_spec, w_wall, w_force, lo, hi, inferred) -> float:
+    """The pressure from the walls' contact forces (packing_stats.wall_pressure); how it was
+    found, or that there is none, appended to ``inferred``."""
+    from thermal_kernel import packing_stats
+    pressure, how = packing_stats.wall_pressure(
+        [(name, axis) for name, axis, _, _ in wall_spec], w_wall, w_force, lo, hi)
+    inferred.append(f"pressure_pa: {how}" if how else
+                    "pressure_pa: NaN (no wall, no --pressure-pa)")
+    return pressure
+
+
+def _force_law_check(law, force, ri, rj, delta, young, poisson) -> dict:
+    """The force-law check's attributes: Hertz at --young, --poisson (``law`` "hertz") or
+    none."""
+    from thermal_kernel import packing_stats
+    if law == "hertz":
+        return packing_stats.hertz_check(
+            force, ri, rj, delta, young, poisson,
+            "hertz (E* from --young, --poisson; particle-particle contacts)")
+    return {"force_law": "none given (--law none): not checked", "force_law_contacts": 0}
+
+
+def _write_checked(packing, out) -> None:
+    """The packing built in memory and validated by the reader before anything is written;
+    then written at once under a temporary name and renamed (an OSError, e.g. a full disk,
+    leaves no file)."""
+    from thermal_kernel.atomic import write_bytes_atomic
+    from thermal_kernel.packing import PackingError, packing_image, read_packing_image
     image = packing_image(packing)
     try:
         read_packing_image(image, out)
@@ -249,7 +269,6 @@ def import_liggghts(atoms_path, pairs_path, walls_path, out, *, walls="", young=
         raise UserError(f"{e} (the LIGGGHTS dumps describe an impossible packing; nothing "
                         "written)") from None
     write_bytes_atomic(out, image)
-    return packing
 
 
 
