@@ -3,7 +3,7 @@
     mpirun -n N .venv-mpi/bin/python -m thermal_kernel.mpi_run SCENE [--packing P]
         [--out DIR] [--pc gamg|hypre] [--quiet] [--checkpoint-every K] [--resume]
         [--whole-build] [--status FILE] [--run-args JSON] [--scene-data JSON]
-        [--scene-text FILE] [--initial-temperature NPY] [--conductance-factor NPY] [--phase NPY]
+        [--scene-text FILE] [--initial-temperature NPY] [--conductance-factor NPY]
 
 This is the command a user runs on a cluster (with ``--hostfile``; docs/scaling.md).
 ``tdem run --ranks N`` (:mod:`.solvers.mpi_launch`) starts it from the project's venv. It lives
@@ -27,8 +27,7 @@ the in-process checkpoint (``--checkpoint-every``) and resumes from one (``--res
 ``thermal_kernel.run.run_in_memory(..., ranks=N)`` starts it too, with files it writes: the
 scene's text (``--scene-text``; SCENE names it, its paths resolve as the original's), the
 start (``--initial-temperature``, read by rank 0), a factor per dumped contact row
-(``--conductance-factor``, each rank reading its contacts' rows) and the particles' phases
-changed in memory (``--phase``).
+(``--conductance-factor``, each rank reading its contacts' rows).
 
 Bad input: one line (``tdem: error: ...``) from rank 0, exit 2; with ``--status`` (the
 launcher's) rank 0 writes the line there instead and every rank exits 0 (a non-zero exit makes
@@ -69,7 +68,6 @@ def _args(argv):
     p.add_argument("--initial-temperature", help=".npy, (N,) K: the start, read by rank 0")
     p.add_argument("--conductance-factor", help=".npy, one per dumped contact row: multiplies "
                                                 "the law's conductances (each rank its rows)")
-    p.add_argument("--phase", help=".npy, (N,): the particles' phases instead of the file's")
     p.add_argument("--status", help="file to write the one-line error to (the launcher's)")
     p.add_argument("--run-args", default="{}", help="the CLI's arguments (JSON), stored")
     return p.parse_args(argv)
@@ -144,8 +142,7 @@ def _run(args, rank, held):
     per_rank = not args.whole_build
     t0 = time.perf_counter()
     if per_rank:            # each rank reads and builds its own rows (rank_build.py)
-        rb = build_on_ranks(scene, packing_path, comm, conductance_factor=args.conductance_factor,
-                            phase=args.phase)
+        rb = build_on_ranks(scene, packing_path, comm, conductance_factor=args.conductance_factor)
         if rank == 0:
             built.update(packing=rb.particles, info=rb.info, net=rb.net)
 
@@ -156,8 +153,6 @@ def _run(args, rank, held):
         scene_json = scene_to_json(scene)
         if not per_rank:
             packing = read_packing(packing_path)
-            if args.phase:
-                packing = dataclasses.replace(packing, phase=np.load(args.phase))
             problem, info = build_problem(scene, packing)
             if args.conductance_factor:
                 problem = dataclasses.replace(problem, conductance_w_k=problem.conductance_w_k

@@ -188,21 +188,16 @@ def _exchange_contacts(comm, fields: dict, oi, oj, size):
     return got
 
 
-def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None,
-                   phase=None) -> RankBuild:
+def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> RankBuild:
     """The build above; collective. Errors (a bad packing, a law's value out of range, a bad
     boundary) are raised on every rank (:func:`agree`). ``conductance_factor``: a .npy file of
     one factor per dumped contact row multiplying the law's conductances (each rank reads its
-    contacts' rows); ``phase``: a .npy file of the particles' phases instead of the packing's
-    (both written by ``thermal_kernel.run.run_in_memory``)."""
+    contacts' rows; written by ``thermal_kernel.run.run_in_memory``)."""
     rank, size = comm.Get_rank(), comm.Get_size()
-    phases = None if phase is None else np.load(phase, mmap_mode="r")
 
     # 1. rank 0: the particles whole, the Morton order; each rank its blocks
     particles = agree(comm, lambda: read_packing(packing_path, contacts=False)
                       if rank == 0 else None)
-    if rank == 0 and phases is not None:
-        particles = dataclasses.replace(particles, phase=np.array(phases))
     head = None
     if rank == 0:
         p = particles
@@ -232,8 +227,6 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None,
         own_bulk = _scatter_blocks(comm, bulk, fblock, np.uint8)
         del bulk
     fb = agree(comm, lambda: read_particle_rows(path, fblock[rank], fblock[rank + 1]))
-    if phases is not None:
-        fb["phase"] = np.array(phases[fblock[rank]:fblock[rank + 1]])
 
     # 2. this rank's slice of the contact rows, checked against their spheres
     ms = block_starts(m, size)

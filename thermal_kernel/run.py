@@ -25,7 +25,7 @@ from .checkpoint import checkpoint_path, packing_sha256, read_checkpoint, write_
 from .network import Network, ThermalProblem, assemble
 from .neighbours import NeighbourChoice
 from .output import scene_text_difference, scene_to_json, write_thermal
-from .packing import Packing, read_packing
+from .packing import Packing, read_packing, write_packing
 from .problem import build_problem
 from .scene import Scene, SceneError
 from .solvers import (PhysicsCheck, SolverState, ThermalResult, UnstableTimeStepError,
@@ -474,10 +474,10 @@ def run_in_memory(scene: Scene, packing: Packing | Path | str | None = None, *,
 def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conductance_factor):
     """:func:`run_in_memory` on ``ranks`` MPI ranks: ``thermal_kernel.mpi_run`` through the
     launcher (:func:`~.solvers.mpi_launch.run_on_ranks`, ``.venv-mpi``) into a temporary folder,
-    its ``thermal.h5`` read back. The ranks get the scene's text, the packing's file, and as
-    .npy files the start (``initial_temperature_k``), the factor per dumped row
-    (``conductance_factor``) and the phases when the packing in memory changed them (any other
-    change to the file's packing is refused). What differs from the in-process run: the
+    its ``thermal.h5`` read back. The ranks get the scene's text, the packing as it is in memory
+    (written to a temporary file: a case may scale it or set its phases), and as .npy files the
+    start (``initial_temperature_k``) and the factor per dumped row
+    (``conductance_factor``). What differs from the in-process run: the
     problem, network and neighbour choice are the in-process build's (made here too; the ranks
     build theirs, checked to agree on the conducting contacts and the choice), the result is the
     ranks' temperatures, flows and energies as thermal.h5 holds them (the stored energy
@@ -497,20 +497,13 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
                              scene.output.parent) is not None:
         raise SceneError(f"{scene.path}: the scene was changed after it was read and the ranks "
                          "read its text; expected a scene read from its text (load_scene)")
-    path = packing.path if isinstance(packing, Packing) else packing or scene.packing
-    if path is None:
-        raise SceneError(f"{scene.path}: the packing has no file and the ranks read one; "
-                         "expected a packing read from its file")
-    path = Path(path)
-    phase = None
-    if isinstance(packing, Packing):
-        phase = _changed_phase(scene, packing, path)
-    else:
-        packing = read_packing(path)
+    if not isinstance(packing, Packing):
+        packing = read_packing(packing or scene.packing)
     problem, info, net, _ = _build_network(scene, packing, conductance_factor)
     T0 = _start(scene, packing.n_particles, initial_temperature_k)
     with tempfile.TemporaryDirectory(prefix="tdem-ranks-") as tmp:
         tmp = Path(tmp)
+        write_packing(tmp / "packing.h5", packing)      # as in memory (scaled, phases set ...)
         (tmp / "scene.toml").write_text(scene.text, encoding="utf-8")
         inputs = {"scene-text": tmp / "scene.toml"}
         if initial_temperature_k is not None:
@@ -520,12 +513,9 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
             np.save(tmp / "factor.npy", np.broadcast_to(np.asarray(
                 conductance_factor, dtype=np.float64), problem.conductance_w_k.shape))
             inputs["conductance-factor"] = tmp / "factor.npy"
-        if phase is not None:
-            np.save(tmp / "phase.npy", phase)
-            inputs["phase"] = tmp / "phase.npy"
         from .scene import load_scene
         output = load_scene(scene.path, out_dir=tmp / "out", text=scene.text).output
-        run_on_ranks(scene.path, ranks, packing=path, out=tmp / "out", quiet=True,
+        run_on_ranks(scene.path, ranks, packing=tmp / "packing.h5", out=tmp / "out", quiet=True,
                      inputs=inputs)
         with h5py.File(output, "r") as f:
             a = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
@@ -561,25 +551,6 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
                     neighbours=info["neighbours"], law_params=info["law_params"],
                     initial_temperature_k=T0, result=result, check=check,
                     assemble_seconds=time.perf_counter() - wall0 - result.wall_seconds)
-
-
-def _changed_phase(scene, packing, path):
-    """A packing in memory against its file (the ranks read the file): None when equal, the
-    phases when only they differ; any other change is refused."""
-    disk = read_packing(path)
-    def equal(a, b):
-        a, b = np.asarray(a), np.asarray(b)
-        return np.array_equal(a, b, equal_nan=a.dtype.kind == "f" and b.dtype.kind == "f")
-
-    same = {f.name: equal(getattr(packing, f.name), getattr(disk, f.name))
-            for f in dataclasses.fields(Packing)
-            if isinstance(getattr(disk, f.name), np.ndarray)}
-    changed = sorted(k for k, ok in same.items() if not ok and k != "phase")
-    if changed:
-        raise SceneError(f"{scene.path}: the packing in memory differs from its file {path} "
-                         f"({', '.join(changed)}) and the ranks read the file; expected the "
-                         "file's packing (only its phases may change)")
-    return None if same.get("phase", True) else np.asarray(packing.phase, dtype=np.int32)
 
 
 def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume, run_args):
