@@ -772,6 +772,39 @@ def analyse(thermal_h5, n_bins: int = 10, halo_ratio: float = 3.0,
     if not abs(phi - phi_walls) <= SOLID_FRACTION_RTOL * phi_walls:
         post_flags.append("solid_fraction")
 
+    obstacle, gamma = _gamma_of(run, packing, slab, profiles, t_steady, gamma_steady,
+                                rho_c_bed, n_bins, orientations, post_flags, not_measurable)
+    tau = tau_of(net, run, packing, profiles, slab, t_steady, transient_why=obstacle)
+    if tau.tau_note:
+        not_measurable["tau_s"] = tau.tau_note
+    if tau.series_note:
+        not_measurable["tau_series_s"] = tau.series_note
+    touching = packing.overlap > 0
+    return PostResult(
+        thermal=thermal_h5, run=run, packing=packing, n_bins=n_bins, slab=slab,
+        profiles=profiles, gamma=gamma, steady=steady, gamma_steady=gamma_steady, tau=tau,
+        flux=flux_field(packing, problem.conductance_w_k, t_steady, phi, slab, profiles, steady,
+                        halo_ratio, halo_radius),
+        fabric=fabric_of(packing, problem.conductance_w_k, slab, area, kp),
+        mean_field=mean_field(scene, packing, phi, kp), solid_fraction=phi,
+        mean_coordination=float(2.0 * touching.sum() / packing.n_particles),
+        mean_normal_force_n=float(stats["mean_normal_force_n"]),
+        rattlers=int(np.count_nonzero(~profiles.conducting)),
+        pressure_pa=float(packing.attrs.get("pressure_pa", float("nan"))),
+        bed_capacity_j_m3k=rho_c_bed, solid_fraction_between_walls=phi_walls,
+        not_measurable=not_measurable, post_flags=tuple(post_flags))
+
+
+def _gamma_of(run, packing, slab, profiles, t_steady, gamma_steady, rho_c_bed, n_bins,
+              orientations, post_flags, not_measurable) -> tuple:
+    """:func:`analyse`'s γ: the fit of the transient profiles (:func:`fit_profiles`, in the
+    window :func:`output_window` chooses) and, with ``orientations``, the bed heated from the
+    other wall. ``(obstacle, gamma)``: why the run has no transient to fit (None when it has;
+    tau_of needs it too) and the fit (None when not measurable); its flag goes to
+    ``post_flags``, its reasons to ``not_measurable``."""
+    scene = run.scene
+    mat = scene.material(0)
+    kp = mat.conductivity
     obstacle = transient_problem(run, scene, slab)
     if obstacle is None and not gamma_steady > 0:
         obstacle = "no heat crosses the bed at steady state (gamma_steady 0): no diffusivity"
@@ -798,25 +831,7 @@ def analyse(thermal_h5, n_bins: int = 10, halo_ratio: float = 3.0,
                 not_measurable["gamma_other_orientation"] = note
     if why is not None:
         not_measurable["gamma"] = why
-    tau = tau_of(net, run, packing, profiles, slab, t_steady, transient_why=obstacle)
-    if tau.tau_note:
-        not_measurable["tau_s"] = tau.tau_note
-    if tau.series_note:
-        not_measurable["tau_series_s"] = tau.series_note
-    touching = packing.overlap > 0
-    return PostResult(
-        thermal=thermal_h5, run=run, packing=packing, n_bins=n_bins, slab=slab,
-        profiles=profiles, gamma=gamma, steady=steady, gamma_steady=gamma_steady, tau=tau,
-        flux=flux_field(packing, problem.conductance_w_k, t_steady, phi, slab, profiles, steady,
-                        halo_ratio, halo_radius),
-        fabric=fabric_of(packing, problem.conductance_w_k, slab, area, kp),
-        mean_field=mean_field(scene, packing, phi, kp), solid_fraction=phi,
-        mean_coordination=float(2.0 * touching.sum() / packing.n_particles),
-        mean_normal_force_n=float(stats["mean_normal_force_n"]),
-        rattlers=int(np.count_nonzero(~profiles.conducting)),
-        pressure_pa=float(packing.attrs.get("pressure_pa", float("nan"))),
-        bed_capacity_j_m3k=rho_c_bed, solid_fraction_between_walls=phi_walls,
-        not_measurable=not_measurable, post_flags=tuple(post_flags))
+    return obstacle, gamma
 
 
 # ----------------------------------------------------------------------------- write
