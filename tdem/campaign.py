@@ -879,8 +879,9 @@ def _seed_summary(table, fits, seeds):
 
 
 def _plots(out_dir, table, fits, cases=()):
-    """gamma_p.png and tau_p.png (per seed and mean +- sd when the campaign has seeds),
-    contact_angles.png (the contact-angle PDF per pressure, 003 Fig. 5)."""
+    """gamma_p.png and tau_p.png (per seed and mean +- sd when the campaign has seeds: each
+    law's rows by :func:`_plot_law_seeds`, else :func:`_plot_law`), contact_angles.png (the
+    contact-angle PDF per pressure, 003 Fig. 5)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -901,40 +902,10 @@ def _plots(out_dir, table, fits, cases=()):
             fig, ax = plt.subplots(figsize=(6, 4.2))
         for k, (law, g) in enumerate(table.groupby("law")):
             if seeded:
-                mean = g.groupby("pressure_target_pa")[key].transform("mean")
-                for m, (seed, gs) in enumerate(g.groupby("seed")):
-                    dev.plot(gs.pressure_pa / 1e5, 100 * (gs[key] / mean[gs.index] - 1),
-                             "o-", ms=3, lw=0.8,
-                             color=f"C{m}" if table.law.nunique() == 1 else f"C{k}",
-                             label=f"seed {seed}" if k == 0 else None)
-                stats = seed_statistics(g)
-                p = stats.pressure_pa / 1e5
-                ax.plot(g.pressure_pa / 1e5, g[key], ".", ms=3, alpha=0.5, color=f"C{k}")
-                ax.errorbar(p, stats[f"{key}_mean"], yerr=stats[f"{key}_std"], fmt="o",
-                            capsize=3, color=f"C{k}",
-                            label=f"tdem {law}: mean ± sd of {int(stats.n_seeds.max())} seeds "
-                                  "(dots: each seed)")
-                if key == "gamma":
-                    ax.errorbar(p, stats["gamma_paper_mean"], yerr=stats["gamma_paper_std"],
-                                fmt="D", mfc="none", capsize=3, color=f"C{k}",
-                                label=f"γ_paper = α ρ_p c_p/κ_p (003's convention), {law}")
-                    ax.plot(p, stats.gamma_steady_mean, "x", color=f"C{k}",
-                            label=f"steady ETC {law} (mean)")
-                continue
-            p = g.pressure_pa / 1e5
-            if key == "gamma":
-                ax.errorbar(p, g.gamma, yerr=[g.gamma - g.gamma_ci95_low,
-                                              g.gamma_ci95_high - g.gamma], fmt="o",
-                            color=f"C{k}", label=f"tdem {law}")
-                ax.plot(p, g.gamma_steady, "x", color=f"C{k}", label=f"steady ETC {law}")
-                if k == 0:
-                    ax.plot(p, g.gamma_paper, "D", mfc="none", color=f"C{k}",
-                            label=f"γ_paper = α ρ_p c_p/κ_p (003's convention), {law}")
+                _plot_law_seeds(ax, dev, g, key, k, law, table.law.nunique())
             else:
-                ax.plot(p, g[key], "o", color=f"C{k}", label=f"tdem {law}")
-            fit = fits[law]["gamma" if key == "gamma" else "tau"]
-            if fit is not None:
-                ax.plot(grid, fit(grid), "-", color=f"C{k}", lw=1)
+                _plot_law(ax, g, key, k, law, fits[law]["gamma" if key == "gamma" else "tau"],
+                          grid)
         if key == "gamma":
             g0 = table[table.law == table.law.iloc[0]]
             if seeded:
@@ -959,6 +930,50 @@ def _plots(out_dir, table, fits, cases=()):
         savefig_atomic(fig, out_dir / f"{fname}.png", dpi=110)
         plt.close(fig)
     _plot_contact_angles(out_dir, cases)
+
+
+def _plot_law_seeds(ax, dev, g, key, k, law, n_laws):
+    """One law's rows of a campaign with seeds on ``ax`` (each seed's dots, the mean ± sd per
+    pressure; for γ the paper's convention and the steady ETC too) and each seed's deviation
+    from the mean on ``dev``, the lower panel (per cent)."""
+    mean = g.groupby("pressure_target_pa")[key].transform("mean")
+    for m, (seed, gs) in enumerate(g.groupby("seed")):
+        dev.plot(gs.pressure_pa / 1e5, 100 * (gs[key] / mean[gs.index] - 1),
+                 "o-", ms=3, lw=0.8,
+                 color=f"C{m}" if n_laws == 1 else f"C{k}",
+                 label=f"seed {seed}" if k == 0 else None)
+    stats = seed_statistics(g)
+    p = stats.pressure_pa / 1e5
+    ax.plot(g.pressure_pa / 1e5, g[key], ".", ms=3, alpha=0.5, color=f"C{k}")
+    ax.errorbar(p, stats[f"{key}_mean"], yerr=stats[f"{key}_std"], fmt="o",
+                capsize=3, color=f"C{k}",
+                label=f"tdem {law}: mean ± sd of {int(stats.n_seeds.max())} seeds "
+                      "(dots: each seed)")
+    if key == "gamma":
+        ax.errorbar(p, stats["gamma_paper_mean"], yerr=stats["gamma_paper_std"],
+                    fmt="D", mfc="none", capsize=3, color=f"C{k}",
+                    label=f"γ_paper = α ρ_p c_p/κ_p (003's convention), {law}")
+        ax.plot(p, stats.gamma_steady_mean, "x", color=f"C{k}",
+                label=f"steady ETC {law} (mean)")
+
+
+def _plot_law(ax, g, key, k, law, fit, grid):
+    """One law's rows of a campaign without seeds on ``ax``: each case (γ with its 95 %
+    interval, the steady ETC and, for the first law, the paper's convention) and the fit over
+    pressure on ``grid`` (bar)."""
+    p = g.pressure_pa / 1e5
+    if key == "gamma":
+        ax.errorbar(p, g.gamma, yerr=[g.gamma - g.gamma_ci95_low,
+                                      g.gamma_ci95_high - g.gamma], fmt="o",
+                    color=f"C{k}", label=f"tdem {law}")
+        ax.plot(p, g.gamma_steady, "x", color=f"C{k}", label=f"steady ETC {law}")
+        if k == 0:
+            ax.plot(p, g.gamma_paper, "D", mfc="none", color=f"C{k}",
+                    label=f"γ_paper = α ρ_p c_p/κ_p (003's convention), {law}")
+    else:
+        ax.plot(p, g[key], "o", color=f"C{k}", label=f"tdem {law}")
+    if fit is not None:
+        ax.plot(grid, fit(grid), "-", color=f"C{k}", lw=1)
 
 
 def _plot_contact_angles(out_dir, cases):
