@@ -346,6 +346,9 @@ def _cmd_validate(args):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line: every command, its arguments and their help. One function over 80
+    lines (issue 26) because it is a flat declaration, one ``add_argument`` after another, read
+    top to bottom like the help it prints; each command's work is its ``_cmd_*``."""
     from . import __version__
     parser = argparse.ArgumentParser(
         prog="tdem", description="Thermal DEM on real packings of spheres (YADE-made).")
