@@ -259,6 +259,20 @@ def interpolate(grid: Grid, T, points) -> np.ndarray:
     return np.sum(np.asarray(T).ravel()[idx] * w, axis=1)
 
 
+def _output_steps(times, dt: float, theta: float):
+    """:func:`solve_transient`'s output ``times`` as an array and the step count at each (each
+    a multiple of ``dt``, increasing, >= 0; ``theta`` in [0.5, 1]), or a ValueError."""
+    times = np.asarray(times, float).ravel()
+    if dt <= 0 or not np.all(np.diff(times) > 0) or times[0] < 0:
+        raise ValueError("continuum: dt > 0 and increasing output times >= 0 expected")
+    steps_at = np.rint(times / dt).astype(np.int64)
+    if np.any(np.abs(steps_at * dt - times) > 1e-6 * dt):
+        raise ValueError(f"continuum: output times must be multiples of dt = {dt:g}")
+    if not 0.5 <= theta <= 1.0:
+        raise ValueError("continuum: theta in [0.5, 1] expected")
+    return times, steps_at
+
+
 def solve_transient(grid: Grid, k, rho_c, dirichlet: Mapping[str, object], t_initial, times,
                     dt: float, *, source: Callable | None = None, theta: float = 0.5,
                     startup_steps: int = 2, source_points: int = 3, probes=None,
@@ -269,14 +283,7 @@ def solve_transient(grid: Grid, k, rho_c, dirichlet: Mapping[str, object], t_ini
     theta = 1: backward Euler; 0.5: Crank-Nicolson with ``startup_steps`` Rannacher steps (each
     two backward-Euler half steps). ``probes`` (P, 3): temperatures kept at every output time;
     ``fields=False`` keeps only those (a long run on a large grid)."""
-    times = np.asarray(times, float).ravel()
-    if dt <= 0 or not np.all(np.diff(times) > 0) or times[0] < 0:
-        raise ValueError("continuum: dt > 0 and increasing output times >= 0 expected")
-    steps_at = np.rint(times / dt).astype(np.int64)
-    if np.any(np.abs(steps_at * dt - times) > 1e-6 * dt):
-        raise ValueError(f"continuum: output times must be multiples of dt = {dt:g}")
-    if not 0.5 <= theta <= 1.0:
-        raise ValueError("continuum: theta in [0.5, 1] expected")
+    times, steps_at = _output_steps(times, dt, theta)
     L, g_b, b_d = conductance_matrix(grid, k, dirichlet)
     C = (_field(grid, rho_c, "rho_c") * grid.cell_volume).ravel()
     T = np.broadcast_to(np.asarray(t_initial, float), grid.shape).ravel().copy()
