@@ -27,7 +27,9 @@ the in-process checkpoint (``--checkpoint-every``) and resumes from one (``--res
 ``thermal_kernel.run.run_in_memory(..., ranks=N)`` starts it too, with files it writes: the
 scene's text (``--scene-text``; SCENE names it, its paths resolve as the original's), the
 start (``--initial-temperature``, read by rank 0), a factor per dumped contact row
-(``--conductance-factor``, each rank reading its contacts' rows).
+(``--conductance-factor``, each rank reading its contacts' rows); a run continued from a
+state is the checkpoint it writes there (``--resume``), and ``--state-out`` gives the run's
+final state back.
 
 Bad input: one line (``tdem: error: ...``) from rank 0, exit 2; with ``--status`` (the
 launcher's) rank 0 writes the line there instead and every rank exits 0 (a non-zero exit makes
@@ -68,6 +70,8 @@ def _args(argv):
     p.add_argument("--initial-temperature", help=".npy, (N,) K: the start, read by rank 0")
     p.add_argument("--conductance-factor", help=".npy, one per dumped contact row: multiplies "
                                                 "the law's conductances (each rank its rows)")
+    p.add_argument("--state-out", help="rank 0 writes a transient run's final state there (the "
+                                       "checkpoint's format)")
     p.add_argument("--status", help="file to write the one-line error to (the launcher's)")
     p.add_argument("--run-args", default="{}", help="the CLI's arguments (JSON), stored")
     return p.parse_args(argv)
@@ -103,7 +107,7 @@ def _run(args, rank, held):
     from petsc4py import PETSc
 
     from .atomic import output_lock
-    from .checkpoint import packing_sha256
+    from .checkpoint import packing_sha256, write_checkpoint
     from .network import assemble
     from .output import scene_to_json
     from .packing import read_packing
@@ -237,6 +241,12 @@ def _run(args, rank, held):
             "run_seconds": float(time.perf_counter() - t_start)})
     if ckpt is not None and ckpt.exists():
         ckpt.unlink()            # the output is complete: the checkpoint has served
+    if args.state_out and result.state is not None:     # run_in_memory's result.state
+        write_checkpoint(Path(args.state_out), result.state, {
+            k: getattr(result, k) for k in ("times", "temperature_k", "boundary_heat_flow_w",
+                                            "boundary_energy_j", "source_energy_j",
+                                            "stored_energy_j")},
+            {"steps": result.steps}, scene.text, net.n, packing_hash)
     if not args.quiet:
         its = result.info.get("cg_iterations", [])
         if its:

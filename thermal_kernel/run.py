@@ -481,18 +481,17 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
     problem, network and neighbour choice are the in-process build's (made here too; the ranks
     build theirs, checked to agree on the conducting contacts and the choice), the result is the
     ranks' temperatures, flows and energies as thermal.h5 holds them (the stored energy
-    recomputed from them, ``info`` the backend's entries, no ``state``), the check is
+    recomputed from them, ``info`` the backend's entries), the check is
     :func:`checked` on them, ``assemble_seconds`` is everything but the ranks' solve
     (``result.wall_seconds``): the launch, both builds, the files; ``threads`` is not used (a
-    rank runs one thread). Refused: ``start_state`` (the ranks cannot continue a state)."""
+    rank runs one thread). ``start_state`` becomes the checkpoint the ranks resume from (the
+    scene's text, no outputs done; its ledger's reference the start); a transient run's final
+    state comes back through ``mpi_run --state-out``."""
     import h5py
 
     from .output import scene_text_difference
     from .solvers.mpi_launch import run_on_ranks
     wall0 = time.perf_counter()
-    if start_state is not None:
-        raise SceneError(f"{scene.path}: start_state: a run on MPI ranks cannot continue "
-                         "another run's state; expected an in-process run for it (ranks=0)")
     if scene_text_difference(scene.text, str(scene.path), scene_to_json(scene), scene.law,
                              scene.output.parent) is not None:
         raise SceneError(f"{scene.path}: the scene was changed after it was read and the ranks "
@@ -500,7 +499,15 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
     if not isinstance(packing, Packing):
         packing = read_packing(packing or scene.packing)
     problem, info, net, _ = _build_network(scene, packing, conductance_factor)
-    T0 = _start(scene, packing.n_particles, initial_temperature_k)
+    if start_state is None:
+        T0 = _start(scene, packing.n_particles, initial_temperature_k)
+    else:
+        T0 = initial_temperature_k = np.array(start_state.reference_temperature_k, np.float64)
+        if np.min(scene.solver.output_times) <= start_state.time_s:
+            raise SceneError(f"{scene.path}: solver.output_times: a run continued from "
+                             f"t = {start_state.time_s:.6g} s on MPI ranks needs every output "
+                             "time after it")
+    transient = scene.solver.method != "steady"
     with tempfile.TemporaryDirectory(prefix="tdem-ranks-") as tmp:
         tmp = Path(tmp)
         write_packing(tmp / "packing.h5", packing)      # as in memory (scaled, phases set ...)
@@ -515,8 +522,20 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
             inputs["conductance-factor"] = tmp / "factor.npy"
         from .scene import load_scene
         output = load_scene(scene.path, out_dir=tmp / "out", text=scene.text).output
+        if start_state is not None:         # the checkpoint the ranks resume from
+            nb = len(problem.boundary_names)
+            write_checkpoint(checkpoint_path(output), start_state, dict(
+                times=np.zeros(0), temperature_k=np.zeros((0, packing.n_particles)),
+                boundary_heat_flow_w=np.zeros((0, nb)), boundary_energy_j=np.zeros((0, nb)),
+                source_energy_j=np.zeros(0), stored_energy_j=np.zeros(0)),
+                {"steps": 0, "wall_seconds": 0.0, "step_seconds": 0.0}, scene.text,
+                packing.n_particles, packing_sha256(packing))
+        if transient:
+            inputs["state-out"] = tmp / "state.h5"
         run_on_ranks(scene.path, ranks, packing=tmp / "packing.h5", out=tmp / "out", quiet=True,
-                     inputs=inputs)
+                     inputs=inputs, resume=start_state is not None)
+        state = (read_checkpoint(tmp / "state.h5", scene.text, packing.n_particles)[0]
+                 if transient else None)
         with h5py.File(output, "r") as f:
             a = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
             temps = f["temperature"][:]
@@ -545,7 +564,7 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
         flags=tuple(f for f in a["flags"].split(",") if f),
         info=dict(backend=str(a["backend"]), ranks=int(a["ranks"]),
                   cut_contacts=int(a["cut_contacts"]), linear_solver=str(a["linear_solver"]),
-                  run_seconds=float(a["run_seconds"])))
+                  run_seconds=float(a["run_seconds"])), state=state)
     result, check = checked(net, T0, result)
     return SceneRun(scene=scene, packing=packing, problem=problem, network=net,
                     neighbours=info["neighbours"], law_params=info["law_params"],

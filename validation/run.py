@@ -10,8 +10,8 @@ case does not stop the others; the exit code is 1 if any failed, 2 for bad input
 case number), 0 otherwise. ``--quick`` runs each case's smallest instance (``ctx.quick``)
 without saving it and without touching the documents. ``--ranks N`` runs every scene a case
 runs through ``thermal_kernel.run.run_in_memory`` on N MPI ranks (the PETSc backend, as ``tdem
-run --ranks``; refused there: a run continued from another's state, case 2); the default, and
-the kernel's other calls (flux tests, calibrations), in-process whatever a scene's backend.
+run --ranks``); the default, and the kernel's other calls (flux tests, calibrations),
+in-process whatever a scene's backend.
 
 After a (non-quick) run, ``assemble()`` rewrites docs/validation.md between its markers and
 leaves every line outside them as written:
