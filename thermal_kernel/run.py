@@ -482,7 +482,8 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
     build theirs, checked to agree on the conducting contacts and the choice), the result is the
     ranks' temperatures, flows and energies as thermal.h5 holds them (the stored energy
     recomputed from them, ``info`` the backend's entries), the check is
-    :func:`checked` on them, ``assemble_seconds`` is everything but the ranks' solve
+    :func:`checked` on them (its messages not printed: what the ranks print goes to a log
+    quoted only when mpirun fails), ``assemble_seconds`` is everything but the ranks' solve
     (``result.wall_seconds``): the launch, both builds, the files; ``threads`` is not used (a
     rank runs one thread). ``start_state`` becomes the checkpoint the ranks resume from (the
     scene's text, no outputs done; its ledger's reference the start); a transient run's final
@@ -533,7 +534,7 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
         if transient:
             inputs["state-out"] = tmp / "state.h5"
         run_on_ranks(scene.path, ranks, packing=tmp / "packing.h5", out=tmp / "out", quiet=True,
-                     inputs=inputs, resume=start_state is not None)
+                     inputs=inputs, resume=start_state is not None, log=tmp / "ranks.log")
         state = (read_checkpoint(tmp / "state.h5", scene.text, packing.n_particles)[0]
                  if transient else None)
         with h5py.File(output, "r") as f:

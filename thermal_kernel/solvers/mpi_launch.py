@@ -96,7 +96,7 @@ def command(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg"
 
 def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg",
                  run_args=None, checkpoint_every=0, resume=False, data=None,
-                 output=None, inputs=None) -> None:
+                 output=None, inputs=None, log=None) -> None:
     """Run the scene on ``ranks`` MPI ranks (output: the scene's thermal.h5, as in-process;
     rank 0 writes the in-process checkpoint every ``checkpoint_every`` output times, and
     ``resume`` continues from one). ``data``: the scene's tables, already parsed, instead of
@@ -105,7 +105,8 @@ def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="
     Ctrl-C, SIGTERM), mpirun and the ranks are ended and, given the run's ``output`` path, the
     interrupt says what the in-process run says (not written, the checkpoint kept). ``inputs``:
     {mpi_run option: file} (``thermal_kernel.run.run_in_memory``'s scene text, start and
-    conductance factors, written by it)."""
+    conductance factors, written by it); ``log``: a file that takes what mpirun and the ranks
+    print (its last lines then in the error when mpirun fails), instead of the terminal."""
     if int(ranks) < 1:
         raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
     if shutil.which("mpirun") is None:
@@ -125,19 +126,31 @@ def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="
                       run_args=run_args, status=status, checkpoint_every=checkpoint_every,
                       resume=resume, scene_data=scene_data, inputs=inputs)
         sys.stdout.flush()
-        proc = subprocess.Popen(cmd, env=mpi_env(), cwd=os.getcwd())
-        try:
-            returncode = proc.wait()
-        except KeyboardInterrupt as e:      # Ctrl-C, SIGTERM (tdem/cli.py): as in-process
-            _stop(proc)
-            if output is None:
-                raise
-            raise type(e)(_interrupted(Path(output))) from None
+        with contextlib.ExitStack() as stack:
+            out = None if log is None else stack.enter_context(open(log, "w"))
+            proc = subprocess.Popen(cmd, env=mpi_env(), cwd=os.getcwd(), stdout=out,
+                                    stderr=None if out is None else subprocess.STDOUT)
+            returncode = _wait(proc, output)
         if status.exists():     # rank 0's one line (a bad scene, packing or solve)
             raise UserError(status.read_text(encoding="utf-8").strip())
         if returncode:
+            tail = "" if log is None else " ".join(
+                Path(log).read_text(encoding="utf-8", errors="replace").split()[-60:])
             raise UserError(f"--ranks {ranks}: mpirun exited with {returncode} "
-                            f"({' '.join(cmd[:3])} ... thermal_kernel.mpi_run)")
+                            f"({' '.join(cmd[:3])} ... thermal_kernel.mpi_run)"
+                            + (f"; its output ends: {tail}" if tail else ""))
+
+
+def _wait(proc, output) -> int:
+    """mpirun's exit code; interrupted (Ctrl-C, SIGTERM: tdem/cli.py), mpirun and the ranks
+    are ended and the interrupt says what the in-process run says."""
+    try:
+        return proc.wait()
+    except KeyboardInterrupt as e:
+        _stop(proc)
+        if output is None:
+            raise
+        raise type(e)(_interrupted(Path(output))) from None
 
 
 def _stop(proc) -> None:
