@@ -27,7 +27,7 @@ from .neighbours import NeighbourChoice
 from .output import scene_text_difference, scene_to_json, write_thermal
 from .packing import Packing, read_packing, write_packing
 from .problem import build_problem
-from .scene import Scene, SceneError
+from .scene import Scene, SceneError, load_scene
 from .solvers import (PhysicsCheck, SolverState, ThermalResult, UnstableTimeStepError,
                       check_physics)
 from .solvers.explicit import run_explicit
@@ -448,15 +448,15 @@ def run_in_memory(scene: Scene, packing: Packing | Path | str | None = None, *,
     if int(ranks) < 0:
         raise SceneError(f"{scene.path}: ranks: expected a number of MPI ranks >= 1 (0: "
                          f"in-process), got {ranks}")
+    if start_state is not None and (scene.solver.method == "steady"
+                                    or initial_temperature_k is not None):
+        raise SceneError(f"{scene.path}: start_state continues a transient run (solver.method "
+                         f"is {scene.solver.method!r}) and replaces initial_temperature_k")
     if ranks:
         return _on_ranks(scene, packing, int(ranks), initial_temperature_k, start_state,
                          conductance_factor)
     if not isinstance(packing, Packing):
         packing = read_packing(packing or scene.packing)
-    if start_state is not None and (scene.solver.method == "steady"
-                                    or initial_temperature_k is not None):
-        raise SceneError(f"{scene.path}: start_state continues a transient run (solver.method "
-                         f"is {scene.solver.method!r}) and replaces initial_temperature_k")
     problem, info, net, assemble_seconds = _build_network(scene, packing, conductance_factor)
     if start_state is None:
         T0 = start = _start(scene, packing.n_particles, initial_temperature_k)
@@ -521,7 +521,6 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
             np.save(tmp / "factor.npy", np.broadcast_to(np.asarray(
                 conductance_factor, dtype=np.float64), problem.conductance_w_k.shape))
             inputs["conductance-factor"] = tmp / "factor.npy"
-        from .scene import load_scene
         output = load_scene(scene.path, out_dir=tmp / "out", text=scene.text).output
         if start_state is not None:         # the checkpoint the ranks resume from
             nb = len(problem.boundary_names)
