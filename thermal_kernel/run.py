@@ -488,8 +488,6 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
     rank runs one thread). ``start_state`` becomes the checkpoint the ranks resume from (the
     scene's text, no outputs done; its ledger's reference the start); a transient run's final
     state comes back through ``mpi_run --state-out``."""
-    import h5py
-
     from .output import scene_text_difference
     from .solvers.mpi_launch import run_on_ranks
     wall0 = time.perf_counter()
@@ -511,39 +509,63 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
     transient = scene.solver.method != "steady"
     with tempfile.TemporaryDirectory(prefix="tdem-ranks-") as tmp:
         tmp = Path(tmp)
-        write_packing(tmp / "packing.h5", packing)      # as in memory (scaled, phases set ...)
-        (tmp / "scene.toml").write_text(scene.text, encoding="utf-8")
-        inputs = {"scene-text": tmp / "scene.toml"}
-        if initial_temperature_k is not None:
-            np.save(tmp / "initial.npy", T0)
-            inputs["initial-temperature"] = tmp / "initial.npy"
-        if conductance_factor is not None:
-            np.save(tmp / "factor.npy", np.broadcast_to(np.asarray(
-                conductance_factor, dtype=np.float64), problem.conductance_w_k.shape))
-            inputs["conductance-factor"] = tmp / "factor.npy"
         output = load_scene(scene.path, out_dir=tmp / "out", text=scene.text).output
-        if start_state is not None:         # the checkpoint the ranks resume from
-            nb = len(problem.boundary_names)
-            write_checkpoint(checkpoint_path(output), start_state, dict(
-                times=np.zeros(0), temperature_k=np.zeros((0, packing.n_particles)),
-                boundary_heat_flow_w=np.zeros((0, nb)), boundary_energy_j=np.zeros((0, nb)),
-                source_energy_j=np.zeros(0), stored_energy_j=np.zeros(0)),
-                {"steps": 0, "wall_seconds": 0.0, "step_seconds": 0.0}, scene.text,
-                packing.n_particles, packing_sha256(packing))
-        if transient:
-            inputs["state-out"] = tmp / "state.h5"
+        inputs = _files_for_ranks(tmp, output, scene, packing, problem, T0,
+                                  initial_temperature_k is not None, conductance_factor,
+                                  start_state)
         run_on_ranks(scene.path, ranks, packing=tmp / "packing.h5", out=tmp / "out", quiet=True,
                      inputs=inputs, resume=start_state is not None, log=tmp / "ranks.log")
-        state = (read_checkpoint(tmp / "state.h5", scene.text, packing.n_particles)[0]
+        state = (read_checkpoint(inputs["state-out"], scene.text, packing.n_particles)[0]
                  if transient else None)
-        with h5py.File(output, "r") as f:
-            a = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
-            temps = f["temperature"][:]
-            data = dict(times=f["time"][:], temperature_k=temps,
-                        boundary_heat_flow_w=f["boundary_heat_flow"][:],
-                        boundary_energy_j=f["boundary_energy"][:],
-                        source_energy_j=f["source_energy"][:])
-            T0 = f["initial_temperature"][:]
+        result, T0 = _ranks_result(output, scene, problem, info, net, state)
+    result, check = checked(net, T0, result)
+    return SceneRun(scene=scene, packing=packing, problem=problem, network=net,
+                    neighbours=info["neighbours"], law_params=info["law_params"],
+                    initial_temperature_k=T0, result=result, check=check,
+                    assemble_seconds=time.perf_counter() - wall0 - result.wall_seconds)
+
+
+def _files_for_ranks(tmp, output, scene, packing, problem, T0, start_given, conductance_factor,
+                     start_state) -> dict:
+    """:func:`_on_ranks`' files in ``tmp``, as {mpi_run option: file}: the packing as in memory
+    (scaled, phases set ...), the scene's text, the start and the factors (.npy), the checkpoint
+    a ``start_state`` becomes, and where a transient run's final state comes back."""
+    write_packing(tmp / "packing.h5", packing)
+    (tmp / "scene.toml").write_text(scene.text, encoding="utf-8")
+    inputs = {"scene-text": tmp / "scene.toml"}
+    if start_given:
+        np.save(tmp / "initial.npy", T0)
+        inputs["initial-temperature"] = tmp / "initial.npy"
+    if conductance_factor is not None:
+        np.save(tmp / "factor.npy", np.broadcast_to(np.asarray(
+            conductance_factor, dtype=np.float64), problem.conductance_w_k.shape))
+        inputs["conductance-factor"] = tmp / "factor.npy"
+    if start_state is not None:         # the checkpoint the ranks resume from
+        nb = len(problem.boundary_names)
+        write_checkpoint(checkpoint_path(output), start_state, dict(
+            times=np.zeros(0), temperature_k=np.zeros((0, packing.n_particles)),
+            boundary_heat_flow_w=np.zeros((0, nb)), boundary_energy_j=np.zeros((0, nb)),
+            source_energy_j=np.zeros(0), stored_energy_j=np.zeros(0)),
+            {"steps": 0, "wall_seconds": 0.0, "step_seconds": 0.0}, scene.text,
+            packing.n_particles, packing_sha256(packing))
+    if scene.solver.method != "steady":
+        inputs["state-out"] = tmp / "state.h5"
+    return inputs
+
+
+def _ranks_result(output, scene, problem, info, net, state):
+    """The ranks' ``thermal.h5`` as the in-process ThermalResult (its flags before
+    :func:`checked`) and the run's start: (result, T0). The network the ranks built is checked
+    against the in-process build's (conducting contacts, neighbour choice)."""
+    import h5py
+    with h5py.File(output, "r") as f:
+        a = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
+        temps = f["temperature"][:]
+        data = dict(times=f["time"][:], temperature_k=temps,
+                    boundary_heat_flow_w=f["boundary_heat_flow"][:],
+                    boundary_energy_j=f["boundary_energy"][:],
+                    source_energy_j=f["source_energy"][:])
+        T0 = f["initial_temperature"][:]
     if (int(a["n_conducting_contacts"]) != net.n_active_contacts
             or a["neighbours"] != json.dumps(None if info["neighbours"] is None else
                                              info["neighbours"].summary(), sort_keys=True,
@@ -554,7 +576,7 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
     if a["method"] == "steady":       # no rows in thermal.h5: the in-process result's NaN
         nb = data["boundary_heat_flow_w"].shape[1]
         data.update(boundary_energy_j=np.full((1, nb), np.nan), source_energy_j=np.full(1, np.nan))
-    result = ThermalResult(
+    return ThermalResult(
         method=a["method"], **data,
         stored_energy_j=np.array([float(np.dot(net.capacity_j_k, T - T0)) for T in temps]),
         boundary_names=tuple(problem.boundary_names), source_boundary=problem.source_boundary,
@@ -564,12 +586,7 @@ def _on_ranks(scene, packing, ranks, initial_temperature_k, start_state, conduct
         flags=tuple(f for f in a["flags"].split(",") if f),
         info=dict(backend=str(a["backend"]), ranks=int(a["ranks"]),
                   cut_contacts=int(a["cut_contacts"]), linear_solver=str(a["linear_solver"]),
-                  run_seconds=float(a["run_seconds"])), state=state)
-    result, check = checked(net, T0, result)
-    return SceneRun(scene=scene, packing=packing, problem=problem, network=net,
-                    neighbours=info["neighbours"], law_params=info["law_params"],
-                    initial_temperature_k=T0, result=result, check=check,
-                    assemble_seconds=time.perf_counter() - wall0 - result.wall_seconds)
+                  run_seconds=float(a["run_seconds"])), state=state), T0
 
 
 def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume, run_args):
