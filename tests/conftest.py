@@ -43,7 +43,7 @@ SLOW = {
                                 "test_rerun_after_a_packing_edit_recomputes_that_case_only",
                                 "test_a_kept_run_is_posted_again_when_post_changed_or_its_file_is_bad"],
     # issue 25: each case runs mpirun (1-3 ranks of .venv-mpi, ~1.5 s to start); ~100 s in all
-    # (22 tests, 2026-12-02, load ~5)
+    # (22 tests, 2026-12-02, load ~5; 27 since the validation cases on ranks, ~55 s at load ~3)
     "test_petsc_backend.py": "*",
     "test_run_scenes.py": ["test_dt_above_the_bound_is_refused_with_the_bound"],
     "test_solvers.py": ["test_hard_case_default_dt_stays_positive_and_bound_is_tight"],
