@@ -436,7 +436,7 @@ def test_case8_extends_by_the_next_block(monkeypatch):
     monkeypatch.setattr(framework, "load_result", lambda n: saved)
     assert case8._next_block("harmonic") == 6
     assert case8._next_block("cut") == 3
-    assert set(case8.ACTIONS) == {"rebuild", "paper-n", "extend", "extend-cut"}
+    assert set(case8.ACTIONS) == {"rebuild", "paper-n", "walled", "extend", "extend-cut"}
 
 
 def test_case4_rows_are_records():

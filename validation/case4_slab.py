@@ -32,7 +32,7 @@ from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 
 from .framework import (ROOT, CaseInfo, CaseResult, Context, case_scene, optional_packing,
-                        previous_numbers, register_packing, today)
+                        previous_numbers, today)
 from .framework import Action, Judgement, cell_cost_text, figure_csv, fit_order, \
     held_plane_ct, held_planes, judged, md_table, rebuild_saved, scene_toml
 
@@ -64,10 +64,6 @@ INSTANCES = [
     ("tiled_1e6", "tiled (10,000 cell)", TILED, "box_1e6", True),
 ]
 SPEC = {k: (lab, fam) for k, lab, fam, _, _ in INSTANCES}
-# the walled box at the paper's N (issue 24): the direct relaxation, ~1-2 h of one YADE thread,
-# so taken only when built (bench/bench_walled.py's direct_100000_s1 is the same scene)
-register_packing("box_1e5_walled", "runs/dense_box.toml",
-                 dict(n_particles=100_000, seed=1, method="direct", max_seconds=14400.0))
 HOW = "tdem validate 4"
 
 

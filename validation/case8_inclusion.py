@@ -16,7 +16,7 @@ Three series, all law haddad (C_t cancels in k_eff / k_m), phases by the particl
   the branch (tdem's variant, not the paper's).
 
 `tdem validate 8` runs it; its extra steps on the saved result are `tdem validate 8 --action
-rebuild | paper-n | extend | extend-cut` (ACTIONS below).
+rebuild | paper-n | walled | extend | extend-cut` (ACTIONS below).
 """
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ MAX_M = 5                       # periodic blocks up to 5^3 cells (1.25e6 sphere
 MAX_M_CUT = 2                   # the cut variant up to 2^3 (8e4): it costs as much again
 # each series' error: the faced cube against Maxwell (002 Fig. 14), the periodic blocks against
 # Rayleigh's simple-cubic array (their exact reference)
-ERROR_KEY = {"faces": "err_maxwell", "faces_z75": "err_maxwell",
+ERROR_KEY = {"faces": "err_maxwell", "faces_z75": "err_maxwell", "faces_walled": "err_maxwell",
              "periodic_harmonic": "err_rayleigh", "periodic_cut": "err_rayleigh"}
 
 
@@ -153,11 +153,15 @@ def read_runs(runs: list) -> list[InclusionRun]:
 # the paper's N (002 sec. 4.1: ~150,000), tiled from the shared 10,000-sphere cell like box_1e5
 framework.register_packing("box_150k", "runs/dense_box_1e5.toml", dict(n_particles=150_000))
 PAPER_N_BOX = "box_150k"
+# the same cube with pressed walls instead of cut faces (issue 24): framework.PACKINGS
+WALLED_BOX = "box_1e5_walled"
 
 
-def faces_series(name: str, path: Path, ctx: Context, target_z: float | None = None) -> dict:
+def faces_series(name: str, path: Path, ctx: Context, target_z: float | None = None,
+                 series: str | None = None) -> dict:
     """The paper's setup on one box: "faces" through every dumped pair, "faces_z75" through
-    Haddad's bulk coordination (``target_z``, the scene's [neighbours] criterion)."""
+    Haddad's bulk coordination (``target_z``, the scene's [neighbours] criterion); ``series``
+    names it otherwise (the walled box at the paper's size: "faces_walled")."""
     scene, pk = I.load(path, target_z)
     centres, radius = I.centred_inclusion(pk)
     owner = I.owner_of(pk, centres, radius)
@@ -174,7 +178,7 @@ def faces_series(name: str, path: Path, ctx: Context, target_z: float | None = N
         ctx.progress(f"{name} faces c {c:g}: k/k_m {k:.4f}, vs Maxwell "
                      f"{100 * rows[-1]['err_maxwell']:+.2f} % ({r.seconds:.1f} s)")
     seconds = time.perf_counter() - t0
-    return dict(series="faces" if target_z is None else "faces_z75", name=name,
+    return dict(series=series or ("faces" if target_z is None else "faces_z75"), name=name,
                 n=pk.n_particles, inclusion=int(phase.sum()),
                 a_over_r=radius / float(pk.radius.mean()),
                 f_particles=I.particle_fraction(pk, phase),
@@ -221,8 +225,11 @@ def _plots(ctx, runs):
 
 
 # series: marker, colour, label in the figures
+# the series in the order of the figures and tables
+SERIES = ("faces", "faces_z75", "faces_walled", "periodic_harmonic", "periodic_cut")
 STYLES = {"faces": ("o", "C3", "faces held (paper's setup), vs Maxwell"),
           "faces_z75": ("D", "C1", "faces held, Haddad's bulk Z 7.5, vs Maxwell"),
+          "faces_walled": ("v", "C4", "faces held, walled YADE box, Z 7.5, vs Maxwell"),
           "periodic_harmonic": ("s", "C0", "periodic, harmonic interface (002 eq. 24), "
                                            "vs Rayleigh"),
           "periodic_cut": ("^", "C2", "periodic, cut interface (tdem), vs Rayleigh")}
@@ -241,7 +248,7 @@ def _figure_contrast(ctx, runs) -> None:
         ax.plot(c_line, maxwell(1.0, c_line, F), "k-", label="Maxwell (002 Fig. 14's reference)")
         ax.plot(c_line, rayleigh_cubic_array(1.0, c_line, F), "k:",
                 label="Rayleigh, simple-cubic array (exact)")
-        for s in ("faces", "faces_z75", "periodic_harmonic", "periodic_cut"):
+        for s in SERIES:
             runs_s = [r for r in runs if r.series == s]
             if not runs_s:
                 continue
@@ -278,7 +285,7 @@ def _figure_convergence(ctx, runs) -> dict:
                                                 "seconds_per_solve",
                                                 *[f"err_c{c:g}" for c in CONTRASTS]),
                     1, 2, figsize=(11, 4.3), line_end="\n") as ((ax, bx), csv):
-        for s in ("faces", "faces_z75", "periodic_harmonic", "periodic_cut"):
+        for s in SERIES:
             runs_s = sorted((r for r in runs if r.series == s), key=lambda r: r.n)
             if not runs_s:
                 continue
@@ -316,6 +323,7 @@ def _limits(runs, key):
     out = ["**What limits us.**"]
     for s, label in (("faces", "Faces (the paper's setup)"),
                      ("faces_z75", "Faces, Haddad's bulk Z 7.5"),
+                     ("faces_walled", "Faces of the walled YADE box (issue 24), Z 7.5"),
                      ("periodic_harmonic", "Periodic, harmonic interface"),
                      ("periodic_cut", "Periodic, cut interface")):
         rs = sorted((r for r in runs if r.series == s), key=lambda r: r.n)
@@ -379,6 +387,10 @@ def judge(numbers: dict) -> Judgement:
                f"{faces.a_over_r:.1f}): max {100 * worst(faces):.2f} % over c 0.01–100")
     if block:
         at += (f"; periodic block, N {block.n:,}: {100 * worst(block):.2f} %")
+    walled = nearest("faces_walled")
+    if walled:      # the paper's boundaries as made (pressed walls), beside the tiled box's cuts
+        at += (f"; walled YADE box, bulk Z 7.5, N {walled.n:,} (a/r̄ {walled.a_over_r:.1f}): "
+               f"{100 * worst(walled):.2f} %")
     reached = sorted((r for r in runs if worst(r) <= 0.0065), key=lambda r: r.n)
     speed = (f"0.65 % first at N {reached[0].n:,} ({reached[0].series})" if reached
              else "0.65 % not reached")
@@ -421,6 +433,10 @@ def run(ctx: Context) -> CaseResult:
         if not ctx.quick:
             runs.append(faces_series(name, path, ctx))
         runs.append(faces_series(name, path, ctx, target_z=I.TARGET_Z))
+    walled = None if ctx.quick else framework.optional_packing(WALLED_BOX, False)
+    if walled is not None:
+        runs.append(faces_series(WALLED_BOX, walled, ctx, target_z=I.TARGET_Z,
+                                 series="faces_walled"))
     if Path(cell).exists():
         for m in ms:
             runs.extend(periodic_series(cell, m, ctx, cut_too=ctx.quick or m <= MAX_M_CUT))
@@ -560,6 +576,20 @@ def add_paper_n() -> None:
     print(framework.save_result(CASE, result, seconds))
 
 
+def add_walled() -> None:
+    """Solve the faces series (Haddad's bulk Z 7.5) on the walled 1e5 box (issue 24; built
+    when missing, ~1-2 h of YADE), add it to the saved result and rebuild it."""
+    record = framework.load_result(8)
+    runs = [r for r in record["result"]["numbers"]["runs"] if r["name"] != WALLED_BOX]
+    ctx = Context(8)
+    t0 = time.perf_counter()
+    runs.append(faces_series(WALLED_BOX, ctx.packing(WALLED_BOX), ctx, target_z=I.TARGET_Z,
+                             series="faces_walled"))
+    seconds = record["run_seconds"] + time.perf_counter() - t0
+    result = finish(ctx, runs, seconds, _saved_fft(record))
+    print(framework.save_result(CASE, result, seconds))
+
+
 def _saved_fft(record: dict) -> FftRayleigh | None:
     """The FFT check of a saved result (None when it was saved before the check)."""
     return read_numbers(record["result"]["numbers"]).fft_rayleigh
@@ -615,6 +645,9 @@ ACTIONS = {           # tdem validate 8 --action NAME
     "paper-n": framework.Action(lambda ctx: add_paper_n(),
                                 "add the faces series at the paper's N (box_150k), every dumped "
                                 "pair and Haddad's bulk Z 7.5, to the saved result"),
+    "walled": framework.Action(lambda ctx: add_walled(),
+                               "add the faces series on the walled 1e5 YADE box (issue 24), "
+                               "Haddad's bulk Z 7.5, to the saved result"),
     "extend": framework.Action(lambda ctx: extend([_next_block("harmonic")], ("harmonic",)),
                                "add the next periodic block m^3 (harmonic interface) to the "
                                "saved result"),

@@ -141,6 +141,11 @@ PACKINGS: dict[str, tuple[str, dict]] = {
                                                       cell_particles=10_000)),
     "sphere_1e5": ("runs/dense_sphere.toml", dict(n_particles=100_000, method="tiled",
                                                   cell_particles=10_000)),
+    # the cube at the paper's N with pressed walls (issue 24): the direct relaxation, ~1-2 h of
+    # one YADE thread, so cases 4 and 8 take it only when built (bench_walled's direct_100000_s1
+    # is the same scene)
+    "box_1e5_walled": ("runs/dense_box.toml", dict(n_particles=100_000, seed=1, method="direct",
+                                                   max_seconds=14400.0)),
 }
 
 
