@@ -289,6 +289,11 @@ def judge(numbers: dict) -> Judgement:
     bins = N_BINS
     at = (f"N {r.n_particles:,}: {100 * r.max_err_over_dT:.3f} % of ΔT (max over {bins} "
           f"bins × 3 times; {100 * r.max_err_over_T_celsius:.2f} % of T in °C beside it)")
+    walled = [x for x in rows if x.name == "ds_1e5_s1"]
+    if walled:      # the paper's boundaries as made (pressed walls, issue 24) beside the cut cube
+        at += (f"; walled YADE box, N {walled[0].n_particles:,}: "
+               f"{100 * walled[0].max_err_over_dT:.3f} % of ΔT "
+               f"({100 * walled[0].max_err_over_T_celsius:.2f} % of T in °C)")
     reached = sorted((x for x in rows if x.max_err_over_dT <= 0.007),
                      key=lambda x: x.n_particles)
     speed = (f"0.7 % of ΔT first at N {reached[0].n_particles:,} ({reached[0].label}, "
