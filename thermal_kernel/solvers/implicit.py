@@ -248,6 +248,24 @@ class LocalOperator:
                     cg_iterations=[i for s in solvers for i in getattr(s, "iterations", [])])
 
 
+def _step(op, x, energy, sw, h, solver, scheme, theta):
+    """One step of ``h`` from ``x`` with the factorised ``solver`` (TR-BDF2's two stages, or
+    the theta step), the boundary energy of its fluxes added to ``energy``: the new ``x``."""
+    if scheme == "tr-bdf2":
+        d = _TRB_D * h
+        inc1 = solver.solve(2.0 * op.rhs(x, sw))                   # trapezoidal stage
+        xg = x + inc1
+        inc2 = solver.solve(op.rhs(xg, sw) + op.free_only(
+            (_TRB_A1 / d) * (op.capacity * inc1)))                 # BDF2 stage
+        # Ledger: C (T_{n+1} - T_n) = h [w01 (f_n + f_gamma) + w2 f_{n+1}]
+        op.ledger(energy, h, _TRB_W01 * (x + xg) + _TRB_W2 * (xg + inc2), sw)
+        return xg + inc2
+    inc = solver.solve(op.rhs(x, sw))   # from zero: no better start known
+    # Ledger with the theta-weighted temperatures: the fluxes this step used.
+    op.ledger(energy, h, x + theta * inc, sw)
+    return x + inc
+
+
 def drive_implicit(op, T0, times, *, dt, theta, scheme, startup_steps, t_start=None,
                    progress=None) -> ThermalResult | None:
     """The theta / Rannacher / TR-BDF2 time loop over an operator ``op``: the in-process
@@ -256,7 +274,9 @@ def drive_implicit(op, T0, times, *, dt, theta, scheme, startup_steps, t_start=N
     ledger's weights, the progress and the result are the same for both; ``op`` supplies the
     linear algebra (see :class:`LocalOperator`). ``theta`` and ``startup_steps`` as
     :func:`scheme_args` returns them. The result on the rank that holds the network (None on
-    the others)."""
+    the others). One function on purpose (~95 lines): the plan, the factorisations' cache, the
+    running ledger and the timings are the loop's state, shared with the result it returns; the
+    step itself is :func:`_step`."""
     dt = float(dt)
     if not dt > 0:
         raise ValueError(f"dt = {dt}: the time step must be > 0")
@@ -307,20 +327,8 @@ def drive_implicit(op, T0, times, *, dt, theta, scheme, startup_steps, t_start=N
                 for _ in range(2):
                     x = x + half.solve(op.rhs(x, sw))
                     op.ledger(energy, hh, x, sw)
-            elif scheme == "tr-bdf2":
-                d = _TRB_D * h
-                inc1 = solver.solve(2.0 * op.rhs(x, sw))                   # trapezoidal stage
-                xg = x + inc1
-                inc2 = solver.solve(op.rhs(xg, sw) + op.free_only(
-                    (_TRB_A1 / d) * (op.capacity * inc1)))                 # BDF2 stage
-                # Ledger: C (T_{n+1} - T_n) = h [w01 (f_n + f_gamma) + w2 f_{n+1}]
-                op.ledger(energy, h, _TRB_W01 * (x + xg) + _TRB_W2 * (xg + inc2), sw)
-                x = xg + inc2
             else:
-                inc = solver.solve(op.rhs(x, sw))   # from zero: no better start known
-                # Ledger with the theta-weighted temperatures: the fluxes this step used.
-                op.ledger(energy, h, x + theta * inc, sw)
-                x = x + inc
+                x = _step(op, x, energy, sw, h, solver, scheme, theta)
             step_seconds += time.perf_counter() - s0
             done += 1
             if progress is not None and op.is_root and (
