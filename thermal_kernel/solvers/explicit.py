@@ -240,6 +240,21 @@ def explicit_start(net, T0, times, t_start, dt, safety, allow_unstable):
 
 
 # ----------------------------------------------------------------------------- driver
+def _source_into_rhs(net, arr, energy, t0, t1, h) -> float:
+    """The source's powers over [t0, t1] added to the step's right-hand side, its energy (J)
+    booked to its boundary and what held particles pass on to theirs taken off: the energy."""
+    prob = net.problem
+    sw = np.asarray(prob.source(t0, t1), dtype=np.float64)
+    np.add(arr.b, sw, out=arr.rhs)
+    q = h * float(sw.sum())
+    if prob.source_boundary >= 0:
+        energy[prob.source_boundary] += q
+    if net.fixed_particle.size:
+        energy -= h * np.bincount(net.fixed_boundary, weights=sw[net.fixed_particle],
+                                  minlength=energy.size)
+    return q
+
+
 def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
                  allow_unstable=False, progress=None, threads=None, keep_temperatures=True,
                  on_output=None) -> ThermalResult:
@@ -253,7 +268,9 @@ def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
     ``result.state`` reproduces the single run bit for bit when the split time was one of its
     output times. ``progress(step, n_steps, t)`` is called every ~0.1 s of work;
     ``threads`` sets numba's thread count for this run (result independent of it);
-    ``on_output(k, t, T)`` is called at each output time."""
+    ``on_output(k, t, T)`` is called at each output time. One function (~85 lines): the two
+    step loops (chunks of kernel calls without a source, one call a step with it) share the
+    plan, the buffers, the ledger and the timings the result is made of."""
     net = as_network(problem)
     prob = net.problem
     (T, t, step0, energy, src_energy, ref, times, dt,
@@ -296,16 +313,7 @@ def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
                     t0 = t_prev + s * h
                     t1 = tk if s == n - 1 else t_prev + (s + 1) * h
                     c0 = time.perf_counter()
-                    sw = np.asarray(prob.source(t0, t1), dtype=np.float64)
-                    np.add(arr.b, sw, out=arr.rhs)
-                    q = h * float(sw.sum())
-                    src_energy += q
-                    if sb >= 0:
-                        energy[sb] += q
-                    if net.fixed_particle.size:
-                        energy -= h * np.bincount(net.fixed_boundary,
-                                                  weights=sw[net.fixed_particle],
-                                                  minlength=energy.size)
+                    src_energy += _source_into_rhs(net, arr, energy, t0, t1, h)
                     ta, tb = arr.advance(1, h, ta, tb, energy)
                     step_seconds += time.perf_counter() - c0
                     done += 1
