@@ -278,6 +278,25 @@ def max_principle_bounds(net: Network, T0, times) -> tuple[np.ndarray, np.ndarra
     return lo, hi
 
 
+def _ledger_relative(result: ThermalResult) -> float:
+    """The energy ledger's residual relative to the energy moved: a transient run's max
+    |residual| over its largest stored change, boundary or source energy; a steady solve's
+    heat balance. inf when anything is not finite."""
+    if result.method == "steady":
+        bal = abs(float(result.info.get("heat_balance_relative", 0.0)))
+        return bal if math.isfinite(bal) else math.inf
+    with np.errstate(invalid="ignore", over="ignore"):
+        resid = np.abs(result.ledger_residual_j())
+        scale = max(float(np.nanmax(np.abs(result.stored_energy_j), initial=0.0)),
+                    float(np.nanmax(np.abs(result.boundary_energy_j).sum(axis=1),
+                                    initial=0.0)),
+                    float(np.nanmax(np.abs(result.source_energy_j), initial=0.0)), 1e-300)
+        ledger = float(np.nanmax(resid, initial=0.0)) / scale if resid.size else 0.0
+    if not np.all(np.isfinite(resid)) or not math.isfinite(ledger):
+        return math.inf
+    return ledger
+
+
 def check_physics(net: Network, T0, result: ThermalResult, rtol: float = MAX_PRINCIPLE_RTOL,
                   ledger_rtol: float = LEDGER_RTOL) -> PhysicsCheck:
     """The maximum principle, the physical range and the energy ledger of ``result`` (a run
@@ -342,19 +361,7 @@ def check_physics(net: Network, T0, result: ThermalResult, rtol: float = MAX_PRI
             messages.append(f"above_physical_range: T = {tmax:.6g} K at particle {p}, t = "
                             f"{float(result.times[k]):.6g} s, above {TEMPERATURE_MAX_K:g} K "
                             "(no solid there: the constant properties mean nothing)")
-    if result.method == "steady":
-        bal = abs(float(result.info.get("heat_balance_relative", 0.0)))
-        ledger = bal if math.isfinite(bal) else math.inf
-    else:
-        with np.errstate(invalid="ignore", over="ignore"):
-            resid = np.abs(result.ledger_residual_j())
-            scale = max(float(np.nanmax(np.abs(result.stored_energy_j), initial=0.0)),
-                        float(np.nanmax(np.abs(result.boundary_energy_j).sum(axis=1),
-                                        initial=0.0)),
-                        float(np.nanmax(np.abs(result.source_energy_j), initial=0.0)), 1e-300)
-            ledger = float(np.nanmax(resid, initial=0.0)) / scale if resid.size else 0.0
-        if not np.all(np.isfinite(resid)) or not math.isfinite(ledger):
-            ledger = math.inf
+    ledger = _ledger_relative(result)
     if ledger > ledger_rtol:
         flags.append("energy_ledger")
         messages.append(f"energy_ledger: residual {ledger:.2g} of the energy moved (tolerance "
