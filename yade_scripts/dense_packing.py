@@ -525,7 +525,10 @@ def press_shell(p, box, centres, radii, frozen, shell_m, cloud=None):
     path's stages (softened modulus, tenfold stiffening, friction on at the real modulus). The
     radii carry each stage's Hertz overlap and end as given. Returns the pressed state of these
     spheres (indices into centres). ``cloud``: the spheres put back as a shrunk cloud
-    (shell.cloud_layer), grown back to their radii against the walls first (grow_cloud)."""
+    (shell.cloud_layer), grown back to their radii against the walls first (grow_cloud).
+    One function (~150 lines, most of it the stages' servo loop and its comments): the scene
+    lives in YADE's globals, and the loop's state (the stage, the radius factor, the walls'
+    bodies and directions, the settled count) is what each stage hands the next."""
     stages = stiffness_stages(p)
     mats, sphere_ids, wall_of_body, collider = build_scene(p, centres, radii, box, stages[0])
     for k, b in enumerate(sphere_ids):
@@ -703,7 +706,8 @@ def shell_state(p, state):
     """method = "shell": tile and carve as method = "tiled" (keeping the spheres whose centre
     lies shell_cut_depth of their radii inside), then press walls onto a shell of
     shell_diameters mean diameters (press_shell); returns the state of the pressed domain and
-    the tiling's and shell's attributes."""
+    the tiling's and shell's attributes. (~85 lines: the carve, the split into free, frozen
+    and interior spheres, the press and the reassembly are one pass over the same arrays.)"""
     carved, cell_info = tiled_state(p, state)
     kept_first, _, _ = shell.split(carved["box"], carved["position"], carved["radius"], 0.0, 0.0,
                                    p["shell_cut_depth"])
