@@ -410,9 +410,12 @@ def judge(numbers: dict) -> Judgement:
         "not met at the paper's N: the inclusion's error is first order in r̄/a even without "
         "faces (periodic blocks"
         + (f": max |err| × a/r̄ ≈ {max(slope):.0f} %" if block_runs else "")
-        + "), and the tiled box's cut faces add to it; walled packings (issue 24) would remove "
-        "the second part only. 002's 0.65 % at a/r̄ ≈ 33 implies a constant about half ours: "
-        "the difference is not explained yet")
+        + "), and the boundaries add to it"
+        + ((f": the walled YADE box (issue 24, N {walled.n:,}) has {100 * worst(walled):.2f} %, "
+            "no better than the tiled box's cut faces. ") if walled else
+           ": walled packings (issue 24) would remove the cut faces' part only. ")
+        + "002's 0.65 % at a/r̄ ≈ 33 implies a constant about half ours: the difference is not "
+        "explained yet")
     return Judgement(at_paper_n=at, speed_vs_error=speed, target_met=met, verdict=verdict)
 
 
