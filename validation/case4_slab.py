@@ -586,13 +586,15 @@ in °C, 5 % of ΔT) and the C_t conversion; `tdem validate 4 --quick` runs the s
         verdict=verdict, section_md=section, numbers=n)
 
 
+def _judged_result(ctx: Context, rows: list[SlabRow]) -> CaseResult:
+    """Figures, section and judged summary of ``rows``."""
+    result = _result(rows, _figures(ctx, rows))
+    return judged(result, judge(result.numbers))
+
+
 def _rebuild(ctx: Context) -> None:
     """The section, figures and summary again from the saved rows (no slab is run)."""
-    def build(numbers):
-        rows = read_rows(numbers)
-        result = _result(rows, _figures(ctx, rows))
-        return judged(result, judge(result.numbers))
-    print(rebuild_saved(CASE, build))
+    print(rebuild_saved(CASE, lambda numbers: _judged_result(ctx, read_rows(numbers))))
 
 
 def _add_walled(ctx: Context) -> None:
@@ -606,10 +608,8 @@ def _add_walled(ctx: Context) -> None:
 
     def build(numbers):
         order = [i[0] for i in INSTANCES]
-        rows = sorted([r for r in read_rows(numbers) if r.name != key] + [new],
-                      key=lambda r: order.index(r.name))
-        result = _result(rows, _figures(ctx, rows))
-        return judged(result, judge(result.numbers))
+        return _judged_result(ctx, sorted([r for r in read_rows(numbers) if r.name != key]
+                                          + [new], key=lambda r: order.index(r.name)))
     print(rebuild_saved(CASE, build))
 
 

@@ -564,33 +564,32 @@ in memory from runs/out/dense_box_1e5/cell.h5 in seconds.
 """
 
 
-def add_paper_n() -> None:
-    """Solve the faces series at the paper's N (box_150k) through every dumped pair and through
-    Haddad's bulk Z 7.5, add them to the saved result and rebuild it (the other series kept)."""
+def _add_faces(name: str, series: list[tuple[float | None, str | None]]) -> None:
+    """Solve the faces series on packing ``name`` (one per (target_z, series name) of
+    ``series``), put them in the saved result in place of that packing's runs and rebuild it
+    (the other series kept)."""
     record = framework.load_result(8)
-    runs = [r for r in record["result"]["numbers"]["runs"] if r["name"] != PAPER_N_BOX]
+    runs = [r for r in record["result"]["numbers"]["runs"] if r["name"] != name]
     ctx = Context(8)
     t0 = time.perf_counter()
-    path = ctx.packing(PAPER_N_BOX)
-    runs.append(faces_series(PAPER_N_BOX, path, ctx))
-    runs.append(faces_series(PAPER_N_BOX, path, ctx, target_z=I.TARGET_Z))
+    path = ctx.packing(name)
+    for target_z, label in series:
+        runs.append(faces_series(name, path, ctx, target_z=target_z, series=label))
     seconds = record["run_seconds"] + time.perf_counter() - t0
     result = finish(ctx, runs, seconds, _saved_fft(record))
     print(framework.save_result(CASE, result, seconds))
+
+
+def add_paper_n() -> None:
+    """Solve the faces series at the paper's N (box_150k) through every dumped pair and through
+    Haddad's bulk Z 7.5, add them to the saved result and rebuild it (the other series kept)."""
+    _add_faces(PAPER_N_BOX, [(None, None), (I.TARGET_Z, None)])
 
 
 def add_walled() -> None:
     """Solve the faces series (Haddad's bulk Z 7.5) on the walled 1e5 box (issue 24; built
     when missing, ~1-2 h of YADE), add it to the saved result and rebuild it."""
-    record = framework.load_result(8)
-    runs = [r for r in record["result"]["numbers"]["runs"] if r["name"] != WALLED_BOX]
-    ctx = Context(8)
-    t0 = time.perf_counter()
-    runs.append(faces_series(WALLED_BOX, ctx.packing(WALLED_BOX), ctx, target_z=I.TARGET_Z,
-                             series="faces_walled"))
-    seconds = record["run_seconds"] + time.perf_counter() - t0
-    result = finish(ctx, runs, seconds, _saved_fft(record))
-    print(framework.save_result(CASE, result, seconds))
+    _add_faces(WALLED_BOX, [(I.TARGET_Z, "faces_walled")])
 
 
 def _saved_fft(record: dict) -> FftRayleigh | None:
