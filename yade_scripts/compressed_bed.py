@@ -560,23 +560,17 @@ class Bed:
         """The state to dump: positions, contact arrays (bed_geometry.dump_contacts, with the
         Hertz coefficients kno = 4/3 E* sqrt(R*) at the modulus in use: R* = r_i r_j/(r_i+r_j)
         between spheres, R* = r against a wall, with the real particle/wall E*), walls and the
-        attributes, and the time they were measured at."""
+        attributes (``attributes``), and the time they were measured at."""
         p = self.p
-        n = self.n
         pos = self.positions()
-        radii = self.radii
         height = self.plate_height()
         e_pp, e_pw = hertz_moduli(self.young_now, p["young_pa"], p["poisson"],
                                   p["wall_young_pa"], p["wall_poisson"])
-        contacts = dump_contacts(self.interaction_records(), pos, radii, self.wall_index,
+        contacts = dump_contacts(self.interaction_records(), pos, self.radii, self.wall_index,
                                  height, e_pp, e_pw)
         if contacts["kno_mismatch"] > 1e-9:
             run_error(f"internal: YADE's Hertz coefficients differ from 4/3 E* sqrt(R*) by "
                       f"{contacts['kno_mismatch']:.3g} (relative)")
-        pairs = contacts["pairs"]
-        plate_force = self.plate_pressure() * self.area
-        volume = 4.0 / 3.0 * math.pi * float(np.sum(radii ** 3))
-        speeds = [O.bodies[k].state.vel.norm() for k in range(n)]
         rc = p["cylinder_radius_m"]
         walls = [
             dict(name="zmin", kind="plane", point=(0, 0, 0), normal=(0, 0, 1), radius=math.nan),
@@ -585,7 +579,22 @@ class Bed:
             dict(name="cylinder", kind="cylinder", point=(0, 0, 0), normal=(0, 0, 1), radius=rc),
         ]
         now = time.time()
-        attrs = dict(
+        attrs = self.attributes(target, imax, unb, contacts, height, now)
+        return pos, contacts, walls, attrs, now
+
+    def attributes(self, target, imax, unb, contacts, height, now):
+        """The packing's root attributes at this state: what the bed is (phi, Z, pressure, plate
+        and container), its parameters, and how the stage that made it ran (inertial numbers,
+        unbalanced force, steps, times)."""
+        p = self.p
+        n = self.n
+        radii = self.radii
+        pairs = contacts["pairs"]
+        plate_force = self.plate_pressure() * self.area
+        volume = 4.0 / 3.0 * math.pi * float(np.sum(radii ** 3))
+        speeds = [O.bodies[k].state.vel.norm() for k in range(n)]
+        rc = p["cylinder_radius_m"]
+        return dict(
             generator=GENERATOR,
             seed=p["seed"],
             solid_fraction=volume / (self.area * height),
@@ -639,7 +648,6 @@ class Bed:
             contact_law="Hertz-Mindlin (Law2_ScGeom_MindlinPhys_Mindlin), Tsuji damping from "
                         "restitution; wall contacts Hertz with R* = r",
         )
-        return pos, contacts, walls, attrs, now
 
     def write(self, path, pos, contacts, walls, attrs, now, imax, unb):
         """Write a measured state (write_packing) and log it; the next stage's counters start

@@ -149,7 +149,9 @@ def dump(*args, **kwargs):
 
 
 def _arguments(args, kwargs):
-    """(path, {argument: value}) of a dump() call, each argument's type checked; DumpError."""
+    """(path, {argument: value}) of a dump() call, each argument's type checked; DumpError.
+    The checks run in the call's order (the first fault is the one reported): the file name, the
+    argument names, the flags, seed and numbers here, then wall_names and attrs."""
     if not args and "path" not in kwargs:
         raise DumpError("dump(): missing the file name: dump('packing.h5', young_pa=..., "
                         "poisson=...)")
@@ -192,7 +194,13 @@ def _arguments(args, kwargs):
                                                                   and pressure >= 0):
         raise DumpError(f"{path}: pressure_pa: expected a pressure >= 0 in Pa (or NaN: none), "
                         f"got {pressure!r}")
-    names = kw["wall_names"]
+    kw["wall_names"] = _wall_names(path, kw["wall_names"])
+    kw["attrs"] = _extra_attrs(path, kw["attrs"])
+    return path, kw
+
+
+def _wall_names(path, names):
+    """dump()'s wall_names checked: {body id (int): wall name (str)}, one name per wall."""
     if names is None:
         names = {}
     if not isinstance(names, dict):
@@ -209,8 +217,11 @@ def _arguments(args, kwargs):
     if dup is not None:
         raise DumpError(f"{path}: wall_names: the name {dup!r} is given to two bodies; expected "
                         "one name per wall")
-    kw["wall_names"] = {int(b): str(x) for b, x in names.items()}
-    extra = kw["attrs"]
+    return {int(b): str(x) for b, x in names.items()}
+
+
+def _extra_attrs(path, extra):
+    """dump()'s attrs checked: {new attribute name: number or string}, none of OWN_ATTRS."""
     if extra is None:
         extra = {}
     if not isinstance(extra, dict):
@@ -230,8 +241,7 @@ def _arguments(args, kwargs):
             raise DumpError(f"{path}: attrs[{key!r}]: a value of type "
                             f"{type(value).__name__}; expected a number or a string")
         checked[key] = value
-    kw["attrs"] = checked
-    return path, kw
+    return checked
 
 
 def _fail(path, what):
@@ -252,7 +262,8 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
           extra, quiet):
     """What dump() does, phase by phase (each refuses in one line, DumpError): the call's
     target, the bodies, the periodic cell, the wall planes, the contacts, the walls' names, the
-    domain and solid fraction, the material, the pressure, the force-law check; then the file."""
+    domain and solid fraction, the material, the pressure, the force-law check; then the
+    attributes, the file (_write_file) and the summary it returns."""
     import yade
     from yade.wrapper import Omega
     O = Omega()
@@ -300,24 +311,8 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
     )
     out_attrs.update(law)
     out_attrs.update(extra)
-    wall_rows = [dict(name=w["name"], kind=w["kind"], point=w["point"], normal=w["normal"],
-                      radius=w["radius"]) for w in walls]
-    r_star = np.zeros(len(p_over))
-    if len(p_over):
-        r_i, r_j = radius[pair[:, 0]], radius[pair[:, 1]]
-        r_star = r_i * r_j / (r_i + r_j)
-    # built in memory, then written at once under <path>.tmp and renamed: a full or read-only
-    # disk is one OSError (one line here), and no file is left
-    try:
-        image = _writer.packing_image(
-            position, radius, phase, pair, p_over, p_force, p_branch, wall_rows, w_part,
-            w_wall, w_over, w_force, lo, hi, (periodic,) * 3, out_attrs,
-            contact_radius=np.sqrt(r_star * np.clip(p_over, 0, None)),
-            wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)),
-            yade_id=yade_id)
-        _writer.write_bytes_atomic(path, image)
-    except OSError as e:
-        _fail(path, f"cannot write the file: {e.strerror or e}")
+    _write_file(path, position, radius, phase, pair, p_over, p_force, p_branch, walls, w_part,
+                w_wall, w_over, w_force, lo, hi, periodic, out_attrs, yade_id)
     summary = dict(n_particles=n, n_contacts=int(touching.sum()), n_wall_contacts=len(w_part),
                    walls=[w["name"] for w in walls], solid_fraction=solid_fraction,
                    mean_coordination=mean_z, pressure_pa=float(pressure_pa),
@@ -331,6 +326,28 @@ def _dump(path, young_pa, poisson, density, walls_mode, wall_names, pressure_pa,
     return summary
 
 
+def _write_file(path, position, radius, phase, pair, p_over, p_force, p_branch, walls, w_part,
+                w_wall, w_over, w_force, lo, hi, periodic, attrs, yade_id):
+    """The packing file through the one writer (thermal_kernel/packing_h5.py), with the contact
+    radii sqrt(R* overlap) (R* = r_i r_j / (r_i + r_j); against a wall R* = r). Built in memory,
+    then written at once under <path>.tmp and renamed: a full or read-only disk is one OSError
+    (one line here), and no file is left."""
+    wall_rows = [dict(name=w["name"], kind=w["kind"], point=w["point"], normal=w["normal"],
+                      radius=w["radius"]) for w in walls]
+    r_star = np.zeros(len(p_over))
+    if len(p_over):
+        r_i, r_j = radius[pair[:, 0]], radius[pair[:, 1]]
+        r_star = r_i * r_j / (r_i + r_j)
+    try:
+        image = _writer.packing_image(
+            position, radius, phase, pair, p_over, p_force, p_branch, wall_rows, w_part,
+            w_wall, w_over, w_force, lo, hi, (periodic,) * 3, attrs,
+            contact_radius=np.sqrt(r_star * np.clip(p_over, 0, None)),
+            wall_contact_radius=np.sqrt(radius[w_part] * np.clip(w_over, 0, None)),
+            yade_id=yade_id)
+        _writer.write_bytes_atomic(path, image)
+    except OSError as e:
+        _fail(path, f"cannot write the file: {e.strerror or e}")
 
 
 def _add_wall(walls, point, normal, body_id):
