@@ -12,7 +12,7 @@ APT_PACKAGES := yade python3-h5py python3-scipy python3-venv liggghts openmpi-bi
 MPI_APT_PACKAGES := python3-petsc4py python3-mpi4py python3-h5py-mpi
 MPI_VENV := .venv-mpi
 
-.PHONY: demo test test-fast coverage deps apt validate bench bench-packings bench-walled bench-bed bench-peers bench-scaling clean
+.PHONY: demo test test-fast coverage deps apt validate bench bench-packings bench-walled bench-bed bench-peers bench-scaling bench-ranks clean
 
 demo: deps
 	$(BIN)/tdem demo
@@ -84,6 +84,12 @@ bench: deps
 # wall, memory, iterations, the cost model; writes docs/scaling.md (~10 min on 2 cores).
 bench-scaling: deps
 	$(BIN)/python bench/bench_scaling.py --write docs/scaling.md
+
+# Issue 25's "same answers" on every scene of runs/: in-process against --ranks 1, 2, 3 (tdem
+# run, tdem campaign), each thermal.h5 compared; packings from runs/out or made small (YADE, one
+# at a time) under bench/out/ranks; writes bench/results/ranks_same_answers.md (docs/scaling.md).
+bench-ranks: deps
+	$(BIN)/python bench/ranks_same_answers.py
 
 # Packing paths side by side (hours: the reference relaxes 10,000 spheres for ~1 h per seed);
 # resumable (--reuse keeps the cases already built). Writes bench/results/packings.{csv,md,png},
