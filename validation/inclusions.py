@@ -242,17 +242,17 @@ def periodic_block(cell: Packing, m: int) -> Packing:
 
 
 def contact_conductance(scene, packing: Packing, phase, contrast: float) -> np.ndarray:
-    """H per contact (W/K) of the scene's law with phase 1 at ``contrast`` x the matrix."""
-    from thermal_kernel.laws import get_law
-    from thermal_kernel.problem import build_law_inputs, law_params
+    """H per contact (W/K) of the scene's law with phase 1 at ``contrast`` x the matrix, on
+    every dumped row: the registered law evaluated where the kernel evaluates it,
+    ``thermal_kernel.problem.evaluate_law`` (its inputs, parameters and output checks), for the
+    periodic blocks, which have no faces to hold and so no scene run."""
+    from thermal_kernel.problem import evaluate_law
     matrix = scene.material(0)
     inclusion = Material(conductivity=contrast * matrix.conductivity, density=matrix.density,
                          heat_capacity=matrix.heat_capacity)
     sc = dataclasses.replace(scene, materials={0: matrix, 1: inclusion})
     pk = dataclasses.replace(packing, phase=np.asarray(phase, np.int32))
-    law = get_law(sc.law)
-    contacts, _ = build_law_inputs(sc, pk)
-    return np.asarray(law.conductance(contacts, law_params(sc, law)), float)
+    return evaluate_law(sc, pk)[3]
 
 
 def periodic_conductivity(packing: Packing, conductance, axis: int = 0, tol: float = 1e-11):
