@@ -35,8 +35,9 @@ from thermal_kernel.calibrate import cross_section
 from thermal_kernel.packing import read_packing
 from thermal_kernel.run import SceneRun, run_in_memory
 from validation.case4_slab import scene_text as slab_scene_text
-from validation.framework import ROOT, CaseInfo, CaseResult, Context, pack_seconds, \
-    cached, case_scene, figure_csv, md_table, register_packing
+from validation.framework import ROOT, CaseInfo, CaseResult, Context, cached, case_scene, \
+    DATA, dress, figure_csv, md_table, outcome, pack_text as _pack, pct as _pct, read_records as \
+    _read, register_packing
 
 CASE = CaseInfo(number=7, title="Halo CoV vs halo/DE radius ratio",
                 paper="002 sec. 3, eq. 20-23, Fig. 10-11", paper_n="1e5, 5e5",
@@ -55,14 +56,13 @@ MIN_EVAL = 200              # fewer particles with the halo inside: no point
 VERSION = 6
 CLASSES = (0.0, 0.7, 1.0, 1.3, np.inf)    # R_p / r_mean classes of the scatter by size
 
-CELL400 = ROOT / "tests" / "data" / "dense_periodic.h5"
 SIZES = {100_000: "box_1e5", 500_000: "box_5e5"}     # 002 Fig. 10's two packings
 QUICK = {2_000: "box_2000_cell400"}
 for _n, _b in SIZES.items():
     register_packing(_b, "runs/dense_box_1e5.toml", dict(n_particles=_n))
 for _n, _b in QUICK.items():
-    register_packing(_b, "runs/dense_box_1e5.toml", dict(
-        n_particles=_n, method="tiled", cell_particles=400, cell_packing=str(CELL400)))
+    register_packing(_b, "runs/dense_box_1e5.toml", dict(n_particles=_n, method="tiled",
+                     cell_particles=400, cell_packing=str(DATA / "dense_periodic.h5")))
 
 SCENE_PATH = ROOT / "validation" / "case7_scene.toml"        # named in messages only
 
@@ -221,8 +221,6 @@ def halo_cov(packing_path, ratios=RATIOS, max_eval=MAX_EVAL, seed=1, kinds=KINDS
             "z_rows": z_rows, "neighbours": choice.summary() if choice else None}
 
 
-
-
 def run(ctx: Context) -> CaseResult:
     sizes = QUICK if ctx.quick else SIZES
     recs = []
@@ -322,8 +320,7 @@ class HaloRecord:
 def read_records(recs: list) -> list[HaloRecord]:
     """The cubes' records (cached or saved dicts, or records already); RecordError in one
     line."""
-    return [r if isinstance(r, HaloRecord) else from_dict(HaloRecord, r, f"case 7: records[{k}]")
-            for k, r in enumerate(recs)]
+    return _read(HaloRecord, recs, "case 7: records")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -394,7 +391,6 @@ def _report(ctx, recs) -> CaseResult:
 
 def _figure_cov(ctx, recs) -> dict:
     """Figure 1: the CoV against the ratio (002 Fig. 10), both halo radii; the fitted slopes."""
-
     png = ctx.figure("cov")
     with figure_csv(png, ["n_particles", "halo_radius", "ratio", "n_inside", "n_eval",
                           "members_mean", "cov_abs_pct", "cov_abs_volume_weighted_pct",
@@ -420,11 +416,8 @@ def _figure_cov(ctx, recs) -> dict:
                   label="002 (values in its text; raw at ratio 1)")
         ax.axhline(5, color="0.6", lw=0.6)
         ax.axhline(2, color="0.6", lw=0.6)
-        ax.set_xlabel("halo / DE radius ratio (at 1: raw eq. 20, ● per particle, "
-                      "□ volume-weighted)")
-        ax.set_ylabel("CoV of |q| over the particles (%)")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+        dress(ax, "halo / DE radius ratio (at 1: raw eq. 20, ● per particle, □ volume-weighted)",
+              "CoV of |q| over the particles (%)", grid=True)
         for rec in recs:
             for kind in KINDS:
                 for r in _rows(rec, kind):
@@ -442,7 +435,6 @@ def _figure_cov(ctx, recs) -> dict:
 
 def _figure_minmax(ctx, main) -> None:
     """Figure 2: mean / min / max |q| (002 Fig. 11) at the main N, common radius."""
-
     png = ctx.figure("minmax")
     with figure_csv(png, ["n_particles", "halo_radius", "ratio", "mean_abs_over_QA",
                           "mean_x_over_QA", "min_abs_over_QA", "max_abs_over_QA"],
@@ -454,10 +446,8 @@ def _figure_minmax(ctx, main) -> None:
         ax.semilogx(x, [r.max_abs for r in rr], "^-", label="max |q|")
         ax.semilogx(x, [r.min_abs for r in rr], "v-", label="min |q|")
         ax.axhline(1.0, color="k", lw=0.8)
-        ax.set_xlabel("halo / DE radius ratio (halo ratio × r̄; raw at 1)")
-        ax.set_ylabel("flux / (Q / A)")
-        ax.set_title(f"{main.n_particles:,} spheres", fontsize=9)
-        ax.legend(fontsize=7)
+        dress(ax, "halo / DE radius ratio (halo ratio × r̄; raw at 1)", "flux / (Q / A)",
+              f"{main.n_particles:,} spheres")
         for r in rr:
             csv.append([main.n_particles, "common", r.ratio, f"{r.mean_abs:.5f}",
                         f"{r.mean_x:.5f}", f"{r.min_abs:.5f}", f"{r.max_abs:.5f}"])
@@ -465,7 +455,6 @@ def _figure_minmax(ctx, main) -> None:
 
 def _figure_speed(ctx, recs, main) -> None:
     """Figure 3: speed against error, seconds per evaluated particle against the CoV."""
-
     png = ctx.figure("speed_error")
     with figure_csv(png, ["n_particles", "halo_radius", "ratio", "cov_abs_pct",
                           "microseconds_per_particle"], figsize=(6, 4.5),
@@ -483,11 +472,8 @@ def _figure_speed(ctx, recs, main) -> None:
         for r in [r for r in main.rows if r.ratio >= 2]:
             ax.annotate(f"{r.ratio:g}", (100 * r.cov_abs, 1e6 * r.seconds_per_particle),
                         fontsize=6, xytext=(3, 3), textcoords="offset points")
-        ax.set_xlabel("CoV of |q| (%)")
-        ax.set_ylabel("Halo evaluation, µs per particle (1 thread)")
-        ax.set_title("labels: halo / DE ratio (common radius)", fontsize=9)
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+        dress(ax, "CoV of |q| (%)", "Halo evaluation, µs per particle (1 thread)",
+              "labels: halo / DE ratio (common radius)", grid=True)
 
 
 def _ratio_for(rec, level, kind="common"):
@@ -498,10 +484,6 @@ def _ratio_for(rec, level, kind="common"):
             f = np.log(level / a.cov_abs) / np.log(b.cov_abs / a.cov_abs)
             return float(np.exp(np.log(a.ratio) + f * np.log(b.ratio / a.ratio)))
     return float("nan")
-
-
-def _pct(v, digits=2):
-    return "—" if v is None or not np.isfinite(v) else f"{100 * v:.{digits}f} %"
 
 
 def _tables(recs, slopes) -> tuple:
@@ -535,10 +517,8 @@ def _tables(recs, slopes) -> tuple:
         [(f"{rec.n_particles:,}", z.criterion, f"{z.gap:.4f}", f"{z.z_bulk:.2f}",
           _pct(z.cov_number, 1), _pct(z.cov_volume, 1), _pct(z.halo4), _pct(z.halo11))
          for rec in recs for z in rec.z_rows])
-    r5 = {rec.n_particles: _ratio_for(rec, 0.05) for rec in recs}
-    r2 = {rec.n_particles: _ratio_for(rec, 0.02) for rec in recs}
-    r5o = {rec.n_particles: _ratio_for(rec, 0.05, "own") for rec in recs}
-    r2o = {rec.n_particles: _ratio_for(rec, 0.02, "own") for rec in recs}
+    r5, r2, r5o, r2o = ({rec.n_particles: _ratio_for(rec, level, kind) for rec in recs}
+                        for kind in KINDS for level in (0.05, 0.02))
     ratio_lines = md_table(
         ["N", "common: ratio at 5 %", "common: ratio at 2 %", "own: ratio at 5 %",
          "own: ratio at 2 %", "slope (common)", "steady solve (s)", "Halo, all ratios (s)",
@@ -601,10 +581,9 @@ def _summary(recs, main, slopes, quick=False) -> CaseResult:
         wall_time=(f"{_pack(main.name)} + {main.steady_seconds:.0f} s steady + "
                    f"{sum(r.seconds for k in KINDS for r in _rows(main, k)):.0f} s Halo "
                    f"({len(RATIOS)} ratios × 2 radii)"),
-        verdict=(("target met" if met else "target missed" if met is False else "quick run")
-                 + f": CoV {_pct(c4)} at ratio 4 (≤ 5 %), {_pct(c11)} at 11 (≤ 2 %) with the "
-                 f"common halo radius; N-independent as in the paper; raw {_pct(raw_n, 0)} "
-                 f"per particle / {_pct(raw_v, 0)} volume-weighted (paper 27 %)"),
+        verdict=(outcome(met) + f": CoV {_pct(c4)} at ratio 4 (≤ 5 %), {_pct(c11)} at 11 "
+                 f"(≤ 2 %) with the common halo radius; N-independent as in the paper; raw "
+                 f"{_pct(raw_n, 0)} per particle / {_pct(raw_v, 0)} volume-weighted (paper 27 %)"),
         section_md=section,
         numbers=to_dict(HaloResult(
             n_particles=n_main, cov_raw=raw_n, cov_raw_volume_weighted=raw_v, cov_ratio4=c4,
@@ -772,8 +751,3 @@ consistent, but it is no longer centred on p) — case 9 measures what that does
 def _by_n(values: dict) -> dict[str, float]:
     """{N as text: value} (a record's dict keys are text, as JSON keeps them)."""
     return {str(n): v for n, v in values.items()}
-
-
-def _pack(name):
-    s = pack_seconds(name)
-    return "—" if s is None else f"{s:.0f} s"

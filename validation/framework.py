@@ -35,6 +35,7 @@ ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "validation" / "out"            # large outputs (gitignored)
 RESULTS = ROOT / "validation" / "results"    # small JSON per case (committed)
 IMG = ROOT / "docs" / "img"
+DATA = ROOT / "tests" / "data"               # the committed small packings of quick instances
 # a field a saved result may lack (written before it existed): read as absent, not refused
 _MAY_LACK = {"optional": True}
 
@@ -242,6 +243,18 @@ def pack_seconds(name: str) -> float | None:
     return json.loads(p.read_text())["wall_seconds"] if p.exists() else None
 
 
+def pack_text(name: str) -> str:
+    """:func:`pack_seconds` as a table cell: "12 s", "—" when not built here."""
+    s = pack_seconds(name)
+    return "—" if s is None else f"{s:.0f} s"
+
+
+def packs_text(runs) -> str:
+    """The packings' seconds of ``runs`` (each with ``name`` and ``pack_s``), "box_1e5 95 s,
+    ...", those not built here left out."""
+    return ", ".join(f"{r.name} {r.pack_s:.0f} s" for r in runs if r.pack_s)
+
+
 def save_result(info: CaseInfo, result: CaseResult, seconds: float) -> Path:
     RESULTS.mkdir(parents=True, exist_ok=True)
     path = RESULTS / f"case{info.number}.json"
@@ -435,6 +448,29 @@ def new_figure(*args, **kwargs):
     return plt.subplots(*args, **kwargs)
 
 
+# a one-axes figure whose CSV has floats to 8 digits and "\n" line ends (cases 2 and 3, as
+# committed)
+FIGURE_8 = dict(figsize=(6.4, 4.2), digits=8, line_end="\n")
+
+
+def dress(ax, xlabel: str | None = None, ylabel: str | None = None, title: str | None = None,
+          legend: float | None = 7, grid: bool = False, title_size: float | None = 9,
+          **legend_kw) -> None:
+    """A case's axes labelled: ``xlabel``, ``ylabel``, ``title`` (at ``title_size``; None:
+    matplotlib's), the log grid of the speed figures (``grid``), and the legend (of what is
+    drawn so far: call it last) at ``legend`` points (None: no legend) with ``legend_kw``."""
+    if xlabel is not None:
+        ax.set_xlabel(xlabel)
+    if ylabel is not None:
+        ax.set_ylabel(ylabel)
+    if title is not None:
+        ax.set_title(title, **({} if title_size is None else dict(fontsize=title_size)))
+    if grid:
+        ax.grid(True, which="both", alpha=0.3)
+    if legend is not None:
+        ax.legend(fontsize=legend, **legend_kw)
+
+
 @contextlib.contextmanager
 def figure_csv(path: Path, header, *grid, figsize, dpi: int = 110, digits: int | None = 10,
                line_end: str = "\r\n"):
@@ -465,6 +501,25 @@ def figure_csv(path: Path, header, *grid, figsize, dpi: int = 110, digits: int |
 
 
 # ---------------------------------------------------------------- section text
+def pct(v, digits: int = 2) -> str:
+    """A fraction as a percentage, "12.34 %" ("—" when None or not finite)."""
+    import math
+    return "—" if v is None or not math.isfinite(v) else f"{100 * v:.{digits}f} %"
+
+
+def outcome(met: bool | None) -> str:
+    """The verdict's first words: "target met", "target missed", "quick run" (None)."""
+    return "target met" if met else "target missed" if met is False else "quick run"
+
+
+def read_records(cls, items, where: str) -> list:
+    """``items`` (saved dicts, or ``cls`` records already) as ``cls`` records, each named
+    ``where[k]`` in a RecordError (one line)."""
+    from tdem_post.records import from_dict
+    return [r if isinstance(r, cls) else from_dict(cls, r, f"{where}[{k}]")
+            for k, r in enumerate(items)]
+
+
 def md_table(header, rows) -> str:
     """A table of a case's section, the one home of its markdown: ``header`` (its cells; an
     empty one is ``| |``) over the rule ``|---|...|``, then ``rows`` (each a sequence of cells,
