@@ -43,11 +43,12 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from tdem_post.continuum import interpolate, richardson
-from tdem_post.records import from_dict, to_dict
+from tdem_post.records import to_dict
 from tdem_post.flux import contact_moments, halo_flux
 from validation import framework
 from validation import inclusions as I
-from validation.framework import CaseInfo, CaseResult, Context, figure_csv, md_table
+from validation.framework import CaseInfo, CaseResult, Context, DATA, dress, figure_csv, \
+    md_table, outcome
 
 CASE = CaseInfo(number=9, title="Single inclusion, c = 5: T and Halo flux at A, B, C",
                 paper="002 sec. 4.2, Table 2", paper_n="150,000 / 500,000",
@@ -66,7 +67,6 @@ HALOS = (0.0, 4.0, 11.0)
 KINDS = ("common", "own")
 MAIN = ("common", 11.0)          # 002's reading: ratio 11, the halo of a pre-defined number of DE
 PAPER_L = 0.1
-DATA = framework.ROOT / "tests" / "data"
 # the paper's N and one either side, tiled from the shared 10,000-sphere cell
 SIZES = {100_000: "box_1e5", 150_000: "box_150k", 500_000: "box_5e5", 1_000_000: "box_1e6"}
 framework.register_packing("box_150k", "runs/dense_box_1e5.toml", dict(n_particles=150_000))
@@ -98,34 +98,22 @@ def cell_flux(grid, k, T):
     Dirichlet faces included)."""
     h = grid.spacing
     q = np.zeros((3,) + grid.shape)
+
+    def along(a, index):          # ``index`` along axis a, everything across it
+        return tuple(index if b == a else slice(None) for b in range(3))
     for a in range(3):
-        sl_lo = [slice(None)] * 3
-        sl_hi = [slice(None)] * 3
-        sl_lo[a] = slice(0, -1)
-        sl_hi[a] = slice(1, None)
-        ka, kb = k[tuple(sl_lo)], k[tuple(sl_hi)]
+        lo, hi = along(a, slice(0, -1)), along(a, slice(1, None))
+        ka, kb = k[lo], k[hi]
         g = 2 * ka * kb / (h[a] * (ka + kb))               # per unit area
-        face = g * (T[tuple(sl_lo)] - T[tuple(sl_hi)])     # flux in +a through interior faces
         shape = list(grid.shape)
         shape[a] += 1
         faces = np.zeros(shape)
-        inner = [slice(None)] * 3
-        inner[a] = slice(1, -1)
-        faces[tuple(inner)] = face
+        faces[along(a, slice(1, -1))] = g * (T[lo] - T[hi])   # flux in +a, interior faces
         if a == 1:                                         # Dirichlet faces: y = 0 at 0, y = 1 at 1
-            first = [slice(None)] * 3
-            last = [slice(None)] * 3
-            first[a], last[a] = 0, -1
-            c0 = [slice(None)] * 3
-            c1 = [slice(None)] * 3
-            c0[a], c1[a] = 0, -1
-            faces[tuple(first)] = k[tuple(c0)] / (0.5 * h[a]) * (0.0 - T[tuple(c0)])
-            faces[tuple(last)] = k[tuple(c1)] / (0.5 * h[a]) * (T[tuple(c1)] - 1.0)
-        lo = [slice(None)] * 3
-        hi = [slice(None)] * 3
-        lo[a] = slice(0, -1)
-        hi[a] = slice(1, None)
-        q[a] = 0.5 * (faces[tuple(lo)] + faces[tuple(hi)])
+            first, last = along(a, 0), along(a, -1)        # the first / last faces and cells
+            faces[first] = k[first] / (0.5 * h[a]) * (0.0 - T[first])
+            faces[last] = k[last] / (0.5 * h[a]) * (T[last] - 1.0)
+        q[a] = 0.5 * (faces[lo] + faces[hi])
     return q
 
 
@@ -137,8 +125,7 @@ def continuum_points(grids):
     for mixing in ("arithmetic", "harmonic"):
         t_vals, q_vals = [], []
         for n in grids:
-            grid, T, _, k = I.continuum_field(I.centred_inclusion_unit()[0],
-                                              I.centred_inclusion_unit()[1], CONTRAST, n,
+            grid, T, _, k = I.continuum_field(*I.centred_inclusion_unit(), CONTRAST, n,
                                               mixing=mixing, axis=1)
             q = cell_flux(grid, k, T)
             t_vals.append(interpolate(grid, T, pts))
@@ -374,8 +361,7 @@ class PointsRun:
 
 def read_runs(runs: list) -> list[PointsRun]:
     """The cubes, measured and judged (dicts), as records (RecordError in one line)."""
-    return [r if isinstance(r, PointsRun) else from_dict(PointsRun, r, f"case 9: runs[{k}]")
-            for k, r in enumerate(runs)]
+    return framework.read_records(PointsRun, runs, "case 9: runs")
 
 
 def _near(rs, n):
@@ -446,7 +432,7 @@ def run(ctx: Context) -> CaseResult:
                                       "judged")} for r in every])
     section, at_paper, speed, met = _section(runs, ref_T, ref_q, ref, dT, q0, grids, fv_s, every,
                                              quick=ctx.quick)
-    pack = ", ".join(f"{r.name} {r.pack_s:.0f} s" for r in runs if r.pack_s)
+    pack = framework.packs_text(runs)
     main_run = _near(runs, 150_000) or big
     e = main_run.err_q_fe[_key(*MAIN)]
     return CaseResult(
@@ -459,8 +445,7 @@ def run(ctx: Context) -> CaseResult:
         wall_time=f"packing {pack or 'shared'} + FV {fv_s:.0f} s + thermal "
                   f"{sum(sum(r.solve_s.values()) + r.halo_s for r in runs):.0f} s "
                   f"({len(axes)} gradient axes, composite and C_t solve each)",
-        verdict=("target met" if met else "target missed" if met is False else "quick run")
-        + f" at N {main_run.n:,}: |q| at A, B, C vs 002's FE "
+        verdict=outcome(met) + f" at N {main_run.n:,}: |q| at A, B, C vs 002's FE "
         + ", ".join(f"{lab} {100 * v:+.1f} %" for lab, v in zip("ABC", e))
         + " (paper +0.4 / +2.2 / −3.8 %); T within 1 %"
         + ("" if max(main_run.err_T) <= 0.01 else " NOT met"),
@@ -490,8 +475,7 @@ def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
                 csv.append(("tdem", r.n, key, *r.T, *r.q[key]))
         ax.set_xticks(x, names)
         ax.set_ylim(24, 36)
-        ax.set_ylabel("T, °C")
-        ax.legend(fontsize=7)
+        dress(ax, ylabel="T, °C")
         # flux: error against 002's FE, ours (common radius, ratio 11; own radius hollow) and the
         # paper's at its two N
         for j, (lab, n) in enumerate((("002 DE 150,000", 150_000), ("002 DE 500,000", 500_000))):
@@ -508,9 +492,8 @@ def _plot(ctx, runs, ref_T, ref_q, ref, dT, q0):
                     color=f"C{k}", label=f"tdem {r.n:,}, Halo 11 R_p (own)")
         bx.axhline(0, color="k", lw=0.8)
         bx.set_xticks(x, names)
-        bx.set_ylabel("|q| against 002's FE (%)")
         bx.set_ylim(-35, 35)
-        bx.legend(fontsize=6, ncol=2)
+        dress(bx, ylabel="|q| against 002's FE (%)", legend=6, ncol=2)
         ax.figure.suptitle("single inclusion, c = 5: A (0.5, 0.5, 0.5) L, B (0.08, 0.5, 0.5) L, "
                      "C (0.5, 0.92, 0.5) L", fontsize=9)
 
@@ -631,7 +614,6 @@ def _at_paper(main_run, five, key) -> str:
 
     def errs(r, k=key):
         return " / ".join(f"{100 * v:+.1f} %" for v in r.err_q_fe[k])
-
     at_paper = (f"N {main_run.n:,} (bulk Z {TARGET_Z:g}): |q| (Halo 11 × r̄, the particle "
                 f"nearest the point) vs "
                 f"002's FE {errs(main_run)} at A / B / C (paper +0.4 / +2.2 / −3.8 %), "
