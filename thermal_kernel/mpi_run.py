@@ -103,79 +103,26 @@ def main(argv=None) -> int:
 
 
 def _run(args, rank, held):
-    """The run; ``held`` (an ExitStack) keeps rank 0's lock on the output until it returns."""
+    """The run, step by step (each step below says why it is where it is); ``held`` (an
+    ExitStack) keeps rank 0's lock on the output until it returns."""
     from petsc4py import PETSc
 
-    from .atomic import output_lock
-    from .checkpoint import packing_sha256, write_checkpoint
-    from .network import assemble
-    from .output import scene_to_json
-    from .packing import read_packing
-    from .problem import build_problem
     from .rank_build import build_on_ranks
-    from .run import (_check_step_count, _print_summary, _progress_bar, check_resume,
-                      run_in_chunks, transient_label, write_run_output)
-    from .scene import SceneError, load_scene
-    from .solvers import UnstableTimeStepError
     from .solvers import petsc_backend as backend
 
     t_start = time.perf_counter()
     comm = PETSc.COMM_WORLD.tompi4py()
-    data = None
-    if args.scene_data:                     # a campaign's case (tdem/campaign.py)
-        data = json.loads(Path(args.scene_data).read_text(encoding="utf-8"))
-    text = (Path(args.scene_text) if args.scene_text else
-            Path(args.scene) if data else None)
-    scene = load_scene(args.scene, out_dir=Path(args.out) if args.out else None,  # every rank
-                       text=None if text is None else text.read_text(encoding="utf-8"),
-                       data=data)
-    solver = scene.solver
-    built = {}
-
-    def lock():
-        """Rank 0: the output's lock (a second run onto it is refused at once, as
-        in-process); the packing's path."""
-        held.enter_context(output_lock(scene.output))
-        packing_path = Path(args.packing) if args.packing else scene.packing
-        if packing_path is None:
-            raise SceneError(f"{scene.path}: pack: a [pack] scene needs its packing built "
-                             "first (tdem pack SCENE, or tdem run, which builds it)")
-        return str(packing_path)
-
-    packing_path = Path(backend.on_root(comm, lock))
+    scene = _load_scene(args)                                           # every rank
+    packing_path = Path(backend.on_root(comm, lambda: _lock_output(args, scene, held)))
     per_rank = not args.whole_build
+    built = {}              # rank 0: what the output needs (packing, info, net, T0, ...)
     t0 = time.perf_counter()
     if per_rank:            # each rank reads and builds its own rows (rank_build.py)
         rb = build_on_ranks(scene, packing_path, comm, conductance_factor=args.conductance_factor)
         if rank == 0:
             built.update(packing=rb.particles, info=rb.info, net=rb.net)
-
-    def build():
-        """Rank 0 only: the packing, the problem (laws, boundary kinds) and the network when
-        the ranks did not build them (``--whole-build``), the checks before the run and the
-        checkpoint to resume from. Every rank gets the time resumed from."""
-        scene_json = scene_to_json(scene)
-        if not per_rank:
-            packing = read_packing(packing_path)
-            problem, info = build_problem(scene, packing)
-            if args.conductance_factor:
-                problem = dataclasses.replace(problem, conductance_w_k=problem.conductance_w_k
-                                              * np.load(args.conductance_factor))
-            built.update(packing=packing, info=info, net=assemble(problem))
-        packing, net = built["packing"], built["net"]
-        if solver.method == "explicit":
-            _check_step_count(scene, solver.safety * net.dt_max_s if np.isnan(solver.dt)
-                              else solver.dt, "solver.end_time" if np.isnan(solver.dt)
-                              else "solver.dt")
-        packing_hash = packing_sha256(packing)
-        resumed = check_resume(scene, args.checkpoint_every, args.resume, packing.n_particles,
-                               packing_hash, packing_path)
-        built.update(scene_json=scene_json, packing_hash=packing_hash, assemble_t0=t0,
-                     resumed=resumed, T0=np.full(packing.n_particles, scene.initial_temperature)
-                     if args.initial_temperature is None else np.load(args.initial_temperature))
-        return None if resumed is None else resumed[0].time_s
-
-    resumed_at = backend.on_root(comm, build)
+    resumed_at = backend.on_root(
+        comm, lambda: _prepare_on_root(args, scene, packing_path, per_rank, built, t0))
     net = built.get("net")
     if per_rank:
         dist = backend.DistributedNetwork(None, built=rb)
@@ -186,67 +133,163 @@ def _run(args, rank, held):
         assemble_seconds = time.perf_counter() - built["assemble_t0"]
     T0 = built.get("T0")
     if rank == 0 and not args.quiet:
-        print(f"tdem run: {scene.path}: law {scene.law}, method {solver.method}, "
-              f"{net.n} particles, {net.n_active_contacts} conducting contacts "
-              f"({net.n_zero_contacts} with H = 0); PETSc on {dist.size} rank(s), "
-              f"{dist.cut} contacts cut by the Morton blocks", flush=True)
-        print(f"  network: {net.clusters.summary()}", flush=True)
-        if built["info"]["neighbours"] is not None:
-            print(f"  {built['info']['neighbours'].line()}", flush=True)
-    ckpt = None
-    if solver.method == "steady":
-        result = backend.solve_steady(dist, T0, pc=args.pc)
-    else:
-        # rank 0 shows the in-process run's progress bar
-        bar, progress = _progress_bar(0, solver.end_time, args.quiet or rank != 0,
-                                      transient_label(solver))
-
-        def transient(start, times):
-            if solver.method == "explicit":
-                try:
-                    return backend.run_explicit(
-                        dist, start, times, dt=None if np.isnan(solver.dt) else solver.dt,
-                        safety=solver.safety, allow_unstable=solver.allow_unstable,
-                        progress=progress)
-                except UnstableTimeStepError as e:
-                    raise SceneError(f"{scene.path}: solver.dt: {e}") from None
-            return backend.run_implicit(
-                dist, start, times, dt=solver.dt, theta=solver.theta, scheme=solver.scheme,
-                startup_steps=solver.startup_steps, pc=args.pc, progress=progress)
-
-        try:
-            result, ckpt = run_in_chunks(
-                transient, T0, scene, args.checkpoint_every, built.get("resumed"),
-                net.n if rank == 0 else 0, built.get("packing_hash", ""),
-                n_contacts=dist.n_active_contacts, on_root=lambda fn: backend.on_root(comm, fn),
-                resumed_at=resumed_at)
-        finally:
-            if bar is not None:
-                bar.close()
+        _print_network(scene, net, dist, built["info"])
+    result, ckpt = _solve(args, scene, dist, T0, built, comm, resumed_at)
     if rank != 0:
         return
-    packing, info, scene_json = built["packing"], built["info"], built["scene_json"]
-    packing_hash = built["packing_hash"]
-    run_args = json.loads(args.run_args)
-    run_args_json = json.dumps(dict(run_args, threads=None,
+    _finish_on_root(args, scene, result, ckpt, dist, built, T0, assemble_seconds, t_start)
+
+
+def _load_scene(args):
+    """The scene, read on every rank (each needs its solver, law and boundaries): from its file,
+    or from the texts and tables ``tdem campaign`` and ``run_in_memory`` write for the ranks."""
+    from .scene import load_scene
+
+    data = None
+    if args.scene_data:                     # a campaign's case (tdem/campaign.py)
+        data = json.loads(Path(args.scene_data).read_text(encoding="utf-8"))
+    text = (Path(args.scene_text) if args.scene_text else
+            Path(args.scene) if data else None)
+    return load_scene(args.scene, out_dir=Path(args.out) if args.out else None,
+                      text=None if text is None else text.read_text(encoding="utf-8"),
+                      data=data)
+
+
+def _lock_output(args, scene, held):
+    """Rank 0: the output's lock, held in ``held`` until the run ends (a second run onto it is
+    refused at once, as in-process); the packing's path (a [pack] scene's packing not built yet
+    is refused: the ranks never build one)."""
+    from .atomic import output_lock
+    from .scene import SceneError
+
+    held.enter_context(output_lock(scene.output))
+    packing_path = Path(args.packing) if args.packing else scene.packing
+    if packing_path is None:
+        raise SceneError(f"{scene.path}: pack: a [pack] scene needs its packing built "
+                         "first (tdem pack SCENE, or tdem run, which builds it)")
+    return str(packing_path)
+
+
+def _prepare_on_root(args, scene, packing_path, per_rank, built, t0):
+    """Rank 0 only: the packing, the problem (laws, boundary kinds) and the network when the
+    ranks did not build them (``--whole-build``), the checks before the run (the explicit step
+    count) and the checkpoint to resume from, all into ``built`` (``t0``: when the build began,
+    s). Returns the time resumed from (s; None for a fresh run), which every rank gets."""
+    from .checkpoint import packing_sha256
+    from .network import assemble
+    from .output import scene_to_json
+    from .packing import read_packing
+    from .problem import build_problem
+    from .run import _check_step_count, check_resume
+
+    solver = scene.solver
+    scene_json = scene_to_json(scene)
+    if not per_rank:
+        packing = read_packing(packing_path)
+        problem, info = build_problem(scene, packing)
+        if args.conductance_factor:
+            problem = dataclasses.replace(problem, conductance_w_k=problem.conductance_w_k
+                                          * np.load(args.conductance_factor))
+        built.update(packing=packing, info=info, net=assemble(problem))
+    packing, net = built["packing"], built["net"]
+    if solver.method == "explicit":
+        _check_step_count(scene, solver.safety * net.dt_max_s if np.isnan(solver.dt)
+                          else solver.dt, "solver.end_time" if np.isnan(solver.dt)
+                          else "solver.dt")
+    packing_hash = packing_sha256(packing)
+    resumed = check_resume(scene, args.checkpoint_every, args.resume, packing.n_particles,
+                           packing_hash, packing_path)
+    built.update(scene_json=scene_json, packing_hash=packing_hash, assemble_t0=t0,
+                 resumed=resumed, T0=np.full(packing.n_particles, scene.initial_temperature)
+                 if args.initial_temperature is None else np.load(args.initial_temperature))
+    return None if resumed is None else resumed[0].time_s
+
+
+def _print_network(scene, net, dist, info):
+    """Rank 0, unless --quiet: the in-process run's opening lines, plus the ranks and the
+    contacts their Morton blocks cut (what the communication costs)."""
+    print(f"tdem run: {scene.path}: law {scene.law}, method {scene.solver.method}, "
+          f"{net.n} particles, {net.n_active_contacts} conducting contacts "
+          f"({net.n_zero_contacts} with H = 0); PETSc on {dist.size} rank(s), "
+          f"{dist.cut} contacts cut by the Morton blocks", flush=True)
+    print(f"  network: {net.clusters.summary()}", flush=True)
+    if info["neighbours"] is not None:
+        print(f"  {info['neighbours'].line()}", flush=True)
+
+
+def _solve(args, scene, dist, T0, built, comm, resumed_at):
+    """The distributed solve on every rank: steady in one call; a transient run through the
+    in-process chunk loop (rank 0 shows its progress bar, writes and resumes its checkpoints;
+    ``resumed_at``: the time resumed from, s). Returns the result (complete on rank 0) and the
+    checkpoint's path (None for steady)."""
+    from .run import _progress_bar, run_in_chunks, transient_label
+    from .solvers import petsc_backend as backend
+
+    rank, solver = comm.Get_rank(), scene.solver
+    if solver.method == "steady":
+        return backend.solve_steady(dist, T0, pc=args.pc), None
+    # rank 0 shows the in-process run's progress bar
+    bar, progress = _progress_bar(0, solver.end_time, args.quiet or rank != 0,
+                                  transient_label(solver))
+    try:
+        return run_in_chunks(
+            _transient_step(args, scene, dist, progress), T0, scene, args.checkpoint_every,
+            built.get("resumed"), built["net"].n if rank == 0 else 0,
+            built.get("packing_hash", ""), n_contacts=dist.n_active_contacts,
+            on_root=lambda fn: backend.on_root(comm, fn), resumed_at=resumed_at)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _transient_step(args, scene, dist, progress):
+    """The chunk loop's solver: ``(start temperatures K, output times s) -> result`` by the
+    scene's method on the ranks; an unstable explicit dt is the scene's error, as in-process."""
+    from .scene import SceneError
+    from .solvers import UnstableTimeStepError
+    from .solvers import petsc_backend as backend
+
+    solver = scene.solver
+
+    def transient(start, times):
+        if solver.method == "explicit":
+            try:
+                return backend.run_explicit(
+                    dist, start, times, dt=None if np.isnan(solver.dt) else solver.dt,
+                    safety=solver.safety, allow_unstable=solver.allow_unstable,
+                    progress=progress)
+            except UnstableTimeStepError as e:
+                raise SceneError(f"{scene.path}: solver.dt: {e}") from None
+        return backend.run_implicit(
+            dist, start, times, dt=solver.dt, theta=solver.theta, scheme=solver.scheme,
+            startup_steps=solver.startup_steps, pc=args.pc, progress=progress)
+
+    return transient
+
+
+def _finish_on_root(args, scene, result, ckpt, dist, built, T0, assemble_seconds, t_start):
+    """Rank 0: thermal.h5 with the in-process run's attributes and checks plus the backend's
+    own (``assemble_seconds``: the build, s; ``t_start``: perf_counter at the start), the spent
+    checkpoint removed, the final state for ``run_in_memory`` (``--state-out``), the summary
+    and the checks' warning."""
+    from .run import _print_summary, write_run_output
+
+    net, packing_hash = built["net"], built["packing_hash"]
+    run_args_json = json.dumps(dict(json.loads(args.run_args), threads=None,
                                     checkpoint_every=args.checkpoint_every, resume=args.resume,
                                     packing=str(args.packing) if args.packing else None),
                                sort_keys=True, default=str)
     # the in-process run's attributes and checks (thermal_kernel/run.py), and the backend's own
     out, result, check = write_run_output(
-        scene, result, net, T0, packing, info, scene_json, packing_hash, assemble_seconds,
-        run_args_json, extra_attrs={
+        scene, result, net, T0, built["packing"], built["info"], built["scene_json"],
+        packing_hash, assemble_seconds, run_args_json, extra_attrs={
             "backend": "petsc", "ranks": int(dist.size), "cut_contacts": int(dist.cut),
             "linear_solver": str(result.info.get("linear_solver", "none")),
             "run_seconds": float(time.perf_counter() - t_start)})
     if ckpt is not None and ckpt.exists():
         ckpt.unlink()            # the output is complete: the checkpoint has served
     if args.state_out and result.state is not None:     # run_in_memory's result.state
-        write_checkpoint(Path(args.state_out), result.state, {
-            k: getattr(result, k) for k in ("times", "temperature_k", "boundary_heat_flow_w",
-                                            "boundary_energy_j", "source_energy_j",
-                                            "stored_energy_j")},
-            {"steps": result.steps}, scene.text, net.n, packing_hash)
+        _write_state(Path(args.state_out), result, scene, net.n, packing_hash)
     if not args.quiet:
         its = result.info.get("cg_iterations", [])
         if its:
@@ -256,6 +299,18 @@ def _run(args, rank, held):
     if check.messages:
         print(f"tdem: warning: {out}: " + "; ".join(check.messages), file=sys.stderr,
               flush=True)
+
+
+def _write_state(path, result, scene, n, packing_hash):
+    """A transient run's final state in the checkpoint's format (``run_in_memory`` reads it
+    back to continue the run; ``n`` particles)."""
+    from .checkpoint import write_checkpoint
+
+    write_checkpoint(path, result.state, {
+        k: getattr(result, k) for k in ("times", "temperature_k", "boundary_heat_flow_w",
+                                        "boundary_energy_j", "source_energy_j",
+                                        "stored_energy_j")},
+        {"steps": result.steps}, scene.text, n, packing_hash)
 
 
 if __name__ == "__main__":

@@ -192,10 +192,77 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     """The build above; collective. Errors (a bad packing, a law's value out of range, a bad
     boundary) are raised on every rank (:func:`agree`). ``conductance_factor``: a .npy file of
     one factor per dumped contact row multiplying the law's conductances (each rank reads its
-    contacts' rows; written by ``thermal_kernel.run.run_in_memory``)."""
+    contacts' rows; written by ``thermal_kernel.run.run_in_memory``). Each step is a function
+    below; what a step leaves behind is dropped here as soon as the next has used it (the
+    memory per rank: docs/scaling.md)."""
     rank, size = comm.Get_rank(), comm.Get_size()
 
     # 1. rank 0: the particles whole, the Morton order; each rank its blocks
+    particles, head = _read_particles(comm, packing_path)
+    n, m, path = head["n"], head["m"], head["path"]
+    starts = block_starts(n, size)          # the ranks' blocks of the Morton order
+    fblock = block_starts(n, size)          # the directories' blocks of the file's particles
+    lo, hi = int(starts[rank]), int(starts[rank + 1])
+    order, mine, own_new = _morton_blocks(comm, particles, n, starts, fblock)
+    n_bulk, own_bulk = _bulk_flags(comm, scene.neighbours, particles, fblock)
+    fb = agree(comm, lambda: read_particle_rows(path, fblock[rank], fblock[rank + 1]))
+
+    # 2. this rank's slice of the contact rows, checked, chosen, sent to their particles' owners
+    got, nb_block, choice = _contacts_to_owners(scene, comm, head, starts, fblock, fb, own_new,
+                                                n_bulk, own_bulk)
+    del own_bulk
+
+    # 3. rank 0: the law's capacities and inputs on the whole particles (its boundary kinds',
+    # its output's), then the law on each rank's contacts and this rank's rows of A
+    whole = _capacities_on_root(scene, comm, particles, nb_block, fblock)
+    directory = dict(radius=fb["radius"], phase=fb["phase"], nb=nb_block, new=own_new)
+    del fb, nb_block, own_new
+    ids, new_l, active = _conducting_contacts(scene, comm, head, got, directory, fblock,
+                                              conductance_factor)
+    del got, directory
+    adjacency, columns, degree, totals = _rank_rows(comm, active, ids, new_l, lo, hi, n)
+    del active, ids, new_l
+
+    # 4. clusters: components of this rank's own contacts, joined on rank 0 by the cut ones
+    gid, cut_edges, n_comp = _local_components(comm, adjacency, columns, lo, hi)
+    gid_all = _gather_whole(comm, gid, order, starts, np.int64)
+    degree_all = _gather_whole(comm, degree, order, starts, np.float64)
+    cut_all = comm.gather(cut_edges, root=0)
+    total_comp = comm.allreduce(int(n_comp))
+    del gid, cut_edges
+
+    # 5. rank 0: the boundary kinds, the clusters; each rank its per-particle rows
+    built = {}
+    nb_count, has_source = comm.bcast(agree(comm, (lambda: _root_problem(
+        scene, particles, whole, choice, cut_all, gid_all, total_comp, built))
+        if rank == 0 else (lambda: None)), root=0)
+    cut_all = gid_all = None
+    from .solvers.petsc_backend import share_block, share_particles
+    own = _send_particle_shares(comm, built, order, starts, mine, n, share_particles)
+    own.update(share_block(adjacency, degree, own["g"], lo, n, columns))
+    del columns
+    pieces = _held_rows(comm, built, order, starts, mine, adjacency)
+    del adjacency
+    meta = dict(n=n, starts=starts, nb=nb_count, has_source=has_source, cut=totals["cut"],
+                active_contacts=totals["n_active"])
+    if rank != 0:
+        return RankBuild(share=own, meta=meta, order=None)
+    net = _root_network(built, pieces, n, m, degree_all, totals)
+    return RankBuild(share=own, meta=meta, order=order, particles=particles, net=net,
+                     info=built["info"])
+
+
+def _index_dtype(n):
+    """scipy's index type for ``n`` columns (int32 while it holds them: half the bytes)."""
+    return np.int32 if n < 2 ** 31 - 1 else np.int64
+
+
+def _read_particles(comm, packing_path):
+    """Step 1: rank 0 reads the packing without its contacts (checked as always: the boundary
+    kinds, the Morton order and the output need the particles whole); every rank gets its
+    head (counts, path, attributes, domain and the contact checks' scales). Returns the
+    particles (None but on rank 0) and the head."""
+    rank = comm.Get_rank()
     particles = agree(comm, lambda: read_packing(packing_path, contacts=False)
                       if rank == 0 else None)
     head = None
@@ -204,31 +271,47 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
         head = dict(n=p.n_particles, m=int(p.file_contacts), path=p.path, attrs=p.attrs,
                     lo=p.domain_lo, hi=p.domain_hi, periodic=p.periodic,
                     scales=contact_check_scales(p.position, p.domain_lo, p.domain_hi))
-    head = comm.bcast(head, root=0)
-    n, m, path = head["n"], head["m"], head["path"]
-    starts = block_starts(n, size)          # the ranks' blocks of the Morton order
-    fblock = block_starts(n, size)          # the directories' blocks of the file's particles
-    lo, hi = int(starts[rank]), int(starts[rank + 1])
+    return particles, comm.bcast(head, root=0)
+
+
+def _morton_blocks(comm, particles, n, starts, fblock):
+    """Step 1: rank 0 orders the particles along the Morton curve (contacts stay within a
+    rank's block). Returns the order (rank 0 only; packing indices), this rank's block of it
+    (``starts``) and, for this rank's block of the file's particles (``fblock``), their places
+    in the order (a directory answers with them)."""
     order = new_index = None
-    if rank == 0:
+    if comm.Get_rank() == 0:
         order = particle_order(particles.position, "morton")
         new_index = np.empty(n, dtype=np.int64)
         new_index[order] = np.arange(n, dtype=np.int64)
     mine = _scatter_blocks(comm, order, starts)
     own_new = _scatter_blocks(comm, new_index, fblock)      # the file block's places
-    del new_index
-    # a [neighbours] criterion: rank 0 finds the bulk particles (their distance to every wall
-    # and cut face, the mean radius: the particles whole); each directory gets its block's
-    crit = scene.neighbours
-    n_bulk, own_bulk = 0, None
-    if crit is not None:
-        bulk = (bulk_particles(particles, crit.bulk_margin_diameters) if rank == 0 else None)
-        n_bulk = comm.bcast(int(bulk.sum()) if rank == 0 else None, root=0)
-        own_bulk = _scatter_blocks(comm, bulk, fblock, np.uint8)
-        del bulk
-    fb = agree(comm, lambda: read_particle_rows(path, fblock[rank], fblock[rank + 1]))
+    return order, mine, own_new
 
-    # 2. this rank's slice of the contact rows, checked against their spheres
+
+def _bulk_flags(comm, crit, particles, fblock):
+    """Step 1, a [neighbours] criterion ``crit`` only: rank 0 finds the bulk particles (their
+    distance to every wall and cut face, the mean radius: the particles whole); returns their
+    number (every rank) and this directory's block of the flags (uint8), or 0, None."""
+    if crit is None:
+        return 0, None
+    rank = comm.Get_rank()
+    bulk = (bulk_particles(particles, crit.bulk_margin_diameters) if rank == 0 else None)
+    n_bulk = comm.bcast(int(bulk.sum()) if rank == 0 else None, root=0)
+    return n_bulk, _scatter_blocks(comm, bulk, fblock, np.uint8)
+
+
+def _contacts_to_owners(scene, comm, head, starts, fblock, fb, own_new, n_bulk, own_bulk):
+    """Step 2: this rank's slice of the file's contact rows, checked against their spheres
+    (fetched from the directories: ``fb`` this directory's particle rows, whose positions are
+    dropped once checked; ``own_new`` their places in the order; ``own_bulk`` their bulk
+    flags), the rows a [neighbours] criterion keeps, the neighbour counts summed at the
+    directories, and every contact sent to the owners of its particles. Returns the contacts
+    this rank holds (file order), this directory's neighbour counts and the [neighbours]
+    choice (or None); a refusal of the criterion is raised after the pairs' check (the whole
+    build's reader refuses a duplicate pair first)."""
+    rank, size = comm.Get_rank(), comm.Get_size()
+    path, n, m = head["path"], head["n"], head["m"]
     ms = block_starts(m, size)
     part = agree(comm, lambda: read_contact_rows(path, n, m, ms[rank], ms[rank + 1]))
     ends = np.unique(part["pair"])
@@ -237,37 +320,10 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
         comm, ends, fblock, [fb["position"], fb["radius"], fb["phase"], own_new]
         + ([] if own_bulk is None else [own_bulk]))      # the bulk flags: [neighbours] only
     bulk_e = bulk_e[0] if bulk_e else None
-    del own_bulk
-
-    def check():
-        for b0 in range(0, loc.shape[0], CONTACT_BLOCK_ROWS):
-            sl = slice(b0, b0 + CONTACT_BLOCK_ROWS)
-            li, lj = loc[sl, 0], loc[sl, 1]
-            check_contact_rows(path, part["pair"][sl], rad_e[li], rad_e[lj], pos_e[li],
-                               pos_e[lj], part["overlap"][sl], part["normal_force"][sl],
-                               part["branch"][sl], head["lo"], head["hi"], head["periodic"],
-                               head["scales"], row0=int(ms[rank]) + b0)
-
-    agree(comm, check)
+    agree(comm, lambda: _check_slice(head, part, loc, pos_e, rad_e, int(ms[rank])))
     pos_e = None
     del fb["position"]
-    # the [neighbours] criterion on this slice's rows, the choice made with collectives over
-    # every rank's rows (neighbours.choose_neighbours_on_ranks: the whole build's, bit for bit)
-    # (its refusal, the same on every rank, waits for the pairs' check below: the whole
-    # build's reader refuses a duplicate pair first)
-    keep = choice = refused = None
-    if crit is not None:
-        ratio = (np.linalg.norm(part["branch"], axis=1)
-                 / (rad_e[loc[:, 0]] + rad_e[loc[:, 1]]))
-        weight = bulk_e[loc[:, 0]].astype(np.int64) + bulk_e[loc[:, 1]].astype(np.int64)
-        try:
-            choice = choose_neighbours_on_ranks(scene, comm, path, dump_gap_tolerance_of(
-                head["attrs"]), n, m, n_bulk, ratio, weight)
-            keep = choice.keep
-        except SceneError as e:
-            refused, keep = e, np.zeros(ratio.size, dtype=bool)
-        part["keep"] = keep.astype(np.uint8)    # travels with its contact
-        del ratio, weight
+    keep, choice, refused = _choose_rows(scene, comm, head, n_bulk, part, loc, rad_e, bulk_e)
     # the neighbour counts (every dumped row, or the rows kept), summed at the directories,
     # fetched back
     nb_block = _sum_at_directories(comm, ends, np.bincount(
@@ -275,17 +331,56 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     del keep
     owner_e = np.searchsorted(starts, new_e, side="right") - 1
     oi, oj = owner_e[loc[:, 0]], owner_e[loc[:, 1]]
-    fields = part
-    part = loc = rad_e = None
+    loc = rad_e = None
     del ends, ph_e, new_e, owner_e, bulk_e
-    got = _exchange_contacts(comm, fields, oi, oj, size)
-    del fields, oi, oj
+    got = _exchange_contacts(comm, part, oi, oj, size)     # empties part, a field at a time
+    part = None
+    del oi, oj
     agree(comm, lambda: _check_pairs(path, got["pair"], n, row=got["contact_row"]))
     if refused is not None:
         raise refused
+    return got, nb_block, choice
 
-    # 3. rank 0: the law's capacities and inputs on the whole particles (its boundary kinds',
-    # its output's), then the law on each rank's contacts
+
+def _check_slice(head, part, loc, pos_e, rad_e, row0):
+    """The reader's checks of this rank's contact rows ``part`` against their spheres (``loc``
+    their places in ``pos_e`` and ``rad_e``), a block of rows at a time as the whole reader
+    does (the same messages; ``row0`` the slice's first row in the file)."""
+    for b0 in range(0, loc.shape[0], CONTACT_BLOCK_ROWS):
+        sl = slice(b0, b0 + CONTACT_BLOCK_ROWS)
+        li, lj = loc[sl, 0], loc[sl, 1]
+        check_contact_rows(head["path"], part["pair"][sl], rad_e[li], rad_e[lj], pos_e[li],
+                           pos_e[lj], part["overlap"][sl], part["normal_force"][sl],
+                           part["branch"][sl], head["lo"], head["hi"], head["periodic"],
+                           head["scales"], row0=row0 + b0)
+
+
+def _choose_rows(scene, comm, head, n_bulk, part, loc, rad_e, bulk_e):
+    """Step 2, a [neighbours] criterion: the choice made with collectives over every rank's
+    rows (neighbours.choose_neighbours_on_ranks: the whole build's, bit for bit), each row of
+    ``part`` marked kept or not (``part["keep"]``, which travels with its contact). Returns
+    the rows kept (bool), the choice and its refusal (the same on every rank; raised later),
+    or None, None, None without a criterion."""
+    if scene.neighbours is None:
+        return None, None, None
+    choice = refused = None
+    ratio = (np.linalg.norm(part["branch"], axis=1)
+             / (rad_e[loc[:, 0]] + rad_e[loc[:, 1]]))
+    weight = bulk_e[loc[:, 0]].astype(np.int64) + bulk_e[loc[:, 1]].astype(np.int64)
+    try:
+        choice = choose_neighbours_on_ranks(scene, comm, head["path"], dump_gap_tolerance_of(
+            head["attrs"]), head["n"], head["m"], n_bulk, ratio, weight)
+        keep = choice.keep
+    except SceneError as e:
+        refused, keep = e, np.zeros(ratio.size, dtype=bool)
+    part["keep"] = keep.astype(np.uint8)    # travels with its contact
+    return keep, choice, refused
+
+
+def _capacities_on_root(scene, comm, particles, nb_block, fblock):
+    """Step 3: rank 0 evaluates the law on the whole particles (its capacities and the inputs
+    its boundary kinds and output read), with the neighbour counts gathered from the
+    directories. Returns them (a dict on rank 0, empty on the others)."""
     whole = {}
     nb_whole = _gather_file_order(comm, nb_block, fblock)
 
@@ -293,19 +388,27 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
         law, params, pinput, _, capacity = evaluate_law(scene, particles, None, nb_whole)
         whole.update(law=law, params=params, pinput=pinput, capacity=capacity)
 
-    agree(comm, capacities if rank == 0 else (lambda: None))
-    # the spheres of this rank's contacts, from their directories
+    agree(comm, capacities if comm.Get_rank() == 0 else (lambda: None))
+    return whole
+
+
+def _conducting_contacts(scene, comm, head, got, directory, fblock, conductance_factor):
+    """Step 3: the law on this rank's contacts ``got`` (the one law registry, on a packing of
+    the contacts' spheres fetched from the directories; H = 0 on the rows not kept), times
+    the conductance factors if any. ``got`` and ``directory`` (this directory's radius,
+    phase, nb and new arrays) are emptied as they are used: their arrays freed before the
+    rows are built. Returns the particles the contacts touch (packing indices, sorted), their
+    places in the order, and the conducting contacts (i, j, H W/K, their places ni, nj)."""
     ids, inv = np.unique(got["pair"], return_inverse=True)
     table = dict(zip(("radius", "phase", "nb", "new"), _fetch(
-        comm, ids, fblock, [fb["radius"], fb["phase"], nb_block, own_new])))
-    del fb, nb_block, own_new
+        comm, ids, fblock, [directory.pop(k) for k in ("radius", "phase", "nb", "new")])))
     spheres = Packing(position=np.zeros((ids.size, 3)), radius=table["radius"],
                       phase=table["phase"], pair=inv.reshape(-1, 2),
                       overlap=got["overlap"], normal_force=got["normal_force"],
                       branch=got["branch"], contact_radius=got["contact_radius"],
-                      attrs=head["attrs"], path=path, contact_row=got["contact_row"],
-                      file_contacts=m)
-    kept = None if crit is None else got.pop("keep").astype(bool)
+                      attrs=head["attrs"], path=head["path"], contact_row=got["contact_row"],
+                      file_contacts=head["m"])
+    kept = None if scene.neighbours is None else got.pop("keep").astype(bool)
     _, _, _, conductance, _ = agree(
         comm, lambda: evaluate_law(scene, spheres, kept, table["nb"]))
     if conductance_factor is not None:      # the in-process product, row by row
@@ -315,36 +418,48 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     pair = got["pair"]
     new_l = table["new"]
     newp = new_l[spheres.pair]          # each contact's two places in the order
-    spheres = got = table = None
+    spheres = table = None
+    got.clear()
     del inv
     active = conductance > 0
     i, j, h = pair[active, 0], pair[active, 1], conductance[active]
     ni, nj = newp[active, 0], newp[active, 1]
-    del pair, newp, conductance, active
+    return ids, new_l, (i, j, h, ni, nj)
+
+
+def _rank_rows(comm, active, ids, new_l, lo, hi, n):
+    """Step 3: the adjacency's rows of this rank's particles (the order's ``lo:hi``; columns
+    the packing's indices), built as network.assemble builds the whole one: the same entries,
+    sorted, the same row sums (bit for bit). ``active``: the conducting contacts (i, j, H W/K,
+    ni, nj). Returns the rows (CSR), their columns' places in the order, the degrees (W/K)
+    and the totals over the ranks (each conducting contact counted once, by the owner of its
+    first particle): n_active, h_sum (W/K), coord_max, cut."""
+    i, j, h, ni, nj = active
     mi, mj = (ni >= lo) & (ni < hi), (nj >= lo) & (nj < hi)
-    # the adjacency's rows of this rank's particles (columns the packing's indices), built as
-    # network.assemble builds the whole one: the same entries, sorted, the same row sums
     rows = np.concatenate([ni[mi], nj[mj]]) - lo
     cols = np.concatenate([j[mi], i[mj]])
     vals = np.concatenate([h[mi], h[mj]])
-    idx = np.int32 if n < 2 ** 31 - 1 else np.int64
+    idx = _index_dtype(n)
     adjacency = sp.coo_matrix((vals, (rows.astype(idx), cols.astype(idx))),
                               shape=(hi - lo, n)).tocsr()
     del rows, cols, vals
     adjacency.sum_duplicates()
     adjacency.sort_indices()
     columns = new_l[np.searchsorted(ids, adjacency.indices)]     # their places in the order
-    del ids, new_l
     degree = np.bincount(np.repeat(np.arange(hi - lo), np.diff(adjacency.indptr)),
                          weights=adjacency.data, minlength=hi - lo).astype(np.float64)
-    # each conducting contact counted once, by the owner of its first particle
-    n_active = comm.allreduce(int(np.count_nonzero(mi)))
-    h_sum = comm.allreduce(float(h[mi].sum()))
-    coord_max = comm.allreduce(int(np.diff(adjacency.indptr).max(initial=0)), op=_max())
-    cut = comm.allreduce(int(np.count_nonzero(mi & ~mj)))
-    del i, j, h, ni, nj, mi, mj
+    totals = dict(n_active=comm.allreduce(int(np.count_nonzero(mi))),
+                  h_sum=comm.allreduce(float(h[mi].sum())),
+                  coord_max=comm.allreduce(int(np.diff(adjacency.indptr).max(initial=0)),
+                                           op=_max()),
+                  cut=comm.allreduce(int(np.count_nonzero(mi & ~mj))))
+    return adjacency, columns, degree, totals
 
-    # 4. clusters: components of this rank's own contacts, joined on rank 0 by the cut ones
+
+def _local_components(comm, adjacency, columns, lo, hi):
+    """Step 4: the connected components of this rank's own contacts (both ends in ``lo:hi``),
+    numbered after the lower ranks' (exscan). Returns each particle's component, the cut
+    contacts as (component, other particle's packing index) and the number of components."""
     inner = (columns >= lo) & (columns < hi)
     arow = np.repeat(np.arange(hi - lo), np.diff(adjacency.indptr))
     n_comp, lab = connected_components(
@@ -353,59 +468,61 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     offset = comm.exscan(int(n_comp)) or 0
     gid = lab.astype(np.int64) + offset
     cut_edges = np.stack([gid[arow[~inner]], adjacency.indices[~inner].astype(np.int64)], axis=1)
-    del inner, arow, lab
-    gid_all = _gather_whole(comm, gid, order, starts, np.int64)
-    degree_all = _gather_whole(comm, degree, order, starts, np.float64)
-    cut_all = comm.gather(cut_edges, root=0)
-    total_comp = comm.allreduce(int(n_comp))
-    del gid, cut_edges
+    return gid, cut_edges, n_comp
 
-    # 5. rank 0: the boundary kinds, the clusters; each rank its per-particle rows
-    built = {}
 
-    def root():
-        problem, info = boundary_problem(scene, particles, whole["law"], whole["params"],
-                                         whole["pinput"], whole["capacity"], np.zeros(0),
-                                         choice)
-        v = validate(problem)
-        terms = particle_terms(v)
-        edges = np.concatenate(cut_all)
-        graph = sp.coo_matrix((np.ones(edges.shape[0]), (edges[:, 0], gid_all[edges[:, 1]])),
-                              shape=(total_comp, total_comp))
-        _, joined = connected_components(graph, directed=False)
-        label_raw = joined[gid_all]
-        # number the components by their first particle, as connected_components does whole
-        k = int(label_raw.max()) + 1 if n else 0
-        first_p = np.full(k, n, dtype=np.int64)
-        np.minimum.at(first_p, label_raw, np.arange(n))
-        renumber = np.empty(k, dtype=np.int64)
-        renumber[np.argsort(first_p, kind="stable")] = np.arange(k)
-        clusters = cluster_report(k, renumber[label_raw].astype(np.int32),
-                                  terms["held"] | (terms["g_p"] > 0))
-        held_boundary = np.full(n, -1, np.int32)
-        held_boundary[v["fixed_particle"]] = v["fixed_boundary"]
-        built.update(problem=problem, info=info, v=v, terms=terms, clusters=clusters,
-                     held_boundary=held_boundary, keep=terms["held"] | ~clusters.tied_particle)
-        return len(scene.boundaries), problem.source is not None
+def _root_problem(scene, particles, whole, choice, cut_all, gid_all, total_comp, built):
+    """Step 5, rank 0: the boundary kinds (the one registry) on the whole particles, the
+    per-particle terms, the clusters (the ranks' components joined by the cut contacts), into
+    ``built``. Returns the number of boundaries and whether there is a source (every rank
+    needs them)."""
+    problem, info = boundary_problem(scene, particles, whole["law"], whole["params"],
+                                     whole["pinput"], whole["capacity"], np.zeros(0), choice)
+    v = validate(problem)
+    terms = particle_terms(v)
+    n = particles.n_particles
+    k, label = _join_components(cut_all, gid_all, total_comp, n)
+    clusters = cluster_report(k, label, terms["held"] | (terms["g_p"] > 0))
+    held_boundary = np.full(n, -1, np.int32)
+    held_boundary[v["fixed_particle"]] = v["fixed_boundary"]
+    built.update(problem=problem, info=info, v=v, terms=terms, clusters=clusters,
+                 held_boundary=held_boundary, keep=terms["held"] | ~clusters.tied_particle)
+    return len(scene.boundaries), problem.source is not None
 
-    nb_count, has_source = comm.bcast(agree(comm, root if rank == 0 else (lambda: None)),
-                                      root=0)
-    cut_all = gid_all = None
-    from .solvers.petsc_backend import share_block, share_particles
-    own = _send_particle_shares(comm, built, order, starts, mine, n, share_particles)
-    own.update(share_block(adjacency, degree, own["g"], lo, n, columns))
-    del columns
 
-    # rank 0 keeps the rows of the held and untied particles (its ledger, floating clusters)
+def _join_components(cut_all, gid_all, total_comp, n):
+    """Rank 0: the ranks' components joined through the cut contacts, numbered by their first
+    particle as connected_components numbers the whole network's (the in-process clusters).
+    Returns their number and each particle's label (int32)."""
+    edges = np.concatenate(cut_all)
+    graph = sp.coo_matrix((np.ones(edges.shape[0]), (edges[:, 0], gid_all[edges[:, 1]])),
+                          shape=(total_comp, total_comp))
+    _, joined = connected_components(graph, directed=False)
+    label_raw = joined[gid_all]
+    k = int(label_raw.max()) + 1 if n else 0
+    first_p = np.full(k, n, dtype=np.int64)
+    np.minimum.at(first_p, label_raw, np.arange(n))
+    renumber = np.empty(k, dtype=np.int64)
+    renumber[np.argsort(first_p, kind="stable")] = np.arange(k)
+    return k, renumber[label_raw].astype(np.int32)
+
+
+def _held_rows(comm, built, order, starts, mine, adjacency):
+    """Rank 0 keeps the adjacency rows of the held and untied particles (its ledger, steady's
+    floating clusters): each rank sends its rows of them. Returns the pieces on rank 0 (rows
+    and columns as packing indices, H W/K), None on the others."""
+    rank = comm.Get_rank()
     want = np.flatnonzero(_scatter_blocks(comm, built["keep"][order] if rank == 0 else None,
                                           starts, np.uint8))
     sub = adjacency[want].tocoo()
-    pieces = comm.gather((mine[want][sub.row], sub.col.astype(np.int64), sub.data), root=0)
-    del sub, adjacency
-    meta = dict(n=n, starts=starts, nb=nb_count, has_source=has_source, cut=cut,
-                active_contacts=n_active)
-    if rank != 0:
-        return RankBuild(share=own, meta=meta, order=None)
+    return comm.gather((mine[want][sub.row], sub.col.astype(np.int64), sub.data), root=0)
+
+
+def _root_network(built, pieces, n, m, degree_all, totals):
+    """Rank 0: the in-process Network (network.network_of) from the per-particle arrays, the
+    held and untied rows ``pieces``, the degrees and the ranks' ``totals``, without the other
+    rows: what its ledger, steady's floating clusters, the checks and the output read."""
+    idx = _index_dtype(n)
     rp = np.concatenate([q[0] for q in pieces])
     rc = np.concatenate([q[1] for q in pieces])
     rd = np.concatenate([q[2] for q in pieces])
@@ -413,12 +530,11 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     root_adj.sum_duplicates()
     root_adj.sort_indices()
     v = dict(built["v"], m=m)       # the file's contacts (the problem holds none of them)
-    net = network_of(built["problem"], v, built["terms"], root_adj, degree_all, n_active,
-                     built["clusters"], coord_max,
-                     h_sum / n_active if n_active else math.nan,
-                     adjacency_rows=np.flatnonzero(built["keep"]))
-    return RankBuild(share=own, meta=meta, order=order, particles=particles, net=net,
-                     info=built["info"])
+    n_active = totals["n_active"]
+    return network_of(built["problem"], v, built["terms"], root_adj, degree_all, n_active,
+                      built["clusters"], totals["coord_max"],
+                      totals["h_sum"] / n_active if n_active else math.nan,
+                      adjacency_rows=np.flatnonzero(built["keep"]))
 
 
 def _gather_file_order(comm, local, fblock):
