@@ -38,7 +38,7 @@ from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 from validation import framework
 from validation import inclusions as I
-from validation.framework import CaseInfo, CaseResult, Context, figure_csv, md_table
+from validation.framework import CaseInfo, CaseResult, Context, DATA, dress, figure_csv, md_table
 
 CASE = CaseInfo(number=10, title="Random dispersion vs an FFT reference / Maxwell / HS bounds",
                 paper="002 sec. 5.1, Fig. 17", paper_n="8e6",
@@ -56,7 +56,6 @@ GAP = 0.05
 # exclusion spheres at f 0.55 inside the walls, L/d = 6); there the gap is 0.04 R (exclusion
 # radius 1.02 R).
 GAP_DENSE, DENSE_FROM = 0.02, 0.45
-DATA = framework.ROOT / "tests" / "data"
 GRIDS = (48, 64, 96, 128)                  # FFT voxels a side of the cube (the reference)
 # From f 0.4 the inclusions come to 0.1 R (a voxel at 128^3; 0.04 R at f 0.5): the order on
 # 48 ... 128 is not asymptotic there (f 0.4: 2.0 on 48/64/96, 3.7 on 64/96/128; f 0.5: 1.35);
@@ -92,6 +91,12 @@ def bridging_mask(packing, owner) -> np.ndarray:
     inclusions' conductivity across the matrix gap between them."""
     a, b = owner[packing.pair[:, 0]], owner[packing.pair[:, 1]]
     return (a >= 0) & (b >= 0) & (a != b)
+
+
+def _owner(pk, rl) -> np.ndarray:
+    """The inclusion of each particle of ``pk`` (-1: matrix), realisation ``rl`` scaled to it."""
+    size = pk.domain_hi - pk.domain_lo
+    return I.owner_of(pk, pk.domain_lo + rl.centres * size, rl.radius * float(size.min()))
 
 
 BRIDGE_BOXES = ("box_1e5", "box_1e6")
@@ -148,8 +153,8 @@ class BridgeTest:
 
 def read_bridges(numbers: dict) -> list[BridgeTest]:
     """The saved bridge_test rows as records (RecordError in one line)."""
-    return [from_dict(BridgeTest, b, f"case 10: bridge_test[{k}]")
-            for k, b in enumerate(numbers.get("bridge_test", []))]
+    return framework.read_records(BridgeTest, numbers.get("bridge_test", []),
+                                  "case 10: bridge_test")
 
 
 def bridge_test(ctx: Context, reals: dict, runs: list) -> list[BridgeTest]:
@@ -162,14 +167,12 @@ def bridge_test(ctx: Context, reals: dict, runs: list) -> list[BridgeTest]:
     out = []
     for run_ in (r for r in runs if r["name"] in BRIDGE_BOXES):
         scene, pk = I.load(ctx.packing(run_["name"]))
-        size = pk.domain_hi - pk.domain_lo
         k_m = I.flux_test(scene, pk, np.zeros(pk.n_particles, np.int32), 1.0)
         for f, row in zip(sorted(reals), run_["rows"]):
             rl = reals[f]
             if not any(abs(f - x) < 0.02 for x in BRIDGE_FRACTIONS):
                 continue
-            cen = pk.domain_lo + rl.centres * size
-            owner = I.owner_of(pk, cen, rl.radius * float(size.min()))
+            owner = _owner(pk, rl)
             bridge = bridging_mask(pk, owner)
             factor = np.where(bridge, 2.0 / (1.0 + CONTRAST), 1.0)   # (2c/(1+c)) / c
             k1 = I.flux_test(scene, pk, (owner >= 0).astype(np.int32), CONTRAST,
@@ -275,8 +278,7 @@ def dem_run(ctx: Context, name: str, path, reals: dict, fractions) -> dict:
     rows = []
     for f in fractions:
         rl = reals[f]
-        cen = pk.domain_lo + rl.centres * size
-        owner = I.owner_of(pk, cen, rl.radius * float(size.min()))
+        owner = _owner(pk, rl)
         phase = (owner >= 0).astype(np.int32)
         bridges = int(bridging_mask(pk, owner).sum())
         res = I.flux_test(scene, pk, phase, CONTRAST)
@@ -397,8 +399,7 @@ class DispersionRun:
 
 def read_runs(runs: list) -> list[DispersionRun]:
     """Case 10's runs (saved dicts, or records already) as records (RecordError in one line)."""
-    return [r if isinstance(r, DispersionRun) else
-            from_dict(DispersionRun, r, f"case 10: runs[{k}]") for k, r in enumerate(runs)]
+    return framework.read_records(DispersionRun, runs, "case 10: runs")
 
 
 def finish(ctx: Context, reals: dict, runs: list, total: float,
@@ -420,7 +421,7 @@ def finish(ctx: Context, reals: dict, runs: list, total: float,
                    runs=[to_dict(r) for r in runs],
                    bridge_test=[to_dict(b) for b in bridges or []])
     section = _section(runs, reals, grids, orders) + _bridge_text(bridges or [])
-    pack = ", ".join(f"{r.name} {r.pack_s:.0f} s" for r in runs if r.pack_s)
+    pack = framework.packs_text(runs)
     f_text = f"f {min(fractions)}–{max(fractions)}"
     j = judge(numbers)
     return CaseResult(
@@ -562,15 +563,11 @@ def _figure_fraction(ctx, runs, reals) -> None:
         jams = [reals[f].jam for f in fs if reals[f].jam is not None]
         if jams:
             ax.axvline(jams[0], color="C1", ls="--", lw=0.8, label=f"RSA jams (f {jams[0]:.3f})")
-        ax.set_xlabel("inclusion volume fraction f")
-        ax.set_ylabel("k_eff / k_m")
-        ax.set_title(f"random dispersion, d = L/6, contrast {CONTRAST:.2f}", fontsize=9)
-        ax.legend(fontsize=7)
+        dress(ax, "inclusion volume fraction f", "k_eff / k_m",
+              f"random dispersion, d = L/6, contrast {CONTRAST:.2f}")
         bx.axhspan(-0.5, 0.5, color="C1", alpha=0.15, label="002: within 0.5 % of FFT")
         bx.axhline(0, color="k", lw=0.6)
-        bx.set_xlabel("f")
-        bx.set_ylabel("tdem / FFT reference - 1, %")
-        bx.legend(fontsize=7)
+        dress(bx, "f", "tdem / FFT reference - 1, %")
 
 
 def _figure_convergence(ctx, runs, reals) -> float:
@@ -588,17 +585,14 @@ def _figure_convergence(ctx, runs, reals) -> float:
             ax.loglog(n, [100 * abs(r.rows[j].err_ref) for r in rs], ".:", lw=0.8,
                       label=f"f {reals[f].f:.2f}")
         ax.axhline(0.5, color="C1", ls="--", lw=0.8, label="002: 0.5 % at 8e6")
-        ax.set_xlabel("N (spheres)")
-        ax.set_ylabel("|k / k_FFT - 1|, %")
-        ax.legend(fontsize=7)
+        dress(ax, "N (spheres)", "|k / k_FFT - 1|, %")
         t = np.array([r.thermal_s / r.solves for r in rs])
         bx.loglog(t, 100 * e, "o-")
         for tt, ee, r in zip(t, e, rs):
             bx.annotate(f"{r.n:,}", (tt, 100 * ee), fontsize=7)
-        bx.set_xlabel("wall time per steady solve, s (1 thread, shared machine)")
-        bx.set_ylabel("max |error|, %")
-        csv += [(r.n, ee, tt, *[x.err_ref for x in r.rows])
-                     for r, ee, tt in zip(rs, e, t)]
+        dress(bx, "wall time per steady solve, s (1 thread, shared machine)", "max |error|, %",
+              legend=None)
+        csv += [(r.n, ee, tt, *[x.err_ref for x in r.rows]) for r, ee, tt in zip(rs, e, t)]
     return p
 
 
@@ -623,10 +617,8 @@ def _figure_fft(ctx, reals) -> None:
         hh = np.array([1 / 48, 1 / 128])
         ax.loglog(hh, 0.3 * (hh / hh[0]) ** 2, "k--", lw=0.7, label="h^2")
         ax.axhline(0.1, color="C3", ls=":", lw=0.8, label="0.1 %")
-        ax.set_xlabel("voxel size h / L")
-        ax.set_ylabel("|k_h / k_ref - 1|, %")
-        ax.set_title("FFT reference: the cube with faces, laminate voxels", fontsize=9)
-        ax.legend(fontsize=7)
+        dress(ax, "voxel size h / L", "|k_h / k_ref - 1|, %",
+              "FFT reference: the cube with faces, laminate voxels")
 
 
 def _section(runs, reals, grids, order):
