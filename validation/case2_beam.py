@@ -38,10 +38,7 @@ from thermal_kernel.run import run_in_memory
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement, figure_csv, figure_md, fit_order, md_table
-
-# the figures: one axes; their CSVs floats to 8 digits, "\n" line ends (as committed)
-_FIGURE = dict(figsize=(6.4, 4.2), digits=8, line_end="\n")
+from .framework import FIGURE_8, Judgement, dress, figure_csv, figure_md, fit_order, md_table
 
 CASE = CaseInfo(number=2, title="beam heated at one end", paper="000 sec. 5.1, Table 2, eq. 8",
                 paper_n="19,465", paper_error='"good agreement" (Fig. 9)',
@@ -58,7 +55,7 @@ PAPER_TIME_S = PAPER_L ** 2 / ALPHA               # 87.4 ms: t = Fo x this
 FOURIER = (0.01, 0.05, 0.1, 0.2, 0.5, 1.0)
 BINS = 20
 N_LADDER = (2500, 5000, 10000, P.BEAM_N, 40000)
-QUICK_PACKING = fw.ROOT / "tests" / "data" / "dense_cylinder.h5"
+QUICK_PACKING = fw.DATA / "dense_cylinder.h5"
 
 
 def scene_text(packing: str, law: str, ct: float, dt: float | None = None,
@@ -412,10 +409,9 @@ def _figure_profiles(ctx, main, seeds, n_actual):
             rows.append((fo, times_ms[k], float(mid[b]), float(prof[:, k, b].mean()),
                          float(prof[:, k, b].min()), float(prof[:, k, b].max()),
                          float(exact[k, b])))
-
     f_prof = ctx.figure("profiles")
     with figure_csv(f_prof, "fourier,paper_time_ms,x_over_L,T_mean_K,T_min_K,T_max_K,"
-                    "T_exact_bin_K", **_FIGURE) as (ax, csv):
+                    "T_exact_bin_K", **FIGURE_8) as (ax, csv):
         for k, fo in enumerate(FOURIER):
             curve = rod_temperature(xs, fo, 1.0, 1.0, T_HOT, T_INIT)
             ax.plot(xs * PAPER_L * 1e3, curve, "k-", lw=0.8,
@@ -426,10 +422,8 @@ def _figure_profiles(ctx, main, seeds, n_actual):
                         yerr=[prof[:, k].mean(axis=0) - prof[:, k].min(axis=0),
                               prof[:, k].max(axis=0) - prof[:, k].mean(axis=0)],
                         fmt="o", ms=3, label=f"t = {times_ms[k]:.3g} ms")
-        ax.set_xlabel("x (mm, the paper's beam)")
-        ax.set_ylabel("T (K)")
-        ax.set_title(f"beam, N = {int(np.mean(n_actual)):,}, {len(seeds)} seed(s), haddad")
-        ax.legend(fontsize=7)
+        dress(ax, "x (mm, the paper's beam)", "T (K)", title_size=None,
+              title=f"beam, N = {int(np.mean(n_actual)):,}, {len(seeds)} seed(s), haddad")
         csv += rows
     return f_prof, times_ms
 
@@ -446,10 +440,9 @@ def _figure_convergence(ctx, ladder, runs, seeds):
                      float(np.mean([r.run_seconds + r.calibration_seconds for r in rs]))))
     conv = np.array(conv)
     order, const = fit_order(conv[:, 0], conv[:, 1])
-
     f_conv = ctx.figure("convergence")
     with figure_csv(f_conv, "n_mean,max_err_over_dT_mean,min,max,thermal_seconds_mean",
-                    **_FIGURE) as (ax, csv):
+                    **FIGURE_8) as (ax, csv):
         ax.errorbar(conv[:, 0], 100 * conv[:, 1], yerr=[100 * (conv[:, 1] - conv[:, 2]),
                                                          100 * (conv[:, 3] - conv[:, 1])],
                     fmt="o-", label="max |error| over bins and times (mean, min-max of seeds)")
@@ -459,9 +452,7 @@ def _figure_convergence(ctx, ladder, runs, seeds):
         ax.axhline(1.0, color="r", lw=0.8, label="goal 1 % of dT")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("N")
-        ax.set_ylabel("error (% of dT)")
-        ax.legend(fontsize=7)
+        dress(ax, "N", "error (% of dT)")
         csv += [tuple(float(v) for v in r) for r in conv]
     return f_conv, conv, order
 
@@ -476,17 +467,14 @@ def _figure_speed(ctx, dt_runs, conv):
                         float(np.nanmax(np.abs(np.array(r.profile_k) - ref)) / DT_K),
                         r.max_error_over_dT))
     dt_rows = np.array(dt_rows)
-
     f_speed = ctx.figure("speed")
     with figure_csv(f_speed, "dt_fourier,steps,run_seconds,dt_error_over_dT,error_vs_eq8_over_dT",
-                    **_FIGURE) as (ax, csv):
+                    **FIGURE_8) as (ax, csv):
         ax.loglog(dt_rows[:, 2], 100 * dt_rows[:, 3], "s-",
                   label="time-step error (vs dt/4), N main, seed 1")
         ax.loglog(dt_rows[:, 2], 100 * dt_rows[:, 4], "o-", label="total error vs eq. 8")
         ax.loglog(conv[:, 4], 100 * conv[:, 1], "^-", label="N ladder (calibration + run)")
-        ax.set_xlabel("thermal wall time (s, one thread)")
-        ax.set_ylabel("error (% of dT)")
-        ax.legend(fontsize=7)
+        dress(ax, "thermal wall time (s, one thread)", "error (% of dT)")
         csv += [tuple(float(v) for v in r) for r in dt_rows]
     return f_speed, dt_rows
 

@@ -35,10 +35,7 @@ from thermal_kernel.run import run_in_memory
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement, figure_csv, figure_md, md_table
-
-# the figures: one axes; their CSVs floats to 8 digits, "\n" line ends (as committed)
-_FIGURE = dict(figsize=(6.4, 4.2), digits=8, line_end="\n")
+from .framework import FIGURE_8, Judgement, dress, figure_csv, figure_md, md_table
 
 CASE = CaseInfo(number=3, title="sheet heated by a moving source",
                 paper="000 sec. 5.2, Tables 3–5, Fig. 11–14", paper_n="1,000–20,000 × 5",
@@ -56,7 +53,7 @@ PROBE_RADIUS = 1e-3
 # continuum grids: cells of 1, 0.5 (the paper's FEM), 0.25, 0.125 mm with dt 0.05 ... 0.00625 s
 GRIDS = ((50, 0.05), (100, 0.025), (200, 0.0125), (400, 0.00625))
 QUICK_GRIDS = ((25, 0.05), (50, 0.025), (100, 0.0125))
-QUICK_CELL = fw.ROOT / "tests" / "data" / "dense_periodic.h5"
+QUICK_CELL = fw.DATA / "dense_periodic.h5"
 
 
 def source_field(grid: fv.Grid, sub: int = 4):
@@ -280,7 +277,6 @@ def read_numbers(numbers: dict) -> SheetResult:
     return from_dict(SheetResult, numbers, "case 3: numbers")
 
 
-
 def judge(numbers: dict) -> Judgement:
     """Issue 23's columns: 000 compares with FEM by figure only (Fig. 12–14), so the stricter
     reading is used: the worst seed's error at A, B, C (% of the peak rise) at the paper's
@@ -317,9 +313,10 @@ def run(ctx: Context) -> CaseResult:
         for n in P.SHEET_NS:
             sizes[n] = []
             for s in P.SEEDS:
-                ctx.progress(f"packing {P.sheet_name(n, s)}")
-                sizes[n].append(P.build(P.sheet_name(n, s)))
-                pack_s += fw.pack_seconds(P.sheet_name(n, s)) or 0.0
+                name = P.sheet_name(n, s)
+                ctx.progress(f"packing {name}")
+                sizes[n].append(P.build(name))
+                pack_s += fw.pack_seconds(name) or 0.0
         seeds, grids = list(P.SEEDS), GRIDS
     dems = {}
     for n, paths in sizes.items():
@@ -385,19 +382,16 @@ def _figure_history(ctx, times, ref, sizes, seeds, dems, names):
         for n in sizes:
             r += [float(np.mean([dems[(n, s)].probe_t_k[p][k] for s in seeds])) for p in names]
         rows.append(tuple(r))
-
     f_t = ctx.figure("history")
     with figure_csv(f_t, ["t_s"] + [f"ref_{p}_K" for p in names]
-                    + [f"dem{n}_{p}_K" for n in sizes for p in names], **_FIGURE) as (ax, csv):
+                    + [f"dem{n}_{p}_K" for n in sizes for p in names], **FIGURE_8) as (ax, csv):
         for i, p in enumerate(names):
             line, = ax.plot(times, ref[i] - 273.15, lw=1.2, label=f"{p}: continuum")
             for j, n in enumerate(sizes):
                 ax.plot(times, np.mean([dems[(n, s)].probe_t_k[p] for s in seeds], axis=0)
                         - 273.15, ls=(":", "--", "-.")[j % 3], color=line.get_color(), lw=0.9,
                         label=f"{p}: DEM {n:,}" if i == 0 or j == len(sizes) - 1 else None)
-        ax.set_xlabel("t (s)")
-        ax.set_ylabel("T (°C)")
-        ax.legend(fontsize=6, ncol=2)
+        dress(ax, "t (s)", "T (°C)", legend=6, ncol=2)
         csv += rows
     return f_t
 
@@ -407,7 +401,7 @@ def _figure_convergence(ctx, conv, order, const, names):
     f_conv = ctx.figure("convergence")
     with figure_csv(f_conv, ["n_mean"] + [f"err_{p}" for p in names]
                     + [f"dispersion_{p}" for p in names] + ["thermal_seconds"],
-                    **_FIGURE) as (ax, csv):
+                    **FIGURE_8) as (ax, csv):
         for i, p in enumerate(names):
             line, = ax.loglog(conv[:, 0], 100 * conv[:, 1 + i], "o-", label=f"{p}: error")
             ax.loglog(conv[:, 0], 100 * conv[:, 4 + i], "s--", color=line.get_color(),
@@ -415,9 +409,7 @@ def _figure_convergence(ctx, conv, order, const, names):
         if np.isfinite(order):
             ax.loglog(conv[:, 0], 100 * const * conv[:, 0] ** order, "k:", lw=0.8,
                       label=f"worst error fit N^{order:.2f}")
-        ax.set_xlabel("N")
-        ax.set_ylabel("% of the peak rise at the point")
-        ax.legend(fontsize=6, ncol=2)
+        dress(ax, "N", "% of the peak rise at the point", legend=6, ncol=2)
         csv += [tuple(float(v) for v in r) for r in conv]
     return f_conv
 
@@ -427,15 +419,12 @@ def _figure_speed(ctx, conv, worst, cont_s, fields, est, rise_pt, grids):
     Richardson limit; its file."""
     cont_err = [float(max(np.max(np.abs(f[i] - est.extrapolated[i])) / rise_pt[i]
                           for i in range(3))) for f in fields]
-
     f_speed = ctx.figure("speed")
-    with figure_csv(f_speed, "kind,n_or_cells,seconds,error", **_FIGURE) as (ax, csv):
+    with figure_csv(f_speed, "kind,n_or_cells,seconds,error", **FIGURE_8) as (ax, csv):
         ax.loglog(conv[:, -1], 100 * worst, "o-", label="DEM (worst of A, B, C; mean of seeds)")
         ax.loglog(cont_s, 100 * np.array(cont_err), "s-",
                   label="continuum FV vs its Richardson limit")
-        ax.set_xlabel("wall time (s, one thread)")
-        ax.set_ylabel("error (% of the peak rise)")
-        ax.legend(fontsize=7)
+        dress(ax, "wall time (s, one thread)", "error (% of the peak rise)")
         csv += [("dem", float(c[0]), float(c[-1]), float(w)) for c, w in zip(conv, worst)]
         csv += [("continuum", float(g[0] * round(g[0] * LY / LX)), float(s), float(e))
                 for g, s, e in zip(grids, cont_s, cont_err)]
