@@ -32,9 +32,9 @@ import numpy as np
 from tdem_post.records import column, from_dict, to_dict
 from thermal_kernel.atomic import write_text_atomic
 
-from .framework import Action, case_scene, cell_cpu_seconds, figure_csv, held_planes, md_table, \
-    rebuild_saved
-from .framework import (OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
+from .framework import Action, case_scene, cell_cpu_seconds, dress, figure_csv, held_planes, \
+    md_table, read_records, rebuild_saved
+from .framework import (DATA, OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
                         optional_packing, previous_numbers, register_packing, today)
 
 CASE = CaseInfo(number=6, title="C_t calibration", paper="002 sec. 2.1, Fig. 3",
@@ -154,8 +154,7 @@ class CalibRow:
 
 def read_rows(numbers: dict) -> list[CalibRow]:
     """Case 6's saved rows as records (a missing or unknown field: RecordError)."""
-    return [from_dict(CalibRow, r, f"case 6: rows[{k}]")
-            for k, r in enumerate(numbers.get("rows", []))]
+    return read_records(CalibRow, numbers.get("rows", []), "case 6: rows")
 
 
 def _scene(variant: str):
@@ -230,10 +229,6 @@ def measure(key: str, path, variants=BASE, seed: int = 0) -> CalibRow:
 def _mean(row, what, variant="z75"):
     v = row.variants.get(variant)
     return float(np.mean([getattr(a, what) for a in v.axes.values()])) if v else float("nan")
-
-
-def _fmt_n(n):
-    return f"{n:,}"
 
 
 def _pct(x, digits=1):
@@ -319,15 +314,14 @@ def _judge(st: dict[str, dict[str, Realisations]]) -> Judgement:
             continue
         cov = (f"CoV {100 * s.cov:.2f} % over {s.n} realisations" if s.n > 1
                else "1 realisation")
-        parts.append(f"N {_fmt_n(s.n_particles[0])}: C_t {s.ct:.3f} ({cov}; paper {paper},"
+        parts.append(f"N {s.n_particles[0]:,}: C_t {s.ct:.3f} ({cov}; paper {paper},"
                      f" {_pct(s.ct / paper - 1)})")
         met &= 0.75 <= s.ct <= 0.84 and s.n >= 4 and s.cov <= 0.002
     at = ("; ".join(parts) + " — bulk Z 7.5 (`[neighbours]`), R_m arithmetic, domain length "
           "(002 eq. 8)")
     extra = []
     for v, name in (("z75_geometric", "geometric"), ("z75_harmonic", "harmonic")):
-        s5 = st.get("1e5", {}).get(v)
-        s6 = st.get("1e6", {}).get(v)
+        s5, s6 = (st.get(k, {}).get(v) for k in ("1e5", "1e6"))
         if s5 or s6:
             extra.append(f"R_m {name}: " + ", ".join(
                 f"{s.ct:.3f} ({lab})" for s, lab in ((s5, "1e5"), (s6, "1e6")) if s))
@@ -340,7 +334,7 @@ def _judge(st: dict[str, dict[str, Realisations]]) -> Judgement:
         if s and 0.75 <= s.ct <= 0.84:
             first = (size, s)
             break
-    speed = (f"inside 0.75–0.84 from N {_fmt_n(first[1].n_particles[0])} ({first[0]}): "
+    speed = (f"inside 0.75–0.84 from N {first[1].n_particles[0]:,} ({first[0]}): "
              f"{first[1].seconds:.1f} s of steady solves (3 axes) per realisation, + ~9 min "
              "of YADE for its 10,000-sphere cell" if first else "inside 0.75–0.84 at no N "
              "measured")
@@ -384,9 +378,8 @@ def _figure(ctx: Context, rows: list[dict], stats: dict) -> tuple[str, str]:
                     ax.errorbar([n * 1.15], [s.ct], yerr=[s.sd], color=color, capsize=3)
         ax.semilogx(list(PAPER), list(PAPER.values()), "k*", ms=10,
                     label="Haddad: 0.806 (1e5), 0.834 (1e6)")
-        ax.set_xlabel("N (spheres)")
-        ax.set_ylabel("C_t (mean over the axes, domain length)")
-        ax.legend(fontsize=5.5, loc="center right", bbox_to_anchor=(1.0, 0.39))
+        dress(ax, "N (spheres)", "C_t (mean over the axes, domain length)", legend=5.5,
+              loc="center right", bbox_to_anchor=(1.0, 0.39))
         csv += [(r.name, r.n_particles, r.shape, r.seed, v, axis,
                  a.ct_domain, a.ct_held, a.length_domain_m, a.length_held_m,
                  m.gap, m.z_all, m.z_bulk, r.solid_fraction, m.seconds, r.measured)
@@ -397,7 +390,7 @@ def _figure(ctx: Context, rows: list[dict], stats: dict) -> tuple[str, str]:
 
 def run(ctx: Context) -> CaseResult:
     if ctx.quick:        # the committed 400-sphere walled box: no YADE
-        row = measure("walled_400", ROOT / "tests" / "data" / "dense_box.h5", BASE)
+        row = measure("walled_400", DATA / "dense_box.h5", BASE)
         return CaseResult(our_n="400", our_error=f"C_t {_mean(row, 'ct_domain'):.4f} (domain, "
                           f"bulk Z {row.variants['z75'].z_bulk:.2f}), "
                           f"{_mean(row, 'ct_domain', 'dump'):.4f} (every dumped pair)",
@@ -445,10 +438,7 @@ def _carry(row: CalibRow, before: CalibRow | None) -> CalibRow:
 
 
 def _cell(r, v):
-    m = r.variants.get(v)
-    if not m:
-        return "—"
-    return f"{_mean(r, 'ct_domain', v):.4f}"
+    return f"{_mean(r, 'ct_domain', v):.4f}" if v in r.variants else "—"
 
 
 def _packing_table(rows: list[CalibRow]) -> str:
@@ -466,7 +456,7 @@ def _packing_table(rows: list[CalibRow]) -> str:
         zd = f"{dump.z_bulk:.2f}" if dump else "—"
         zc = f"{z75.gap:.4f} / {z75.z_bulk:.2f}" if z75 else "—"
         held = f"{_mean(r, 'ct_held', 'z75'):.4f}" if z75 else "—"
-        table.append((f"{r.label}{mark}", _fmt_n(r.n_particles), shape, zd, _cell(r, "dump"),
+        table.append((f"{r.label}{mark}", f"{r.n_particles:,}", shape, zd, _cell(r, "dump"),
                       zc, _cell(r, "z75"), held, _cell(r, "z75_geometric"),
                       _cell(r, "z75_harmonic"), t))
     return md_table(["packing", "N", "shape", "bulk Z, every pair", "C_t, every pair",
@@ -523,8 +513,7 @@ def _findings(by: dict, stats: dict, n: dict) -> list[str]:
     """The section's bullets: coordination, scatter between realisations, R_m, trend with N,
     shape, 8e6 (numbers they quote added to ``n``)."""
     b5, b6 = by.get("tiled_1e5_box"), by.get("tiled_1e6_box")
-    s5 = stats.get("1e5", {})
-    s6 = stats.get("1e6", {})
+    s5, s6 = stats.get("1e5", {}), stats.get("1e6", {})
     text = _coordination(b5, b6, n)
     sc = [(k, st["dump"], st["z75"]) for k, st in ((k, stats.get(k, {})) for k in
                                                     ("1e4", "1e5"))
@@ -614,8 +603,7 @@ def _result(rows: list[CalibRow], stats: dict, png: str, csv_name: str) -> CaseR
     real = _realisation_table(stats)
 
     b5, b6 = by.get("tiled_1e5_box"), by.get("tiled_1e6_box")
-    s5 = stats.get("1e5", {})
-    s6 = stats.get("1e6", {})
+    s5, s6 = stats.get("1e5", {}), stats.get("1e6", {})
     text = _findings(by, stats, n)
 
     section = f"""\
@@ -661,8 +649,7 @@ Times: the steady solves of every variant, one thread, shared machine.){carried_
     times = "; ".join(f"{k}: {s.seconds:.0f} s" for k, s in
                       (("1e5", s5z), ("1e6", s6z)) if s)
     return CaseResult(
-        our_n=f"{_fmt_n(min(r.n_particles for r in rows))} … "
-              f"{_fmt_n(max(r.n_particles for r in rows))}",
+        our_n=f"{min(r.n_particles for r in rows):,} … {max(r.n_particles for r in rows):,}",
         our_error=our_error,
         wall_time=f"packing: {_cell_cost()}; steady solves per realisation, 3 axes: {times}",
         verdict="", section_md=section, numbers=n,
