@@ -345,6 +345,33 @@ def _cmd_validate(args):
                     threads=_threads(args), action=args.action, ranks=args.ranks)
 
 
+def _cmd_window(args):
+    from tdem_post.window import command
+    return command(args)
+
+
+def _cmd_paper_compare(args):
+    from tdem_post.paper_compare import command
+    return command(args)
+
+
+def _cmd_fft_reference(args):
+    from tdem_post.fft_conductivity import command
+    return command(args)
+
+
+def _module_command(sub, name, module, help, func, description=None):
+    """``tdem NAME``: a command whose options and work live in ``module`` (its
+    ``add_arguments`` and ``command``, which its own ``python -m`` entry takes too); its
+    description the module's docstring unless given."""
+    import importlib
+    mod = importlib.import_module(module)
+    p = sub.add_parser(name, help=help, description=description or mod.__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    mod.add_arguments(p)
+    p.set_defaults(func=func)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The command line: every command, its arguments and their help. One function over 80
     lines (issue 26) because it is a flat declaration, one ``add_argument`` after another, read
@@ -503,6 +530,21 @@ def build_parser() -> argparse.ArgumentParser:
     from validation.run import add_arguments as validate_arguments   # one home for its options
     validate_arguments(p)
     p.set_defaults(func=_cmd_validate)
+
+    _module_command(sub, "window", "tdem_post.window", func=_cmd_window,
+                    help="run campaign cases again on 003's output times (0.2-7 s) and fit "
+                         "gamma there, beside the case's own fit (docs/campaign.md)")
+    _module_command(sub, "paper-compare", "tdem_post.paper_compare", func=_cmd_paper_compare,
+                    help="the figure of gamma_paper(p) and tau(p) against 003's fits "
+                         "(docs/campaign.md, Why the paper's gamma falls)")
+    _module_command(sub, "fft-reference", "tdem_post.fft_conductivity",
+                    func=_cmd_fft_reference,
+                    description="One sphere in the periodic cube (the simple-cubic array) on "
+                                "a refined sequence of grids, against Rayleigh's formula: the "
+                                "convergence table of docs/fft_reference.md (the solver: "
+                                "tdem_post/fft_conductivity.py).",
+                    help="the FFT reference's convergence against Rayleigh's formula on one "
+                         "sphere in the periodic cube (docs/fft_reference.md)")
     return parser
 
 

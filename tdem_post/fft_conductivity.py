@@ -432,19 +432,26 @@ def extrapolate(h, values) -> Extrapolation:
 
 
 # ------------------------------------------------------------------ command line
-def main(argv=None) -> None:
-    """``python -m tdem_post.fft_conductivity``: one sphere in the periodic cube (the
-    simple-cubic array) on a refined sequence of grids, against Rayleigh's formula: the
-    convergence table of docs/fft_reference.md."""
-    import argparse
+def add_arguments(ap) -> None:
+    """The options of ``tdem fft-reference`` (one home: the subcommand and ``main``)."""
+    ap.add_argument("--fraction", type=float, default=0.2,
+                    help="volume fraction of the sphere, default 0.2")
+    ap.add_argument("--contrast", type=float, default=1.5 / 0.195,
+                    help="k_i/k_m, default 1.5/0.195 = 7.69")
+    ap.add_argument("--grids", default="8,12,16,24,32,48,64",
+                    help="voxels a side, comma-separated (default 8,12,16,24,32,48,64)")
+    ap.add_argument("--rules", default="laminate,arithmetic,harmonic",
+                    help="composite-voxel rules, comma-separated (default "
+                         "laminate,arithmetic,harmonic; binary too)")
+    ap.add_argument("--scheme", default="willot", choices=SCHEMES,
+                    help="Green operator (default willot)")
+
+
+def command(a) -> int:
+    """``tdem fft-reference``: one sphere in the periodic cube (the simple-cubic array) on a
+    refined sequence of grids, against Rayleigh's formula: the convergence table of
+    docs/fft_reference.md."""
     from tdem_post.analytic import maxwell, rayleigh_cubic_array
-    ap = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
-    ap.add_argument("--fraction", type=float, default=0.2)
-    ap.add_argument("--contrast", type=float, default=1.5 / 0.195)
-    ap.add_argument("--grids", default="8,12,16,24,32,48,64")
-    ap.add_argument("--rules", default="laminate,arithmetic,harmonic")
-    ap.add_argument("--scheme", default="willot", choices=SCHEMES)
-    a = ap.parse_args(argv)
     grids = [int(g) for g in a.grids.split(",")]
     f, c = a.fraction, a.contrast
     radius = (3 * f / (4 * math.pi)) ** (1 / 3)
@@ -462,7 +469,17 @@ def main(argv=None) -> None:
         h = 1.0 / np.array(grids, float)
         p = np.polyfit(np.log(h), np.log(np.abs(errs)), 1)[0]
         print(f"  {rule:10s} fitted order of |error| in h: {p:.2f}")
+    return 0
+
+
+def main(argv=None) -> int:
+    """``python -m tdem_post.fft_conductivity``: the same as ``tdem fft-reference``."""
+    import argparse
+    ap = argparse.ArgumentParser(prog="python -m tdem_post.fft_conductivity",
+                                 description=command.__doc__.splitlines()[0])
+    add_arguments(ap)
+    return command(ap.parse_args(argv))
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -3,9 +3,10 @@
 times (tdem_post.window) and the diagnostic law's campaign, all in 003's convention
 (γ_paper = γ/φ).
 
-    python -m tdem_post.paper_compare CAMPAIGN_OUT [--diag DIAG_OUT] [--law pipe] -o FIG.png
+    tdem paper-compare CAMPAIGN_OUT [--diag DIAG_OUT] [--law pipe] -o FIG.png
 
-CAMPAIGN_OUT and DIAG_OUT are campaign folders (``results.csv``; the window fits are read from
+(``python -m tdem_post.paper_compare`` the same). CAMPAIGN_OUT and DIAG_OUT are campaign
+folders (``results.csv``; the window fits are read from
 ``[seed_<s>/]cases/<p>Pa_<law>/window.json`` where they exist).
 """
 from __future__ import annotations
@@ -85,18 +86,29 @@ def plot(campaign_out, out_png, *, law="pipe", diag_out=None,
     plt.close(fig)
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tdem_post.paper_compare",
-                                     description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("campaign")
-    parser.add_argument("--diag", default=None)
-    parser.add_argument("--law", default="pipe")
-    parser.add_argument("-o", "--out", required=True)
-    args = parser.parse_args(argv)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of ``tdem paper-compare`` (one home: the subcommand and ``main``)."""
+    parser.add_argument("campaign", help="the campaign's output folder (its results.csv)")
+    parser.add_argument("--diag", default=None,
+                        help="the diagnostic law's campaign folder (optional)")
+    parser.add_argument("--law", default="pipe", help="the campaign's law shown (default pipe)")
+    parser.add_argument("-o", "--out", required=True, help="the figure to write (.png)")
+
+
+def command(args) -> int:
+    """``tdem paper-compare``: the figure, and its path printed."""
     plot(args.campaign, args.out, law=args.law, diag_out=args.diag)
     print(f"wrote {args.out}")
     return 0
+
+
+def main(argv=None) -> int:
+    """``python -m tdem_post.paper_compare``: the same as ``tdem paper-compare``."""
+    parser = argparse.ArgumentParser(prog="python -m tdem_post.paper_compare",
+                                     description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(parser)
+    return command(parser.parse_args(argv))
 
 
 if __name__ == "__main__":

@@ -7,10 +7,11 @@ packing and law) with outputs at
 the paper's times and post-processes it exactly as the campaign does (tdem_post.post_run): the
 fitted gamma on the paper's window beside the case's own (outputs 30-30,000 s).
 
-    python -m tdem_post.window CASE_DIR [CASE_DIR ...] [--times 0.2,0.5,...] [--dt 0.02]
+    tdem window CASE_DIR [CASE_DIR ...] [--times 0.2,0.5,...] [--dt 0.02]
 
-writes ``CASE_DIR/window/thermal.h5``, ``CASE_DIR/window/post/`` and ``CASE_DIR/window.json``
-(kept: a case whose window.json exists is not run again) and prints one line per case.
+(``python -m tdem_post.window`` the same) writes ``CASE_DIR/window/thermal.h5``,
+``CASE_DIR/window/post/`` and ``CASE_DIR/window.json`` (kept: a case whose window.json exists
+is not run again) and prints one line per case.
 """
 from __future__ import annotations
 
@@ -70,15 +71,18 @@ def window_fit(case_dir, times=PAPER_TIMES, dt: float | None = None, threads: in
     return out
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tdem_post.window", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of ``tdem window`` (one home: the subcommand and ``main`` both take them)."""
     parser.add_argument("cases", nargs="+", help="campaign case folders (cases/<p>Pa_<law>/)")
     parser.add_argument("--times", default=",".join(f"{t:g}" for t in PAPER_TIMES),
                         help="output times, s (default: 003's, 0.2-7 s)")
     parser.add_argument("--dt", type=float, default=None, help="time step, s (default t1/10)")
     parser.add_argument("--threads", type=int, default=1)
-    args = parser.parse_args(argv)
+
+
+def command(args) -> int:
+    """``tdem window``: each case fitted on the window (or read from its window.json), one line
+    per case."""
     times = [float(x) for x in args.times.split(",") if x.strip()]
     print("p (bar)  law    gamma(case window)  gamma(window)  gamma_paper(window)  "
           "gamma_steady")
@@ -93,6 +97,14 @@ def main(argv=None) -> int:
               + "".join(f"\n    {k} not measurable: {v}"
                         for k, v in (r.get("not_measurable") or {}).items()), flush=True)
     return 0
+
+
+def main(argv=None) -> int:
+    """``python -m tdem_post.window``: the same as ``tdem window``."""
+    parser = argparse.ArgumentParser(prog="python -m tdem_post.window", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(parser)
+    return command(parser.parse_args(argv))
 
 
 if __name__ == "__main__":
