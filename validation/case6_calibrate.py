@@ -421,6 +421,11 @@ def run(ctx: Context) -> CaseResult:
         ctx.progress(f"{key}: N {row.n_particles}, C_t domain "
                      + ", ".join(f"{v} {_mean(row, 'ct_domain', v):.4f}" for v in variants)
                      + f"; {sum(m.seconds for m in row.variants.values()):.1f} s")
+    return _finish(ctx, rows)
+
+
+def _finish(ctx: Context, rows: list[CalibRow]) -> CaseResult:
+    """The figure, section and summary (judged) from the rows, measured or saved."""
     stats = realisation_stats(rows)
     png, csv_name = _figure(ctx, rows, stats)
     return judged(_result(rows, stats, png, csv_name), _judge(stats))
@@ -666,12 +671,7 @@ def _cell_cost() -> str:
 
 def _rebuild(ctx: Context) -> None:
     """The section, figure and summary again from the saved rows (no calibration is run)."""
-    def build(numbers):
-        rows = read_rows(numbers)
-        stats = realisation_stats(rows)
-        png, csv_name = _figure(ctx, rows, stats)
-        return judged(_result(rows, stats, png, csv_name), _judge(stats))
-    print(rebuild_saved(CASE, build))
+    print(rebuild_saved(CASE, lambda numbers: _finish(ctx, read_rows(numbers))))
 
 
 ACTIONS = {"rebuild": Action(_rebuild, "section, figure and summary again from the saved "

@@ -286,7 +286,8 @@ class ResultError(UserError):
     file, the field and what was expected, and how to write it again."""
 
 
-def _shown(path: Path) -> str:
+def shown(path: Path) -> str:
+    """``path`` relative to the checkout when it is inside it (as messages name files)."""
     try:
         return str(Path(path).relative_to(ROOT))
     except ValueError:
@@ -313,13 +314,13 @@ def check_record(number: int, record, path: Path) -> dict:
                           f"result is unreadable (`tdem validate {number} --force` runs case "
                           f"{number} again and rewrites it)")
     try:
-        saved = from_dict(SavedResult, record, _shown(path))
+        saved = from_dict(SavedResult, record, shown(path))
     except RecordError as e:
         fail(str(e))
     if not saved.run_seconds >= 0:
-        fail(f"{_shown(path)}: run_seconds: {saved.run_seconds!r} is not >= 0")
+        fail(f"{shown(path)}: run_seconds: {saved.run_seconds!r} is not >= 0")
     if saved.info.number != number:
-        fail(f"{_shown(path)}: info: number: {saved.info.number}, not {number}")
+        fail(f"{shown(path)}: info: number: {saved.info.number}, not {number}")
     return record
 
 
@@ -332,18 +333,18 @@ def load_result(number: int) -> dict | None:
     try:
         record = json.loads(path.read_text(encoding="utf-8"))
     except UnicodeDecodeError as e:
-        raise ResultError(f"{_shown(path)}: expected JSON text (UTF-8), got byte "
+        raise ResultError(f"{shown(path)}: expected JSON text (UTF-8), got byte "
                           f"0x{e.object[e.start]:02x} at offset {e.start}; the saved result is "
                           f"unreadable (`tdem validate {number} --force` runs case {number} "
                           "again and rewrites it)") from None
     except json.JSONDecodeError as e:
         got = "an empty file" if not e.doc.strip() else \
             f"invalid JSON ({e.msg}, line {e.lineno} column {e.colno})"
-        raise ResultError(f"{_shown(path)}: expected a JSON object as tdem validate saves it, "
+        raise ResultError(f"{shown(path)}: expected a JSON object as tdem validate saves it, "
                           f"got {got}; the saved result is unreadable (`tdem validate {number} "
                           f"--force` runs case {number} again and rewrites it)") from None
     except OSError as e:
-        raise ResultError(f"{_shown(path)}: {e.strerror or e}") from None
+        raise ResultError(f"{shown(path)}: {e.strerror or e}") from None
     return check_record(number, record, path)
 
 

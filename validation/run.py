@@ -193,9 +193,8 @@ def run_cases(numbers: list[int], cases: dict, force: bool = False, quick: bool 
             failed += 1
             log = ctx.out / "error.log"
             write_text_atomic(log, "".join(traceback.format_exception(e)))
-            shown = log.relative_to(framework.ROOT) if log.is_relative_to(framework.ROOT) else log
-            print(f"{head}: FAILED: {type(e).__name__}: {_one_line(e)} (traceback: {shown})",
-                  flush=True)
+            print(f"{head}: FAILED: {type(e).__name__}: {_one_line(e)} (traceback: "
+                  f"{framework.shown(log)})", flush=True)
             continue
         seconds = time.perf_counter() - t0
         if not result.at_paper_n and hasattr(mod, "judge"):     # issue 23's columns
@@ -270,18 +269,12 @@ def validate(case_texts: list[str], force: bool = False, quick: bool = False,
     failed = run_cases(numbers, cases, force=force, quick=quick, threads=threads, ranks=ranks)
     if not quick:
         assemble(cases)
-        print(f"tdem validate: wrote {_rel(DOC)} and the summary in {_rel(README)}"
+        print(f"tdem validate: wrote {framework.shown(DOC)} and the summary in "
+              f"{framework.shown(README)}"
               + (f"; {failed} case(s) failed" if failed else ""), flush=True)
     elif failed:
         print(f"tdem validate: {failed} case(s) failed", flush=True)
     return 1 if failed else 0
-
-
-def _rel(p: Path) -> str:
-    try:
-        return str(Path(p).relative_to(framework.ROOT))
-    except ValueError:
-        return str(p)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
