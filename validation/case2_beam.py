@@ -230,10 +230,12 @@ def judge(numbers: dict) -> Judgement:
     if not numbers:
         return Judgement("not measured", "", None)
     m = read_numbers(numbers)
-    per_seed, ns, series = list(m.per_seed), m.n_particles, m.series
-    tiled_txt = (f"2,000 cells: N {int(sum(ns) / len(ns)):,} × {len(per_seed)} seeds "
-                 + " / ".join(f"{100 * e:.2f}" for e in per_seed)
-                 + f" % ({sum(e < 0.01 for e in per_seed)} of {len(per_seed)} < 1 %)")
+    per_seed, series = list(m.per_seed), m.series
+
+    def seeds_text(label, ns, errs):        # N (mean) × seeds, each seed's error, how many < 1 %
+        return (f"{label}: N {int(sum(ns) / len(ns)):,} × {len(errs)} seeds "
+                + " / ".join(f"{100 * e:.2f}" for e in errs)
+                + f" % ({sum(e < 0.01 for e in errs)} of {len(errs)} < 1 %)")
     # the judged series: pressed ends when built (the paper-like boundary), else the beams of
     # the larger cells (the cut end's bias fixed by the packing), else the 2,000 cells
     judged_series = next((k for k in ("walled", "cell10k") if len(series.get(k, {})) >= 5),
@@ -243,14 +245,12 @@ def judge(numbers: dict) -> Judgement:
         beams = series.get(k) or {}
         if beams:
             e = [w.max_error_over_dT for w in beams.values()]
-            n_w = [w.n_particles for w in beams.values()]
-            parts.append(f"{SERIES[k]}: N {int(sum(n_w) / len(n_w)):,} × {len(e)} seeds "
-                         + " / ".join(f"{100 * x:.2f}" for x in e)
-                         + f" % ({sum(x < 0.01 for x in e)} of {len(e)} < 1 %)")
+            parts.append(seeds_text(SERIES[k], [w.n_particles for w in beams.values()], e))
             if k == judged_series:
                 per_seed = e
     ok = sum(e < 0.01 for e in per_seed)
-    at = "; ".join(parts + [tiled_txt]) + " (max |ΔT_bin| / ΔT over 6 times, per seed)"
+    at = ("; ".join(parts + [seeds_text("2,000 cells", m.n_particles, m.per_seed)])
+          + " (max |ΔT_bin| / ΔT over 6 times, per seed)")
     speed = ""
     reached = [c for c in m.convergence if c[3] < 0.01]
     if reached:

@@ -78,18 +78,11 @@ def equivalent_points(axis: int) -> dict:
     the gradient along ``axis`` (the inclusion centred: mirror planes through the centre, the
     two axes across the gradient interchangeable, |q| even about the mid-plane across the
     gradient); for axis 1 the first point of each is the paper's."""
-    others = [a for a in range(3) if a != axis]
-    out = {"A": [(0.5, 0.5, 0.5)], "B": [], "C": []}
-    for o in others:
-        for f in (0.08, 0.92):
-            pt = [0.5, 0.5, 0.5]
-            pt[o] = f
-            out["B"].append(tuple(pt))
-    for f in (0.92, 0.08):
-        pt = [0.5, 0.5, 0.5]
-        pt[axis] = f
-        out["C"].append(tuple(pt))
-    return out
+    def moved(a, f):             # the centre moved to f along axis a
+        return tuple(f if b == a else 0.5 for b in range(3))
+    return {"A": [(0.5, 0.5, 0.5)],
+            "B": [moved(o, f) for o in range(3) if o != axis for f in (0.08, 0.92)],
+            "C": [moved(axis, f) for f in (0.92, 0.08)]}
 
 
 def cell_flux(grid, k, T):
@@ -382,17 +375,13 @@ def _judge(r):
 
 def run(ctx: Context) -> CaseResult:
     if ctx.quick:
-        grids = (16, 24, 36)
-        boxes = [("dense_box_400", DATA / "dense_box.h5")]
-        axes = (1,)
-    else:
-        grids = (40, 60, 90)
-        boxes = [(name, ctx.packing(name)) for name in SIZES.values()]
-        axes = (1, 0, 2)
-    t0 = time.perf_counter()
-    if ctx.quick:
+        grids, boxes, axes = (16, 24, 36), [("dense_box_400", DATA / "dense_box.h5")], (1,)
+        t0 = time.perf_counter()
         ref, fv = continuum_points(grids)
     else:
+        grids, axes = (40, 60, 90), (1, 0, 2)
+        boxes = [(name, ctx.packing(name)) for name in SIZES.values()]
+        t0 = time.perf_counter()
         rec = _cached(ctx.out / f"fv_{'_'.join(map(str, grids))}.json",
                       lambda: _timed_reference(grids), version=FV_VERSION)
         ref, fv = rec["ref"], rec["fv"]
@@ -570,13 +559,12 @@ def _every_md(every, key) -> str:
         [f"{r.n:,}"] + [f"{v:.0f} ({100 * e:+.1f} %; FV {100 * f:+.1f} %)"
                         for v, e, f in zip(r.q[key], r.err_q_fe[key], r.err_q[key])]
         + ["met" if r.judged["met"] else "missed"] for r in every])
-    every_md = "" if not every else f"""
+    return "" if not every else f"""
 Through every dumped pair instead (bulk Z ≈ 8.8, the dump's gap tolerance 0.1; tdem's network
 before issue 23), Halo 11 r̄, against 002's FE (and our FV):
 
 {every_rows}
 """
-    return every_md
 
 
 def _case7_cov() -> str:
@@ -697,12 +685,8 @@ def _section_results(rs, main_run, key, sc_rows, h_rows, met) -> str:
     timing = "; ".join(
         f"{r.n:,}: solves {', '.join(f'{a} {v:.1f} s' for a, v in r.solve_s.items())}, "
         f"Halo {r.halo_s:.1f} s" for r in rs)
-    miss = []
-    for r in rs:
-        j = judged[r.n]
-        bad = [lab for lab, ok in zip("ABC", j["points"]) if not ok]
-        if bad:
-            miss.append(f"{r.n:,}: {', '.join(bad)}")
+    bad = {r.n: [lab for lab, ok in zip("ABC", judged[r.n]["points"]) if not ok] for r in rs}
+    miss = [f"{n:,}: {', '.join(b)}" for n, b in bad.items() if b]
     sc_main = main_run.scatter[key]
     causes = _causes(rs, main_run, key)
     return f"""\
