@@ -61,7 +61,8 @@ sys.path.insert(0, str(ROOT))
 TDEM = ROOT / ".venv" / "bin" / "tdem"
 TOL = {"explicit": 1e-12, "implicit": 1e-10, "steady": 1e-10}
 RANKS = (1, 2, 3)
-ARRAYS = ("boundary_heat_flow", "boundary_energy", "source_energy", "stored_energy_change")
+ARRAYS = ("boundary_heat_flow", "boundary_energy", "source_energy", "stored_energy_change",
+          "capacity")
 SAME_ATTRS = ("flags", "method", "steps", "n_conducting_contacts", "n_rattlers",
               "n_floating_clusters", "max_principle_checked", "max_principle_bounds_k",
               "n_particles", "packing_sha256")
@@ -116,6 +117,18 @@ def _same_table(scene: Path, params_override: dict | None = None):
         if old == want:
             return d, made
     return None
+
+
+def _stale_keys(scene: Path, folder: Path) -> list:
+    """The [pack] keys in which ``folder/params.json`` differs from the scene's table."""
+    from tdem.pack import read_pack_table
+    _, params = read_pack_table(scene)
+    try:
+        old = json.loads((folder / "params.json").read_text())
+    except (FileNotFoundError, json.JSONDecodeError):
+        return ["params.json"]
+    return sorted(k for k in set(params) | set(old)
+                  if k != "output_dir" and params.get(k, None) != old.get(k, None))
 
 
 def _reduced_packing(scene: Path, scratch: Path, max_n: int, log) -> tuple[list, str]:
@@ -182,12 +195,21 @@ def _scene_plan(scene, data, scratch, args, log):
     if "pack" not in data:
         return None, "no [pack] table and no packing of its own"
     found = _same_table(scene)
+    own = sorted((ROOT / "runs" / "out" / scene.stem).glob("packing*.h5"))
+    if found is None and own:       # the scene's own packing, its params.json older than [pack]
+        found = (own[0].parent, own)
+        stale = _stale_keys(scene, own[0].parent)
+    else:
+        stale = None
     if found is not None:
         d, made = found
         rel = d.relative_to(ROOT)
         note = (f"{rel}/ (its own)" if d in (ROOT / "runs/out" / scene.stem,
                                               ROOT / "runs/out" / scene.stem / "packings")
                 else f"{rel}/ (built from the same [pack] table)")
+        if stale:
+            note += (f"; its params.json predates the [pack] keys {', '.join(stale)} (their "
+                     "defaults now; `tdem run` would build it again, this bench uses it as it is)")
     else:
         made, note = _reduced_packing(scene, scratch, args.max_n, log)
     packings = _ends(made, args.all_pressures)
@@ -216,9 +238,14 @@ def _campaign_plan(scene, data, scratch, args):
         made = [p for p in made if p.name.startswith("packing_")]
         note = f"{d.relative_to(ROOT)}/" + (f" (seed {seeds[0]} of its seeds {seeds}: the same "
                                              "[pack] table)" if seeds else "")
-    packings = _ends(made, args.all_pressures)
-    if len(made) > len(packings):
-        note += f"; {len(packings)} of its {len(made)} packings (lowest, highest pressure)"
+    if label in args.lowest_only.split(","):
+        packings = sorted(made, key=_pressure)[:1]
+        note += (f"; 1 of its {len(made)} packings, the lowest pressure (--lowest-only: its "
+                 f"cases are long on ranks)")
+    else:
+        packings = _ends(made, args.all_pressures)
+        if len(made) > len(packings):
+            note += f"; {len(packings)} of its {len(made)} packings (the first and last of the series)"
     note += f"; laws {', '.join(camp['laws'])}"
     folder = scratch / label
     folder.mkdir(parents=True, exist_ok=True)
@@ -274,8 +301,14 @@ def run_plan(plan, scratch: Path, fresh: bool, log) -> dict:
     out = {}
     for r in (0,) + RANKS:
         vdir = base / _variant(r)
-        if fresh and vdir.exists():
+        stamp = vdir / "bench_plan.json"     # what ran there: run again when the plan changed
+        wanted = json.dumps({k: str(v) for k, v in plan.items() if k != "note"}, sort_keys=True)
+        if plan["kind"] == "campaign":
+            wanted += plan["campaign"].read_text()
+        if vdir.exists() and (fresh or not stamp.exists() or stamp.read_text() != wanted):
             shutil.rmtree(vdir)
+        vdir.mkdir(parents=True, exist_ok=True)
+        stamp.write_text(wanted)
         extra = ["--threads", "1"] if r == 0 else ["--ranks", str(r)]
         t = time.time()
         if plan["kind"] == "campaign":
@@ -398,8 +431,8 @@ def summary_rows(results) -> list:
 
 
 def markdown(results, skipped, command, started, load) -> str:
-    head = ("| scene | runs | N | solver | ranks | max abs(ΔT) / temperature change | "
-            "max abs(ΔT) / max abs(T) | flows and ledger arrays, max rel diff | flags identical |"
+    head = ("| scene | runs | N | solver | ranks | max abs(T - T_in-process) / temperature change"
+            " | the same / max abs(T) | flows, ledger, capacity: max rel diff | flags identical |"
             " counts, dt, bounds identical | tolerance | verdict |\n"
             "|---|---|---|---|---|---|---|---|---|---|---|---|\n")
     body = "".join(
@@ -421,7 +454,7 @@ def markdown(results, skipped, command, started, load) -> str:
     if skipped:
         lines += ["", "Skipped:", ""] + [f"- {s}: {why}" for s, why in skipped]
     lines += ["", "## Every run", "",
-              "| scene | run | N | method | ranks | ΔT rel | T rel | worst array (rel) | "
+              "| scene | run | N | method | ranks | T diff / change | T diff / max T | worst array (rel) | "
               "flags (in-process) | flags (ranks) | differs | linear solver | verdict |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for plan, per_rank in results:
@@ -457,6 +490,9 @@ def main(argv=None) -> int:
                     help="n_particles of a packing made here when runs/out has none")
     ap.add_argument("--all-pressures", action="store_true",
                     help="every packing of a pressure series, not its lowest and highest")
+    ap.add_argument("--lowest-only", default="campaign_7500,campaign_7500_seeds",
+                    help="campaigns run on their lowest pressure only (6,000 Crank-Nicolson "
+                         "steps on 7,500 spheres a case: minutes a case on ranks here)")
     ap.add_argument("--fresh", action="store_true", help="run again what the scratch holds")
     ap.add_argument("--plan-only", action="store_true",
                     help="say which scenes run on which packings (builds missing packings)")
