@@ -13,12 +13,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from tdem_post.records import from_dict, to_dict
+from tdem_post.records import to_dict
 from thermal_kernel.hand_inputs import (POISSON, YOUNG_PA, conductance,
                                         hertz_radius_equal_spheres, one_contact)
 
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement, md_table
+from .framework import Judgement, md_table, numbers_reader
 
 CASE = CaseInfo(number=11, title="pipe / BOB / Argento / Chaudhuri two-sphere values",
                 paper="003 eq. 34–40, 004", paper_n="two spheres",
@@ -49,9 +49,7 @@ class TwoSphereResult:
     max_rel_error: float
 
 
-def read_numbers(numbers: dict) -> TwoSphereResult:
-    """Case 11's saved numbers as its record (a missing or unknown field: RecordError)."""
-    return from_dict(TwoSphereResult, numbers, "case 11: numbers")
+read_numbers = numbers_reader(TwoSphereResult, 11)
 
 
 def measure() -> TwoSphereResult:

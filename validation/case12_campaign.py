@@ -21,10 +21,10 @@ from dataclasses import dataclass
 
 from tdem_post.campaign_record import RECORD, CampaignRecord
 from tdem_post.post_run import MEAN_FIELD_LAWS
-from tdem_post.records import from_dict, record_from_json, to_dict
+from tdem_post.records import record_from_json, to_dict
 
 from .framework import ROOT, CaseInfo, CaseResult, Context
-from .framework import Judgement, md_table
+from .framework import Judgement, md_table, numbers_reader
 
 CASE = CaseInfo(number=12, title="the pressure campaign", paper="003 Fig. 7, 10", paper_n="7,500",
                 paper_error="γ(p), τ(p) fits")
@@ -78,9 +78,7 @@ class CampaignNumbers:
     seeds_source: str
 
 
-def read_numbers(numbers: dict) -> CampaignNumbers:
-    """Case 12's saved numbers as its record (a missing or unknown field: RecordError)."""
-    return from_dict(CampaignNumbers, numbers, "case 12: numbers")
+read_numbers = numbers_reader(CampaignNumbers, 12)
 
 
 def campaign_fits(record: CampaignRecord, source) -> dict[str, LawFits]:

@@ -12,11 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tdem_post.records import from_dict, to_dict
+from tdem_post.records import to_dict
 from thermal_kernel.hand_inputs import capacity, conductance, lattice_inputs
 
 from .framework import CaseInfo, CaseResult, Context
-from .framework import Judgement, md_table
+from .framework import Judgement, md_table, numbers_reader
 
 CASE = CaseInfo(number=1, title="simple-cubic lattice = 7-point stencil", paper="000 sec. 3",
                 paper_n="lattice", paper_error="exact")
@@ -35,9 +35,7 @@ class LatticeResult:
     centre_links: int
 
 
-def read_numbers(numbers: dict) -> LatticeResult:
-    """Case 1's saved numbers as its record (a missing or unknown field: RecordError)."""
-    return from_dict(LatticeResult, numbers, "case 1: numbers")
+read_numbers = numbers_reader(LatticeResult, 1)
 
 
 def measure(shape=(5, 5, 5), a=2e-3, lam=134.0, rho=2790.0, cp=880.0) -> LatticeResult:

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tdem_post.records import column, from_dict, to_dict
+from tdem_post.records import column, to_dict
 from tdem_post.analytic import rod_mean_temperature, rod_temperature
 from tdem_post.profiles import binned_profile
 from thermal_kernel.packing import read_packing
@@ -38,7 +38,8 @@ from thermal_kernel.run import run_in_memory
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import FIGURE_8, Judgement, dress, figure_csv, figure_md, fit_order, md_table
+from .framework import FIGURE_8, Judgement, dress, figure_csv, figure_md, fit_order, md_table, \
+    numbers_reader
 
 CASE = CaseInfo(number=2, title="beam heated at one end", paper="000 sec. 5.1, Table 2, eq. 8",
                 paper_n="19,465", paper_error='"good agreement" (Fig. 9)',
@@ -211,9 +212,7 @@ class BeamResult:
     series: dict[str, dict[str, BeamRun]]           # series -> seed (text) -> beam
 
 
-def read_numbers(numbers: dict) -> BeamResult:
-    """Case 2's saved numbers as its record (a missing or unknown field: RecordError)."""
-    return from_dict(BeamResult, numbers, "case 2: numbers")
+read_numbers = numbers_reader(BeamResult, 2)
 
 
 def _beam_run(r: BeamRun, pack_s: float | None) -> BeamRun:

@@ -28,14 +28,15 @@ from pathlib import Path
 import numpy as np
 
 from tdem_post import continuum as fv
-from tdem_post.records import from_dict, to_dict
+from tdem_post.records import to_dict
 from thermal_kernel.packing import read_packing
 from thermal_kernel.run import run_in_memory
 
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import FIGURE_8, Judgement, dress, figure_csv, figure_md, md_table
+from .framework import FIGURE_8, Judgement, dress, figure_csv, figure_md, md_table, \
+    numbers_reader
 
 CASE = CaseInfo(number=3, title="sheet heated by a moving source",
                 paper="000 sec. 5.2, Tables 3–5, Fig. 11–14", paper_n="1,000–20,000 × 5",
@@ -272,9 +273,7 @@ class SheetResult:
     worst_error_largest_n: float
 
 
-def read_numbers(numbers: dict) -> SheetResult:
-    """Case 3's saved numbers as its record (a missing or unknown field: RecordError)."""
-    return from_dict(SheetResult, numbers, "case 3: numbers")
+read_numbers = numbers_reader(SheetResult, 3)
 
 
 def judge(numbers: dict) -> Judgement:

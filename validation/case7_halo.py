@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from tdem_post.records import column, from_dict, to_dict
+from tdem_post.records import column, to_dict
 from tdem_post.flux import (coefficient_of_variation, contact_moments, halo_flux, halo_radii,
                             reference_radius)
 from thermal_kernel.calibrate import cross_section
@@ -37,7 +37,7 @@ from thermal_kernel.run import SceneRun, run_in_memory
 from validation.case4_slab import scene_text as slab_scene_text
 from validation.framework import ROOT, CaseInfo, CaseResult, Context, cached, case_scene, \
     DATA, dress, figure_csv, md_table, outcome, pack_text as _pack, pct as _pct, read_records as \
-    _read, register_packing
+    _read, numbers_reader, register_packing
 
 CASE = CaseInfo(number=7, title="Halo CoV vs halo/DE radius ratio",
                 paper="002 sec. 3, eq. 20-23, Fig. 10-11", paper_n="1e5, 5e5",
@@ -346,9 +346,7 @@ class HaloResult:
     records: tuple[HaloRecord, ...]
 
 
-def read_numbers(numbers: dict) -> HaloResult:
-    """Case 7's saved numbers as its record (a missing or unknown field: RecordError)."""
-    return from_dict(HaloResult, numbers, "case 7: numbers")
+read_numbers = numbers_reader(HaloResult, 7)
 
 
 def _rows(rec, kind="common"):

@@ -513,6 +513,13 @@ def outcome(met: bool | None) -> str:
     return "target met" if met else "target missed" if met is False else "quick run"
 
 
+def numbers_reader(cls, number: int):
+    """A case's ``read_numbers(numbers)``: its saved ``numbers`` as its record ``cls`` (a missing
+    or unknown field: RecordError in one line, "case N: numbers: ...")."""
+    from tdem_post.records import from_dict
+    return lambda numbers: from_dict(cls, numbers, f"case {number}: numbers")
+
+
 def read_records(cls, items, where: str) -> list:
     """``items`` (saved dicts, or ``cls`` records already) as ``cls`` records, each named
     ``where[k]`` in a RecordError (one line)."""
