@@ -33,9 +33,8 @@ from thermal_kernel.solvers.implicit import run_implicit  # noqa: E402
 from thermal_kernel.solvers.steady import solve_steady  # noqa: E402
 from tdem_post.speed_error import write_speed_error  # noqa: E402
 
-# the paper's bed scene, shared with the tests (tests/bed_scene.py)
-sys.path.insert(0, str(ROOT / "tests"))
-from bed_scene import BED_THERMAL  # noqa: E402
+# the paper's bed scene, shared with the tests
+from tdem.committed_beds import BED_THERMAL  # noqa: E402
 
 SCENE = 'packing = "{packing}"\nlaw = "{law}"\n' + BED_THERMAL + '[solver]\nmethod = "steady"\n'
 TIMES = [0.2, 0.5, 1.0, 2.0]

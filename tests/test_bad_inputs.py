@@ -24,7 +24,7 @@ import h5py
 import numpy as np
 import pytest
 
-from bed_scene import BED_THERMAL
+from tdem.committed_beds import BED_THERMAL
 from faults import FullDiskFile
 
 DATA = Path(__file__).resolve().parent / "data"

@@ -24,7 +24,7 @@ import h5py
 import pandas as pd
 import pytest
 
-from bed_scene import BED_THERMAL
+from tdem.committed_beds import BED_THERMAL, BEDS, NO_PACK
 from tdem.yade import yade_environment
 
 needs_yade = pytest.mark.skipif(shutil.which("yade", path=yade_environment()["PATH"]) is None,
@@ -123,18 +123,6 @@ def test_bad_campaign_is_one_line(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "campaign.laws" in proc.stderr
     assert "Traceback" not in proc.stderr
-
-
-DATA = Path(__file__).resolve().parent / "data"
-BEDS = [DATA / "bed_small_1.6e+06Pa.h5", DATA / "bed_small_4.05e+07Pa.h5"]
-NO_PACK = CAMPAIGN.split("[pack]")[0].replace('["pipe", "bob"]', '["pipe"]') + BED_THERMAL + \
-    """
-[solver]
-method = "implicit"
-dt = 5.0
-end_time = 200.0
-output_times = [5.0, 10.0, 20.0, 50.0, 100.0, 200.0]
-"""
 
 
 def _campaign_on_committed_beds(tmp_path, monkeypatch, solver_extra, name):

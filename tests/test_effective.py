@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from bed_scene import BED_THERMAL
+from tdem.committed_beds import BED_THERMAL
 from tdem.cli import main
 from thermal_kernel.effective import (BALANCE_TOLERANCE, LENGTH_CONVENTIONS, BalanceError,
                                       effective_conductivity)

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bed_scene import BED_THERMAL
+from tdem.committed_beds import BED_THERMAL
 from tdem.cli import main
 from tdem_post.fabric import affine_conductivity, contact_angle_pdf, mean_nz2
 from tdem_post.post_run import post_run

@@ -14,7 +14,7 @@ import h5py
 import numpy as np
 import pytest
 
-from bed_scene import BED_THERMAL
+from tdem.committed_beds import BED_THERMAL
 from thermal_kernel.network import assemble, make_problem
 from thermal_kernel.run import run_scene
 from thermal_kernel.scene import load_scene

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bed_scene import BED_THERMAL
+from tdem.committed_beds import BED_THERMAL
 from tdem.cli import main
 from tdem_post.analytic import slab_characteristic_time, slab_mean_temperature
 from tdem_post.fits import (characteristic_time_network, characteristic_time_series, fit_gamma,

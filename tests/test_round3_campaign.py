@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bed_scene import BED_THERMAL
+from tdem.committed_beds import BED_THERMAL
 from tdem.cli import main
 
 DATA = Path(__file__).resolve().parent / "data"

@@ -3,8 +3,8 @@ number. Each family has a test that states the physical rule it checks; the case
 ``../shared/bad-inputs/round3/cases.tsv`` that belong here are the rows of the tables.
 
 Beds and runs: the committed 300-sphere bed at 405 bar (tests/data, Table 1 material of 003 in
-tests/bed_scene.py), runs made in-process with ``tdem run`` (Crank-Nicolson unless a case needs
-otherwise), post-processed with :func:`tdem_post.post_run.analyse` / ``tdem post``.
+tdem/committed_beds.py), runs made in-process with ``tdem run`` (Crank-Nicolson unless a case
+needs otherwise), post-processed with :func:`tdem_post.post_run.analyse` / ``tdem post``.
 
 Tolerances, and why:
 - gamma against gamma_steady, every physical law: the transient fit and the steady solve measure
@@ -27,7 +27,7 @@ import h5py
 import numpy as np
 import pytest
 
-from bed_scene import BED_THERMAL
+from tdem.committed_beds import BED_THERMAL
 from tdem.cli import main
 from thermal_kernel.laws import LAWS
 from tdem_post import post_run

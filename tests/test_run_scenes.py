@@ -20,7 +20,7 @@ import h5py
 import numpy as np
 import pytest
 
-from bed_scene import BED_THERMAL
+from tdem.committed_beds import BED_THERMAL
 from tdem.cli import main
 from thermal_kernel.laws import LAWS
 

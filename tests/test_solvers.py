@@ -539,7 +539,7 @@ def stiff_bed_network(tmp_path):
     """The issue's stiff case: the 300-sphere YADE bed (dt_max 0.097 s), law pipe, bottom wall
     500 K, plate 400 K, bed at 300 K."""
     from pathlib import Path
-    from bed_scene import BED_THERMAL
+    from tdem.committed_beds import BED_THERMAL
     from thermal_kernel.packing import read_packing
     from thermal_kernel.problem import build_problem
     from thermal_kernel.scene import load_scene
@@ -581,7 +581,7 @@ def test_stiff_bed_default_second_order_scheme_obeys_maximum_principle_plain_cn_
 
 
 def test_scene_solver_scheme_options(tmp_path):
-    from bed_scene import BED_THERMAL
+    from tdem.committed_beds import BED_THERMAL
     from thermal_kernel.scene import SceneError, load_scene
 
     def scene(extra, method="implicit"):

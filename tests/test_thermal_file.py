@@ -11,7 +11,7 @@ from pathlib import Path
 import h5py
 import pytest
 
-from bed_scene import BED_THERMAL
+from tdem.committed_beds import BED_THERMAL
 from tdem.cli import main
 from thermal_kernel.lattice import simple_cubic_packing
 from thermal_kernel.output import (ThermalFileError, read_run_packing, read_thermal,

@@ -58,7 +58,6 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
 WALL = ("case_wall_seconds", "thermal_wall_seconds", "run_wall_seconds", "post_sha256")
 INSTANCES = ("small", "seeds", "campaign_7500")
 QUICK_CASES = (1, 2, 11)
@@ -90,14 +89,26 @@ def _keep(out: Path, dest: Path, mask_wall: bool) -> None:
         (dest / rel).write_text(json.dumps(data, indent=1))
 
 
+def _committed_beds():
+    """BEDS and NO_PACK of this checkout's tdem/committed_beds.py, loaded by path: both
+    snapshots run on the same inputs, the "before" one too (PYTHONPATH at a base, which may
+    predate the module)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("_committed_beds",
+                                                  ROOT / "tdem" / "committed_beds.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.BEDS, module.NO_PACK
+
+
 def _campaign(work: Path, extra: str, laws='["pipe", "bob"]') -> Path:
     from tdem import campaign as camp
-    from test_campaign import BEDS, NO_PACK
+    beds, no_pack = _committed_beds()
     build = camp.build_packings
-    camp.build_packings = lambda *a, **k: BEDS
+    camp.build_packings = lambda *a, **k: beds
     try:
         path = work / "c.toml"
-        path.write_text(NO_PACK.replace('["pipe"]', laws).replace("n_bins = 5", extra)
+        path.write_text(no_pack.replace('["pipe"]', laws).replace("n_bins = 5", extra)
                         + "theta = 0.5\n")
         camp.run_campaign(path, work / "out", threads=1, quiet=True)
     finally:
