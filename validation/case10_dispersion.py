@@ -25,9 +25,11 @@ and Bruggeman (tdem_post.analytic) at the nominal f are drawn too.
 """
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+import json
 import math
 import time
-import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -223,8 +225,6 @@ def reference(series):
 def realisations(ctx: Context, fractions, grids, periodic_grids) -> dict:
     """The inclusions of each f and their FFT reference (cached under ctx.out by the inclusions'
     checksum and the grids, so that a run after ``--action reference`` only solves the DEM)."""
-    import hashlib
-    import json
     cache_path = ctx.out / "fft_reference.json"
     cache = json.loads(cache_path.read_text()) if cache_path.exists() else {}
     reals = {}
@@ -767,7 +767,6 @@ def add_8e6() -> None:
     """Solve box_8e6 alone (its packing built, 11 GB peak) and add its rows to the saved
     result, then rebuild the figures and the section: the paper's N without re-running the
     rest."""
-    import json
     ctx = Context(10)
     reals = realisations(ctx, FRACTIONS, GRIDS, PERIODIC_GRIDS)
     run8 = dem_run(ctx, "box_8e6", framework.packing("box_8e6"), reals, FRACTIONS)

@@ -35,7 +35,7 @@ from thermal_kernel.run import run_in_memory
 from . import framework as fw
 from . import packings_000 as P
 from .framework import CaseInfo, CaseResult, Context
-from .framework import FIGURE_8, Judgement, dress, figure_csv, figure_md, md_table, \
+from .framework import FIGURE_8, Judgement, dress, figure_csv, figure_md, fit_order, md_table, \
     numbers_reader
 
 CASE = CaseInfo(number=3, title="sheet heated by a moving source",
@@ -434,7 +434,6 @@ def _report(ctx, sizes, seeds, dems, dt_check, times, fields, cont_s, est, ref, 
             grids, pack_s) -> CaseResult:
     """The rows per N (:func:`_rows_by_n`), the three figures, the section
     (:func:`_section_setup`, :func:`_section_results`) and the summary's columns."""
-    from .framework import fit_order
     names = list(POINTS)
     # continuum convergence at the check-points themselves (rows 0..2)
     rise_pt = np.array([np.max(ref[i] - T0) for i in range(3)])

@@ -34,7 +34,7 @@ from thermal_kernel.atomic import write_text_atomic
 
 from .framework import Action, case_scene, cell_cpu_seconds, dress, figure_csv, held_planes, \
     md_table, read_records, rebuild_saved
-from .framework import (DATA, OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
+from .framework import (CELL_1E5, DATA, OUT, ROOT, CaseInfo, CaseResult, Context, Judgement, judged,
                         optional_packing, previous_numbers, register_packing, today)
 
 CASE = CaseInfo(number=6, title="C_t calibration", paper="002 sec. 2.1, Fig. 3",
@@ -58,7 +58,6 @@ VARIANT_LABEL = {"dump": "every dumped pair (gap 0.1)", "z75": "bulk Z 7.5, R_m 
 
 def cell_of(seed: int):
     """The relaxed 10,000-sphere periodic cell of one seed (None if not built here)."""
-    from .framework import CELL_1E5
     path = CELL_1E5 if seed == 1 else OUT / "packings" / f"box_1e5_s{seed}" / "cell.h5"
     return path if path.exists() else None
 
