@@ -159,14 +159,11 @@ def fmt_s(x):
 
 
 def write_results(rows, variants, seeds, pressures, scene, stem):
+    """bench/results/<stem>.csv (every row) and <stem>.md: below MARKER the wall times and time
+    steps per stage, the speed-up, the statistics per pressure against the first variant and
+    the reference's seed-to-seed range; the text above MARKER is kept."""
     RESULTS.mkdir(parents=True, exist_ok=True)
-    keys = ["variant", "seed", "stage", "target_pa", "stage_s", "steps", "phi", "z", "z_nr",
-            "rattlers", "pressure_pa", "unbalanced", "inertial", "young_used", "young", "wall_s"]
-    with open_atomic(RESULTS / f"{stem}.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow(r)
+    _write_csv(rows, RESULTS / f"{stem}.csv")
     get = {(r["variant"], r["seed"], r["stage"]): r for r in rows}
     names = [v[0] for v in variants]
     stages = ["settle"] + [f"{p / 1e5:.4g} bar" for p in pressures] + ["total"]
@@ -174,11 +171,41 @@ def write_results(rows, variants, seeds, pressures, scene, stem):
            f"`bench/bench_bed.py`: scene `{scene}`, seeds {', '.join(map(str, seeds))}, "
            f"one YADE thread, one run at a time; variants "
            + "; ".join(f"**{n}** = {s}{(' ' + json.dumps(o)) if o else ''}"
-                       for n, s, o in variants) + ".", "",
-           "### Wall time per stage (s)", "",
-           "| stage | " + " | ".join(f"{n} s{s}" for n in names for s in seeds)
-           + " | " + " | ".join(f"{n} mean" for n in names) + " |",
-           "|---" * (1 + len(names) * (len(seeds) + 1)) + "|"]
+                       for n, s, o in variants) + ".", ""]
+    out += _wall_time_table(get, names, seeds, stages)
+    out += _steps_table(get, names, seeds, stages)
+    out += _speed_up(get, names, seeds)
+    out += _statistics_table(get, names, seeds, pressures)
+    out += _seed_spread(get, names[0], seeds, pressures)
+    md = RESULTS / f"{stem}.md"
+    head_text = ""
+    if md.exists():
+        old = md.read_text()
+        if MARKER in old:
+            head_text = old.split(MARKER)[0]
+    write_text_atomic(md, head_text + "\n".join(out) + "\n")
+    print(f"wrote {RESULTS / (stem + '.csv')} and {md}")
+
+
+def _write_csv(rows, path):
+    keys = ["variant", "seed", "stage", "target_pa", "stage_s", "steps", "phi", "z", "z_nr",
+            "rattlers", "pressure_pa", "unbalanced", "inertial", "young_used", "young", "wall_s"]
+    with open_atomic(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow(r)
+
+
+def _stage_head(names, seeds):
+    """The header of a table with one column per variant and seed, then each variant's mean."""
+    return ["| stage | " + " | ".join(f"{n} s{s}" for n in names for s in seeds)
+            + " | " + " | ".join(f"{n} mean" for n in names) + " |",
+            "|---" * (1 + len(names) * (len(seeds) + 1)) + "|"]
+
+
+def _wall_time_table(get, names, seeds, stages):
+    out = ["### Wall time per stage (s)", ""] + _stage_head(names, seeds)
     for st in stages:
         cells, means = [], []
         for n in names:
@@ -188,11 +215,13 @@ def write_results(rows, variants, seeds, pressures, scene, stem):
             means.append(fmt_s(float(np.mean(vals))) if vals else "")
         label = f"**{st}**" if st == "total" else st
         out.append(f"| {label} | " + " | ".join(cells + means) + " |")
+    return out
+
+
+def _steps_table(get, names, seeds, stages):
     # steps do not depend on the host's load: the load-free measure of the work per stage
-    out += ["", "### Time steps per stage (thousands; independent of the host's load)", "",
-            "| stage | " + " | ".join(f"{n} s{s}" for n in names for s in seeds)
-            + " | " + " | ".join(f"{n} mean" for n in names) + " |",
-            "|---" * (1 + len(names) * (len(seeds) + 1)) + "|"]
+    out = ["", "### Time steps per stage (thousands; independent of the host's load)", ""]
+    out += _stage_head(names, seeds)
     for st in stages[:-1] + ["total"]:
         cells, means = [], []
         for n in names:
@@ -207,20 +236,31 @@ def write_results(rows, variants, seeds, pressures, scene, stem):
             means.append(f"{np.mean(vals) / 1e3:.1f}" if vals else "")
         label = f"**{st}**" if st == "total" else st
         out.append(f"| {label} | " + " | ".join(cells + means) + " |")
+    return out
+
+
+def _speed_up(get, names, seeds):
     ref = names[0]
     tot = {n: [get[(n, s, "total")]["stage_s"] for s in seeds if (n, s, "total") in get]
            for n in names}
-    if tot[ref]:
-        out += ["", "Speed-up of the whole series (mean total of the reference / mean total): "
-                + ", ".join(f"{n} {np.mean(tot[ref]) / np.mean(tot[n]):.2f}x"
-                            for n in names if tot[n]) + "."]
-    out += ["", "### Statistics per pressure", "",
-            "phi = solid fraction, Z_nr = touching sphere-sphere contacts per non-rattler, "
-            "ratt = rattlers (no contact at all, %), unb = unbalanced-force ratio at the dump, "
-            "E = modulus the dump was relaxed at. Differences are to the reference "
-            f"**{ref}** with the same seed; a cell is marked **!** where it misses the tolerance "
-            f"(|dphi| <= {TOL_PHI}, |dZ_nr|/Z_nr <= {100 * TOL_Z:.0f} %, "
-            f"|d ratt| <= {100 * TOL_RATTLERS:.0f} points).", ""]
+    if not tot[ref]:
+        return []
+    return ["", "Speed-up of the whole series (mean total of the reference / mean total): "
+            + ", ".join(f"{n} {np.mean(tot[ref]) / np.mean(tot[n]):.2f}x"
+                        for n in names if tot[n]) + "."]
+
+
+def _statistics_table(get, names, seeds, pressures):
+    """Each variant's statistics per pressure and seed (and their mean), the differences to
+    the reference's, and how many (seed, pressure) pairs are within the tolerances."""
+    ref = names[0]
+    out = ["", "### Statistics per pressure", "",
+           "phi = solid fraction, Z_nr = touching sphere-sphere contacts per non-rattler, "
+           "ratt = rattlers (no contact at all, %), unb = unbalanced-force ratio at the dump, "
+           "E = modulus the dump was relaxed at. Differences are to the reference "
+           f"**{ref}** with the same seed; a cell is marked **!** where it misses the tolerance "
+           f"(|dphi| <= {TOL_PHI}, |dZ_nr|/Z_nr <= {100 * TOL_Z:.0f} %, "
+           f"|d ratt| <= {100 * TOL_RATTLERS:.0f} points).", ""]
     head = ["p", "seed"]
     for n in names:
         head += [f"{n} phi", f"{n} Z_nr", f"{n} ratt %", f"{n} unb", f"{n} E (Pa)"]
@@ -234,68 +274,71 @@ def write_results(rows, variants, seeds, pressures, scene, stem):
         for s in seeds + ["mean"]:
             line = [st, str(s)]
             for n in names:
-                if s == "mean":
-                    rs = [get[(n, x, st)] for x in seeds if (n, x, st) in get]
-                    if not rs:
-                        line += [""] * (5 if n == ref else 8)
-                        continue
-                    r = {k: float(np.mean([q[k] for q in rs])) for k in
-                         ("phi", "z_nr", "rattlers", "unbalanced", "young_used")}
-                else:
-                    r = get.get((n, s, st))
-                    if r is None:
-                        line += [""] * (5 if n == ref else 8)
-                        continue
-                line += [f"{r['phi']:.4f}", f"{r['z_nr']:.3f}", f"{100 * r['rattlers']:.1f}",
-                         f"{r['unbalanced']:.1e}", f"{r['young_used']:.3g}"]
-                if n == ref:
-                    continue
-                if s == "mean":
-                    rs0 = [get[(ref, x, st)] for x in seeds if (ref, x, st) in get]
-                    r0 = {k: float(np.mean([q[k] for q in rs0])) for k in
-                          ("phi", "z_nr", "rattlers")} if rs0 else None
-                else:
-                    r0 = get.get((ref, s, st))
-                if r0 is None:
-                    line += ["", "", ""]
-                    continue
-                dphi = r["phi"] - r0["phi"]
-                dz = (r["z_nr"] - r0["z_nr"]) / r0["z_nr"]
-                dr = r["rattlers"] - r0["rattlers"]
-                bad = [abs(dphi) > TOL_PHI, abs(dz) > TOL_Z, abs(dr) > TOL_RATTLERS]
-                if s != "mean":
+                cells, bad = _statistics_cells(get, n, ref, s, st, seeds)
+                line += cells
+                if bad is not None and s != "mean":
                     compared[n] += 1
                     misses[n] += any(bad)
-                line += [f"{dphi:+.4f}" + (" **!**" if bad[0] else ""),
-                         f"{100 * dz:+.1f}" + (" **!**" if bad[1] else ""),
-                         f"{100 * dr:+.1f}" + (" **!**" if bad[2] else "")]
             out.append("| " + " | ".join(line) + " |")
     out += [""]
     for n in names[1:]:
         out.append(f"- **{n}**: {compared[n] - misses[n]} of {compared[n]} (seed, pressure) "
                    f"pairs within all three tolerances of **{ref}**.")
-    # seed-to-seed spread of the reference: what "the same statistics" can mean at this size
-    if len(seeds) > 1:
-        spread = []
-        for p in pressures:
-            st = f"{p / 1e5:.4g} bar"
-            rs = [get[(ref, s, st)] for s in seeds if (ref, s, st) in get]
-            if len(rs) > 1:
-                spread.append(f"{st}: phi {min(r['phi'] for r in rs):.4f}-"
-                              f"{max(r['phi'] for r in rs):.4f}, Z_nr "
-                              f"{min(r['z_nr'] for r in rs):.3f}-{max(r['z_nr'] for r in rs):.3f}"
-                              f", ratt {100 * min(r['rattlers'] for r in rs):.1f}-"
-                              f"{100 * max(r['rattlers'] for r in rs):.1f} %")
-        out += ["", f"Seed-to-seed range of **{ref}** (the noise floor of a paired comparison): "
-                + "; ".join(spread) + "."]
-    md = RESULTS / f"{stem}.md"
-    head_text = ""
-    if md.exists():
-        old = md.read_text()
-        if MARKER in old:
-            head_text = old.split(MARKER)[0]
-    write_text_atomic(md, head_text + "\n".join(out) + "\n")
-    print(f"wrote {RESULTS / (stem + '.csv')} and {md}")
+    return out
+
+
+def _statistics_cells(get, n, ref, s, st, seeds):
+    """Variant n's cells at stage st for seed s (or "mean" over the seeds): its statistics and,
+    but for the reference, the differences to the reference's; with the three tolerance
+    misses, or None where nothing was compared."""
+    if s == "mean":
+        rs = [get[(n, x, st)] for x in seeds if (n, x, st) in get]
+        if not rs:
+            return [""] * (5 if n == ref else 8), None
+        r = {k: float(np.mean([q[k] for q in rs])) for k in
+             ("phi", "z_nr", "rattlers", "unbalanced", "young_used")}
+    else:
+        r = get.get((n, s, st))
+        if r is None:
+            return [""] * (5 if n == ref else 8), None
+    cells = [f"{r['phi']:.4f}", f"{r['z_nr']:.3f}", f"{100 * r['rattlers']:.1f}",
+             f"{r['unbalanced']:.1e}", f"{r['young_used']:.3g}"]
+    if n == ref:
+        return cells, None
+    if s == "mean":
+        rs0 = [get[(ref, x, st)] for x in seeds if (ref, x, st) in get]
+        r0 = {k: float(np.mean([q[k] for q in rs0])) for k in
+              ("phi", "z_nr", "rattlers")} if rs0 else None
+    else:
+        r0 = get.get((ref, s, st))
+    if r0 is None:
+        return cells + ["", "", ""], None
+    dphi = r["phi"] - r0["phi"]
+    dz = (r["z_nr"] - r0["z_nr"]) / r0["z_nr"]
+    dr = r["rattlers"] - r0["rattlers"]
+    bad = [abs(dphi) > TOL_PHI, abs(dz) > TOL_Z, abs(dr) > TOL_RATTLERS]
+    return cells + [f"{dphi:+.4f}" + (" **!**" if bad[0] else ""),
+                    f"{100 * dz:+.1f}" + (" **!**" if bad[1] else ""),
+                    f"{100 * dr:+.1f}" + (" **!**" if bad[2] else "")], bad
+
+
+def _seed_spread(get, ref, seeds, pressures):
+    """The seed-to-seed range of the reference: what "the same statistics" can mean at this
+    size (nothing with one seed)."""
+    if len(seeds) <= 1:
+        return []
+    spread = []
+    for p in pressures:
+        st = f"{p / 1e5:.4g} bar"
+        rs = [get[(ref, s, st)] for s in seeds if (ref, s, st) in get]
+        if len(rs) > 1:
+            spread.append(f"{st}: phi {min(r['phi'] for r in rs):.4f}-"
+                          f"{max(r['phi'] for r in rs):.4f}, Z_nr "
+                          f"{min(r['z_nr'] for r in rs):.3f}-{max(r['z_nr'] for r in rs):.3f}"
+                          f", ratt {100 * min(r['rattlers'] for r in rs):.1f}-"
+                          f"{100 * max(r['rattlers'] for r in rs):.1f} %")
+    return ["", f"Seed-to-seed range of **{ref}** (the noise floor of a paired comparison): "
+            + "; ".join(spread) + "."]
 
 
 def main():

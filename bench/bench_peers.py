@@ -101,10 +101,6 @@ def child(task: str, d: Path, law: str) -> dict:
     """One tdem task in this process: 'prep' (dt, references), 'explicit', 'implicit',
     'steady'. Returns a JSON-able dict (peak RSS included)."""
     import resource
-
-    from thermal_kernel.solvers.explicit import run_explicit
-    from thermal_kernel.solvers.implicit import run_implicit
-    from thermal_kernel.solvers.steady import solve_steady
     net, packing, build = _tdem_setup(d, law)
     n = packing.n_particles
     T_init = np.full(n, T0)
@@ -112,74 +108,110 @@ def child(task: str, d: Path, law: str) -> dict:
            "contacts": int(np.count_nonzero(net.problem.conductance_w_k > 0))}
     ref_path = d / f"ref_{law}.npz"
     if task == "prep":
-        dt_max = float(net.dt_max_s)
-        dt0 = 2.0 ** math.floor(math.log2(0.5 * dt_max))
-        t_end = ARGS.steps * dt0
-        ref = run_implicit(net, T_init, [t_end], dt=dt0 / 4, theta=0.5,
-                           scheme="rannacher").temperature_k[-1]
-        ref2 = run_implicit(net, T_init, [t_end], dt=dt0 / 2, theta=0.5,
-                            scheme="rannacher").temperature_k[-1]
-        steady = solve_steady(net, T_init, method="direct").temperature_k[-1]
-        # the explicit step: dt0, halved until the march is within 1 % of the reference
-        dt, steps = dt0, ARGS.steps
-        while True:
-            e = _err(run_explicit(net, T_init, [t_end], dt=dt).temperature_k[-1], ref)
-            if e < TOL or steps >= 16 * ARGS.steps:
-                break
-            dt, steps = dt / 2, steps * 2
-        np.savez(ref_path, transient=ref, steady=steady)
-        out.update(dt_max=dt_max, dt0=dt0, t_end=t_end, dt=dt, steps=steps,
-                   explicit_error=e, ref_error_estimate=_err(ref, ref2) / 3)
+        out.update(_child_prep(net, T_init, ref_path))
     else:
         prep = json.loads((d / f"prep_{law}.json").read_text())
         refs = np.load(ref_path)
         ref, steady = refs["transient"], refs["steady"]
-        t_end, dt, steps = prep["t_end"], prep["dt"], prep["steps"]
+        t_end, dt = prep["t_end"], prep["dt"]
         rss_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
         if task == "explicit":
-            run_explicit(net, T_init, [dt], dt=dt)            # numba compilation, untimed
-            t = time.perf_counter()
-            r = run_explicit(net, T_init, [t_end], dt=dt)
-            out["time_s"] = time.perf_counter() - t
-            out.update(steps=r.steps, cu_per_s=r.contact_updates_per_second,
-                       error=_err(r.temperature_k[-1], ref))
-            np.save(d / f"tdem_explicit_{law}_{ARGS.threads}.npy", r.temperature_k[-1])
+            timed, march = _child_explicit(net, T_init, t_end, dt, ref,
+                                           d / f"tdem_explicit_{law}_{ARGS.threads}.npy")
+            out.update(timed)
             if ARGS.threads == 1:
                 out["peak_rss_kb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
                 out["rss_before_solve_kb"] = rss_before
                 return out
-            # the steady question by the same march: chunks of `steps` until within 1 %
-            state, total, t_total, chunks = r.state, r.steps, out["time_s"], 1
-            while _err(state.temperature_k, steady) >= TOL and chunks < 4000:
-                t = time.perf_counter()
-                r = run_explicit(net, state, [state.time_s + t_end], dt=dt)
-                t_total += time.perf_counter() - t
-                state, total, chunks = r.state, total + r.steps, chunks + 1
-            out.update(steady_steps=total, steady_time_s=t_total,
-                       steady_error=_err(state.temperature_k, steady))
+            out.update(_child_explicit_to_steady(net, march, out["time_s"], t_end, dt,
+                                                 steady))
         elif task in ("implicit", "implicit_amg"):
-            how = "amg" if task.endswith("amg") else "direct"
-            run_implicit(net, T_init, [t_end], dt=t_end, theta=0.5, scheme="rannacher",
-                         method=how)
-            for m in range(0, 14):
-                t = time.perf_counter()
-                r = run_implicit(net, T_init, [t_end], dt=t_end / 2 ** m, theta=0.5,
-                                 scheme="rannacher", method=how)
-                sec = time.perf_counter() - t
-                e = _err(r.temperature_k[-1], ref)
-                if e < TOL:
-                    break
-            out.update(time_s=sec, steps=r.steps, error=e)
+            out.update(_child_implicit(net, T_init, t_end, ref,
+                                       "amg" if task.endswith("amg") else "direct"))
         elif task in ("steady", "steady_amg"):
-            how = "amg" if task.endswith("amg") else "direct"
-            solve_steady(net, T_init, method=how)                # warm (imports, JIT)
-            t = time.perf_counter()
-            r = solve_steady(net, T_init, method=how)
-            out.update(time_s=time.perf_counter() - t, steady_error=_err(r.temperature_k[-1],
-                                                                         steady))
+            out.update(_child_steady(net, T_init, steady,
+                                     "amg" if task.endswith("amg") else "direct"))
         out["rss_before_solve_kb"] = rss_before
     out["peak_rss_kb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return out
+
+
+def _child_prep(net, T_init, ref_path: Path) -> dict:
+    """child's 'prep': dt0, the references (saved to ``ref_path``) and the explicit step."""
+    from thermal_kernel.solvers.explicit import run_explicit
+    from thermal_kernel.solvers.implicit import run_implicit
+    from thermal_kernel.solvers.steady import solve_steady
+    dt_max = float(net.dt_max_s)
+    dt0 = 2.0 ** math.floor(math.log2(0.5 * dt_max))
+    t_end = ARGS.steps * dt0
+    ref = run_implicit(net, T_init, [t_end], dt=dt0 / 4, theta=0.5,
+                       scheme="rannacher").temperature_k[-1]
+    ref2 = run_implicit(net, T_init, [t_end], dt=dt0 / 2, theta=0.5,
+                        scheme="rannacher").temperature_k[-1]
+    steady = solve_steady(net, T_init, method="direct").temperature_k[-1]
+    # the explicit step: dt0, halved until the march is within 1 % of the reference
+    dt, steps = dt0, ARGS.steps
+    while True:
+        e = _err(run_explicit(net, T_init, [t_end], dt=dt).temperature_k[-1], ref)
+        if e < TOL or steps >= 16 * ARGS.steps:
+            break
+        dt, steps = dt / 2, steps * 2
+    np.savez(ref_path, transient=ref, steady=steady)
+    return dict(dt_max=dt_max, dt0=dt0, t_end=t_end, dt=dt, steps=steps,
+                explicit_error=e, ref_error_estimate=_err(ref, ref2) / 3)
+
+
+def _child_explicit(net, T_init, t_end, dt, ref, answer: Path):
+    """child's 'explicit': the timed march to t_end, its answer saved to ``answer``; returns
+    its columns and the march's result (the steady question continues it)."""
+    from thermal_kernel.solvers.explicit import run_explicit
+    run_explicit(net, T_init, [dt], dt=dt)            # numba compilation, untimed
+    t = time.perf_counter()
+    r = run_explicit(net, T_init, [t_end], dt=dt)
+    out = {"time_s": time.perf_counter() - t}
+    out.update(steps=r.steps, cu_per_s=r.contact_updates_per_second,
+               error=_err(r.temperature_k[-1], ref))
+    np.save(answer, r.temperature_k[-1])
+    return out, r
+
+
+def _child_explicit_to_steady(net, r, time_s, t_end, dt, steady) -> dict:
+    """The steady question by the same march ``r`` (``time_s`` its seconds): chunks of
+    `steps` until within 1 %."""
+    from thermal_kernel.solvers.explicit import run_explicit
+    state, total, t_total, chunks = r.state, r.steps, time_s, 1
+    while _err(state.temperature_k, steady) >= TOL and chunks < 4000:
+        t = time.perf_counter()
+        r = run_explicit(net, state, [state.time_s + t_end], dt=dt)
+        t_total += time.perf_counter() - t
+        state, total, chunks = r.state, total + r.steps, chunks + 1
+    return dict(steady_steps=total, steady_time_s=t_total,
+                steady_error=_err(state.temperature_k, steady))
+
+
+def _child_implicit(net, T_init, t_end, ref, how: str) -> dict:
+    """child's 'implicit' / 'implicit_amg': the fewest Crank-Nicolson steps within 1 %."""
+    from thermal_kernel.solvers.implicit import run_implicit
+    run_implicit(net, T_init, [t_end], dt=t_end, theta=0.5, scheme="rannacher", method=how)
+    for m in range(0, 14):
+        t = time.perf_counter()
+        r = run_implicit(net, T_init, [t_end], dt=t_end / 2 ** m, theta=0.5,
+                         scheme="rannacher", method=how)
+        sec = time.perf_counter() - t
+        e = _err(r.temperature_k[-1], ref)
+        if e < TOL:
+            break
+    return dict(time_s=sec, steps=r.steps, error=e)
+
+
+def _child_steady(net, T_init, steady, how: str) -> dict:
+    """child's 'steady' / 'steady_amg': one timed solve after a warm one."""
+    from thermal_kernel.solvers.steady import solve_steady
+    solve_steady(net, T_init, method=how)                # warm (imports, JIT)
+    t = time.perf_counter()
+    r = solve_steady(net, T_init, method=how)
+    return dict(time_s=time.perf_counter() - t,
+                steady_error=_err(r.temperature_k[-1], steady))
 
 
 def run_child(task, d, law, threads=2):

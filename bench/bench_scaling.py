@@ -432,11 +432,26 @@ def build_memory_section(build) -> str:
 
 
 def document(data) -> str:
-    rows = data["rows"]
+    """docs/scaling.md from the measured rows (``data``: bench/results/scaling.json), with
+    the largest solve and the build's memory where their files exist: its sections in
+    order, each written by a ``_doc_*`` step."""
     model, proj = projection(data)
     largest = json.loads(LARGEST.read_text()) if LARGEST.exists() else None
     build = json.loads(BUILD.read_text()) if BUILD.exists() else None
     bfit = build_fit(build) if build else None
+    L = _doc_running() + _doc_agreement() + _doc_measured(data)
+    if largest:
+        L += _doc_largest(largest)
+    if build:
+        L.append(build_memory_section(build))
+    L += _doc_cuts(data)
+    L += _doc_cost_model(model, proj, largest, build)
+    L += _doc_projection(proj, build, bfit)
+    return "\n".join(L) + "\n"
+
+
+def _doc_running() -> list[str]:
+    """The title and how to run on ranks (text only)."""
     L = []
     w = L.append
     w("# Scaling: the PETSc backend on MPI ranks (issue 25)\n")
@@ -481,6 +496,14 @@ def document(data) -> str:
       "    .venv-mpi/bin/python -m thermal_kernel.mpi_run SCENE.toml --out runs/out/big \\\n"
       "    --checkpoint-every 10   # a transient run; after a batch system's time limit, "
       "the same line with --resume\n```\n")
+    return L
+
+
+def _doc_agreement() -> list[str]:
+    """Agreement with the in-process solvers, what is still whole on rank 0, what works as
+    in-process, validation on ranks and the backend's limits (text only)."""
+    L = []
+    w = L.append
     w("Agreement with the in-process solvers (`tests/test_petsc_backend.py`, 1, 2 and 3 ranks, "
       "`make test`): explicit within 1e-12 of the temperature change, implicit and steady "
       "within 1e-10, boundary flows and ledger alike, flags identical; the last column of the "
@@ -535,6 +558,14 @@ def document(data) -> str:
     w("Limits of the backend today: the preconditioner is GAMG unless PETSC_OPTIONS says "
       "`-pc_type hypre` (hypre was faster here, the table; GAMG stays the default because it "
       "is part of every PETSc build, hypre an optional package).\n")
+    return L
+
+
+def _doc_measured(data) -> list[str]:
+    """The measured rows: load, network, the table."""
+    L = []
+    w = L.append
+    rows = data["rows"]
     w(f"## Measured ({data['date']}, this machine: 2 cores, shared)\n")
     w(f"Load while it ran: {' / '.join(' '.join(x) for x in data['load'])} (1/5/15-min load "
       f"averages at start and end; `{data['uptime']}`). A load above 2 means other jobs (here "
@@ -576,22 +607,33 @@ def document(data) -> str:
           f"{r['rss_solve_gb']:.2f} | {bpp:.0f} | {r['cut'] or ''} | "
           f"{r['diff_vs_inprocess']:.1e} |")
     w("")
-    if largest:
-        big_load = " / ".join(" ".join(x) for x in largest["load"])
-        w(f"The largest steady solve measured here ({largest['date']}; `{LARGEST_CMD}`, not "
-          f"part of `make bench-scaling`: ~2 min on an idle machine, ~10 min at a load of "
-          f"5-6; load {big_load}; mpirun "
-          f"{largest.get('mpirun_options') or 'with Open MPI defaults (polling, bound)'}):\n")
-        w("| N | ranks | pc | wall s | CPU s (busiest rank) | iterations | peak RSS rank 0 GB | "
-          "peak RSS other ranks GB |")
-        w("|---|---|---|---|---|---|---|---|")
-        for r in largest["rows"]:
-            w(f"| {r['n']:.0e} | {r['ranks']} | {r['pc']} | {r['wall_s']:.3g} | "
-              f"{r['cpu_s']:.3g} | {r['iterations']} | {r['rss_ranks_gb'][0]:.2f} | "
-              f"{max(r['rss_ranks_gb'][1:], default=float('nan')):.2f} |")
-        w("")
-    if build:
-        w(build_memory_section(build))
+    return L
+
+
+def _doc_largest(largest) -> list[str]:
+    """The largest steady solve (scaling_largest.json)."""
+    L = []
+    w = L.append
+    big_load = " / ".join(" ".join(x) for x in largest["load"])
+    w(f"The largest steady solve measured here ({largest['date']}; `{LARGEST_CMD}`, not "
+      f"part of `make bench-scaling`: ~2 min on an idle machine, ~10 min at a load of "
+      f"5-6; load {big_load}; mpirun "
+      f"{largest.get('mpirun_options') or 'with Open MPI defaults (polling, bound)'}):\n")
+    w("| N | ranks | pc | wall s | CPU s (busiest rank) | iterations | peak RSS rank 0 GB | "
+      "peak RSS other ranks GB |")
+    w("|---|---|---|---|---|---|---|---|")
+    for r in largest["rows"]:
+        w(f"| {r['n']:.0e} | {r['ranks']} | {r['pc']} | {r['wall_s']:.3g} | "
+          f"{r['cpu_s']:.3g} | {r['iterations']} | {r['rss_ranks_gb'][0]:.2f} | "
+          f"{max(r['rss_ranks_gb'][1:], default=float('nan')):.2f} |")
+    w("")
+    return L
+
+
+def _doc_cuts(data) -> list[str]:
+    """The contacts cut by the ranks' blocks: packings, then the bench's network."""
+    L = []
+    w = L.append
     w("### Contacts cut by the ranks' blocks\n")
     w("Each cut contact is a value the mat-vec sends between two ranks, every step. The "
       "packing's own order against the Morton order (`partition.py`):\n")
@@ -609,6 +651,13 @@ def document(data) -> str:
         w(f"| {c['n']:.0e} | {c['ranks']} | {c['contacts']} | {c['cut']} | "
           f"{100 * c['cut'] / c['contacts']:.2f} % | {2 * c['cut'] / c['ranks']:.0f} |")
     w("")
+    return L
+
+
+def _doc_cost_model(model, proj, largest, build) -> list[str]:
+    """The cost model fitted on the 1-rank rows, this machine's largest, the model's terms."""
+    L = []
+    w = L.append
     w("## Cost model and what 1e8 and 1e9 particles need\n")
     big = model["n"]
     w(f"Fitted on the CPU time of the 1-rank PETSc rows at N = {big:.0e} (GAMG; CPU, not "
@@ -648,6 +697,13 @@ def document(data) -> str:
       f"{NODE_GB:g} GB, {LINK_GB_S:g} GB/s per node, {LATENCY_S * 1e6:g} us latency, one rank "
       "per core; GAMG iterations extrapolated log-linearly in N from the two largest N "
       "measured.\n")
+    return L
+
+
+def _doc_projection(proj, build, bfit) -> list[str]:
+    """What 1e8 and 1e9 particles need, and how to read it."""
+    L = []
+    w = L.append
     root_pp = bfit["after"]["whole"] if build else float("nan")
     w("| N | solver | nodes (64 cores) | solver memory, all ranks | + on rank 0: the whole "
       "network (whole build) | + on rank 0: the per-particle arrays (per-rank build) | time |")
@@ -676,7 +732,7 @@ def document(data) -> str:
               "then needs rank 0 on a node of that much memory (fewer ranks on its node), or "
               "the next step (the boundary kinds on blocks, a parallel sort, parallel output), "
               "which divides that column by the ranks too.\n")
-    return "\n".join(L) + "\n"
+    return L
 
 
 def _line(r):
