@@ -31,7 +31,7 @@ from numba import njit, prange
 
 # The threading layer (OpenMP first: TBB's fork/join cost dominated a step, docs/solvers.md) is
 # chosen by the entry points, not here: thermal_kernel/threading_layer.py.
-from . import (Recorder, SolverState, ThermalResult, UnstableTimeStepError, as_network,
+from .common import (Recorder, SolverState, ThermalResult, UnstableTimeStepError, as_network,
                check_times, instantaneous_source, start_state, step_plan)
 
 

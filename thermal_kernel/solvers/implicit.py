@@ -42,7 +42,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from . import (blas_threads, Recorder, SolverState, ThermalResult, as_network, check_times,
+from .common import (blas_threads, Recorder, SolverState, ThermalResult, as_network, check_times,
                instantaneous_source, start_state, step_plan)
 
 # Free particles up to which the implicit solver factorises (SuperLU) instead of AMG-CG.

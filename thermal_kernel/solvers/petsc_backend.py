@@ -47,7 +47,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from . import Recorder, SolverState, ThermalResult, instantaneous_source, step_plan
+from .common import Recorder, SolverState, ThermalResult, instantaneous_source, step_plan
 from .explicit import explicit_start
 from .implicit import drive_implicit, implicit_start, scheme_args
 from .partition import block_starts, cut_contacts, owner_of_particle, particle_order

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
-from . import ThermalResult, as_network, blas_threads
+from .common import ThermalResult, as_network, blas_threads
 from .implicit import SpdSolver
 
 # Unknowns up to which the steady solve is direct (SuperLU). Measured (docs/solvers.md): direct
