@@ -112,11 +112,24 @@ def circles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
+# every module of tests/ by name (a test helper such as a scene module counts, not only test_*)
+TEST_MODULES = {p.stem for p in (ROOT / "tests").glob("*.py")} | {"tests"}
+
+
+@pytest.mark.parametrize("folder", ["bench", "tools"])
+def test_scripts_import_no_test_module(folder):
+    # the benchmarks and tools are run by make and by hand: what they share with the tests
+    # lives in the packages (e.g. tdem/committed_beds.py), never in tests/
+    offenders = {str(p.relative_to(ROOT)): sorted(imported_packages(p) & TEST_MODULES)
+                 for p in sorted((ROOT / folder).rglob("*.py"))}
+    offenders = {k: v for k, v in offenders.items() if v}
+    assert not offenders, f"{folder}/ imports a module of tests/: {offenders}"
+
+
 @pytest.mark.parametrize("package", sorted(FORBIDDEN))
 def test_no_module_imports_upward(package):
     offenders = {str(p.relative_to(ROOT)): sorted(imported_packages(p) & FORBIDDEN[package]
-                                                  | {n for n in imported_packages(p)
-                                                     if n.startswith(("test_", "conftest"))})
+                                                  | imported_packages(p) & TEST_MODULES)
                  for p in _sources(package)}
     offenders = {k: v for k, v in offenders.items() if v}
     assert not offenders, f"imports against the layers of docs/architecture.md: {offenders}"

@@ -82,7 +82,7 @@ def test_a_case_summary_is_its_record_and_a_renamed_key_is_posted_again(tmp_path
     from tdem import campaign as camp
     from tdem_post.campaign_record import CaseSummary
     from tdem_post.records import json_text
-    from test_campaign import BEDS, NO_PACK
+    from tdem.committed_beds import BEDS, NO_PACK
     monkeypatch.setattr(camp, "build_packings", lambda *a, **k: BEDS[:1])
     path = tmp_path / "c.toml"
     path.write_text(NO_PACK + "theta = 0.5\n")

@@ -7,7 +7,7 @@ import json
 import pandas as pd
 import pytest
 
-from test_campaign import BEDS, NO_PACK
+from tdem.committed_beds import BEDS, NO_PACK
 
 
 def test_window_fit_of_a_campaign_case(tmp_path, monkeypatch, capsys):
