@@ -433,53 +433,49 @@ def _where(b5: SlabRow | None, b6: SlabRow | None, n: dict) -> dict:
 
 
 def _result(rows: list[SlabRow], figs: dict) -> CaseResult:
-    """The case's result from its rows and figures: the section (its tables from
-    :func:`_packing_table` and :func:`_steady_table`, its words on where the error is from
-    :func:`_where`) and the summary's columns. Most of its length is the section's text."""
+    """The case's result from its rows and figures: the section (:func:`_section_setup`,
+    :func:`_section_where`, :func:`_section_steady`) and the summary's columns
+    (:func:`_columns`)."""
     by = {r.name: r for r in rows}
     n = dict(rows=[to_dict(r) for r in rows], fitted_orders=figs["orders"])
+    b5, b6 = by.get("tiled_1e5"), by.get("tiled_1e6")
+    parts = _where(b5, b6, n)
+    paper = _paper_text(b5, b6, n)
+    section = (_section_setup(rows, figs, b5) + _section_where(by, b5, b6, parts)
+               + _section_steady(rows, figs, b5, b6, paper))
+    return CaseResult(**_columns(rows, b5, b6), section_md=section, numbers=n)
+
+
+def _paper_text(b5, b6, n: dict) -> str:
+    """The paragraph against the paper's 0.7 % (and the 1e5 errors into ``n``)."""
+    if not b5:
+        return ""
+    e5c, e5d = b5.max_err_over_T_celsius, b5.max_err_over_dT
+    text = (f"**Against the paper.** 002's \"max relative error 0.7 %\" does not say "
+            "relative to what. Judged on the stricter reading, |bin mean − exact| / "
+            f"ΔT (max over the 10 bins and 3 times): **{_p(e5d)} at 1e5** — the "
+            "target ≤ 0.5 % is " + ("met" if e5d <= 0.005 else "not met") + ". "
+            f"Relative to T in °C the same error is {_p(e5c)}, but that reading "
+            "depends on the origin of the temperature scale (in kelvin it would be "
+            f"~10× smaller again) and is {e5d / e5c:.1f}× laxer here, so it is "
+            "shown, not judged on.")
+    if b6:
+        text += (f" At 1e6 {_p(b6.max_err_over_T_celsius)} "
+                 f"({_p(b6.max_err_over_dT)} of ΔT); the paper gives no 1e6 slab.")
+    n.update(err_1e5_celsius=e5c, err_1e5_dT=e5d)
+    return text
+
+
+def _section_setup(rows, figs, b5) -> str:
+    """The section's setup, the two measures, the profiles figure and the packings' table.
+    Text, hence its length."""
     carried = sorted({r.measured for r in rows if r.how != HOW})
     table = _packing_table(rows)
     ratios = [r.max_err_over_dT / r.max_err_over_T_celsius for r in rows]
-    steady = _steady_table(rows)
-    b4, b5, b6 = by.get("ds_10000_s1"), by.get("tiled_1e5"), by.get("tiled_1e6")
-    tiled4 = [by[k] for k in ("tiled_10000_s1", "tiled_10000_s2", "tiled_10000_s3") if k in by]
-    parts = _where(b5, b6, n)
-    text = {}
-    if b5:
-        e5c, e5d = b5.max_err_over_T_celsius, b5.max_err_over_dT
-        text["paper"] = (f"**Against the paper.** 002's \"max relative error 0.7 %\" does not say "
-                         "relative to what. Judged on the stricter reading, |bin mean − exact| / "
-                         f"ΔT (max over the 10 bins and 3 times): **{_p(e5d)} at 1e5** — the "
-                         "target ≤ 0.5 % is " + ("met" if e5d <= 0.005 else "not met") + ". "
-                         f"Relative to T in °C the same error is {_p(e5c)}, but that reading "
-                         "depends on the origin of the temperature scale (in kelvin it would be "
-                         f"~10× smaller again) and is {e5d / e5c:.1f}× laxer here, so it is "
-                         "shown, not judged on.")
-        if b6:
-            text["paper"] += (f" At 1e6 {_p(b6.max_err_over_T_celsius)} "
-                              f"({_p(b6.max_err_over_dT)} of ΔT); the paper gives no 1e6 slab.")
-        n.update(err_1e5_celsius=e5c, err_1e5_dT=e5d)
-    seeds = ""
-    if tiled4 and b4:
-        v = [r.max_err_over_dT for r in tiled4]
-        seeds = (f" ({100 * np.mean(v):.1f} ± {100 * np.std(v, ddof=1):.1f} % against "
-                 f"{_p(b4.max_err_over_dT)} of ΔT)")
-    falls = b5 and b6 and b6.max_err_over_dT < b5.max_err_over_dT
-    l6 = b6.length_held_m if b6 else None
-    cell_m = next((r.cell_size_m for r in (b5, b6) if r and r.cell_size_m), None)
-    cell_txt = "" if cell_m is None else (
-        f"\n({1e3 * cell_m:.0f} mm" + (f", {100 * cell_m / l6:.0f} % of L at 1e6" if l6 else "")
-        + ")")
-    orders = figs["orders"]
-    order_text = ", ".join(f"{'walled' if f == WALLED else 'tiled'} {_sg(o)}"
-                           for f, o in orders.items())
     lbl = f"held-plane distance, {1e3 * b5.length_held_m:.1f} mm at 1e5" \
         if b5 and b5.length_held_m else "the held-plane distance"
     prof_png = figs.get("profiles")
-    at_1e6 = (f"; at 1e6 {b6.run_seconds:.0f} s ({b6.steps:,} steps) for "
-              f"{_p(b6.max_err_over_dT)}" if b6 else "")
-    section = f"""\
+    return f"""\
 Setup (as the paper, 002 sec. 2.2 and Tab. 1): two faces normal to x held, T = 25 °C at xmin and
 35 °C at xmax from t = 0, 25 °C initially, adiabatic sides; ρ = 7800 kg/m³, λ = 33 W/m/K,
 c = 0.9 J/kg/K (the paper's value; α = 4.70e-3 m²/s); law haddad with C_t calibrated on the same
@@ -509,7 +505,25 @@ One packing by hand: `slab_case(PACKING)` of `validation/case4_slab.py`, what ev
 † Measured {', '.join(carried)} (through every dumped pair: before the scene's neighbour
 criterion of issue 23) and carried over: those packings are not on this machine;
 `TDEM_VALIDATE_ALL_PACKINGS=1 tdem validate 4 --force` builds and measures them again.
-""" if carried else "") + f"""
+""" if carried else "")
+
+
+def _section_where(by, b5, b6, parts) -> str:
+    """Where the error is: the held face's boundary resistance, and from 1e5 to 1e6."""
+    b4 = by.get("ds_10000_s1")
+    tiled4 = [by[k] for k in ("tiled_10000_s1", "tiled_10000_s2", "tiled_10000_s3") if k in by]
+    seeds = ""
+    if tiled4 and b4:
+        v = [r.max_err_over_dT for r in tiled4]
+        seeds = (f" ({100 * np.mean(v):.1f} ± {100 * np.std(v, ddof=1):.1f} % against "
+                 f"{_p(b4.max_err_over_dT)} of ΔT)")
+    falls = b5 and b6 and b6.max_err_over_dT < b5.max_err_over_dT
+    l6 = b6.length_held_m if b6 else None
+    cell_m = next((r.cell_size_m for r in (b5, b6) if r and r.cell_size_m), None)
+    cell_txt = "" if cell_m is None else (
+        f"\n({1e3 * cell_m:.0f} mm" + (f", {100 * cell_m / l6:.0f} % of L at 1e6" if l6 else "")
+        + ")")
+    return f"""
 **Where the error is.** Not in the bulk: {parts['where']}. The DEM lags the solution next to the
 held face: on the tiled boxes the held layer of a cut face is joined to the bulk by fewer links
 than a bulk layer, a boundary resistance (measured on the steady profile below; the walled boxes
@@ -532,7 +546,18 @@ local density and coordination fluctuations repeat instead of averaging out; the
 calibration matches the harmonic mean along x, the transient near the hot face sees the first
 cells only. Tiling from several independently relaxed cells, or seeds of the 1e5/1e6 boxes, would
 test it.
-""" if b5 and b6 else "") + f"""
+""" if b5 and b6 else "")
+
+
+def _section_steady(rows, figs, b5, b6, paper) -> str:
+    """The steady profile, the paper, the convergence and the speed. Text, hence its length."""
+    steady = _steady_table(rows)
+    orders = figs["orders"]
+    order_text = ", ".join(f"{'walled' if f == WALLED else 'tiled'} {_sg(o)}"
+                           for f, o in orders.items())
+    at_1e6 = (f"; at 1e6 {b6.run_seconds:.0f} s ({b6.steps:,} steps) for "
+              f"{_p(b6.max_err_over_dT)}" if b6 else "")
+    return f"""
 The steady profile says where the floor comes from (steady T minus the linear profile, % of ΔT,
 {STEADY_BINS} bins from the cold to the hot held plane, computed by `slab_case` on the same
 network). The calibration makes the heat flow exact, not the profile linear:
@@ -547,7 +572,7 @@ from the steady profile), or faces pressed by walls, are the two remedies to try
 (max err / ΔT against N, log-log least squares): {order_text or '—'}
 (walled: 2,000 → 10,000; tiled: 10,000 → 1e6, not a clean power law).
 
-{text.get('paper', '')}
+{paper}
 
 ![case 4 convergence with N](img/{figs['convergence']})
 
@@ -561,6 +586,11 @@ after {cell_cost_text()} of YADE for the cell{at_1e6}.
 **Test.** `tests/test_validation_small.py` runs `slab_case` on the committed 400-sphere box
 (`tests/data/dense_box.h5`) and asserts the errors measured there with a ~20 % margin (1.5 % of T
 in °C, 5 % of ΔT) and the C_t conversion; `tdem validate 4 --quick` runs the same instance."""
+
+
+def _columns(rows, b5, b6) -> dict:
+    """The summary's columns: our N, our error, the wall time and the verdict."""
+    falls = b5 and b6 and b6.max_err_over_dT < b5.max_err_over_dT
     big = max(rows, key=lambda r: r.n_particles)
     head = b5 or big
     best = min(rows, key=lambda r: r.max_err_over_dT)
@@ -576,14 +606,14 @@ in °C, 5 % of ΔT) and the C_t conversion; `tdem validate 4 --quick` runs the s
                + " in the stricter one"
                + ("; does not keep falling from 1e5 to 1e6 (one periodic cell, see case 4)"
                   if b5 and b6 and not falls else ""))
-    return CaseResult(
+    return dict(
         our_n=f"{head.n_particles:,} (also {min(r.n_particles for r in rows):,} … "
               f"{big.n_particles:,})",
         our_error=our_error,
         wall_time=(f"{cell_cost_text()} CPU + {head.run_seconds:.0f} s (explicit, "
                    f"{head.steps:,} steps, 1 thread)"
                    + (f"; 1e6: + {b6.run_seconds:.0f} s" if b6 else "")),
-        verdict=verdict, section_md=section, numbers=n)
+        verdict=verdict)
 
 
 def _judged_result(ctx: Context, rows: list[SlabRow]) -> CaseResult:
