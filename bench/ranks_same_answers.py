@@ -303,19 +303,25 @@ def run_plan(plan, scratch: Path, fresh: bool, log) -> dict:
         vdir = base / _variant(r)
         stamp = vdir / "bench_plan.json"     # what ran there: run again when the plan changed
         wanted = json.dumps({k: str(v) for k, v in plan.items() if k != "note"}, sort_keys=True)
-        if plan["kind"] == "campaign":
-            wanted += plan["campaign"].read_text()
-        if vdir.exists() and (fresh or not stamp.exists() or stamp.read_text() != wanted):
+        if vdir.exists() and (fresh or (plan["kind"] == "run" and (
+                not stamp.exists() or stamp.read_text() != wanted))):
             shutil.rmtree(vdir)
         vdir.mkdir(parents=True, exist_ok=True)
         stamp.write_text(wanted)
         extra = ["--threads", "1"] if r == 0 else ["--ranks", str(r)]
         t = time.time()
         if plan["kind"] == "campaign":
-            if not (vdir / "campaign.json").exists():
-                _call([str(TDEM), "campaign", str(plan["campaign"]), "--out", str(vdir),
-                       "--quiet", *extra], vdir.with_suffix(".log"))
-            runs = {p.parent.name: p for p in sorted((vdir / "cases").glob("*/thermal.h5"))}
+            # the campaign resumes by itself: a case kept when its scene and packing hashes
+            # still match, run otherwise; only the plan's cases (packing x law) are compared
+            _call([str(TDEM), "campaign", str(plan["campaign"]), "--out", str(vdir),
+                   "--quiet", *extra], vdir.with_suffix(".log"))
+            laws = tomllib.loads(plan["campaign"].read_text())["campaign"]["laws"]
+            names = [f"{p.stem.removeprefix('packing_')}_{law}" for p in plan["packings"]
+                     for law in laws]        # tdem.campaign._case_name
+            runs = {n: vdir / "cases" / n / "thermal.h5" for n in names}
+            missing = [n for n, p in runs.items() if not p.exists()]
+            if missing:
+                raise RuntimeError(f"{plan['label']}: {_variant(r)}: no thermal.h5 for {missing}")
         else:
             runs = {}
             for p in plan["packings"]:
@@ -363,8 +369,50 @@ def _rel_array(a, b) -> float:
     return float(diff / scale) if scale > 0 else float(diff)
 
 
-def compare(ref: Path, other: Path) -> dict:
-    """The run ``other`` against the in-process run ``ref`` (the measures of the docstring)."""
+_NUM = re.compile(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?")
+POST_SKIP = ("seconds", "sha256", "thermal", "packing", "files")
+
+
+def _leaves(x, key=""):
+    if isinstance(x, dict):
+        for k, v in x.items():
+            if not any(s in k for s in POST_SKIP):
+                yield from _leaves(v, f"{key}.{k}" if key else k)
+    elif isinstance(x, (list, tuple)):
+        for i, v in enumerate(x):
+            yield from _leaves(v, f"{key}[{i}]")
+    else:
+        yield key, x
+
+
+def compare_post(ref: Path, other: Path):
+    """A campaign case's post/summary.json (γ, τ, steady γ, flux CoV, ...) against the
+    in-process one: (max relative difference, its key); None without summaries. Informative:
+    not part of the verdict (the fits' windows are thresholds on the temperatures)."""
+    a, b = ref.parent / "post" / "summary.json", other.parent / "post" / "summary.json"
+    if not (a.exists() and b.exists()):
+        return None
+    la, lb = dict(_leaves(json.loads(a.read_text()))), dict(_leaves(json.loads(b.read_text())))
+    worst, key = 0.0, ""
+    for k in sorted(set(la) | set(lb)):
+        x, y = la.get(k, "missing"), lb.get(k, "missing")
+        if isinstance(x, (int, float)) and isinstance(y, (int, float)) \
+                and not isinstance(x, bool) and not isinstance(y, bool):
+            if x == y or (x != x and y != y):
+                continue
+            d = abs(x - y) / abs(x) if x != 0 else abs(y)
+        elif isinstance(x, str) and isinstance(y, str):      # a sentence: its words, not
+            d = 0.0 if _NUM.sub("#", x) == _NUM.sub("#", y) else np.inf  # its round-off digits
+        else:
+            d = 0.0 if x == y else np.inf
+        if d > worst:
+            worst, key = d, k
+    return worst, key
+
+
+def compare(ref: Path, other: Path, ranks: int) -> dict:
+    """The run ``other`` against the in-process run ``ref`` (the measures of the docstring);
+    ``other`` must say it ran on the PETSc backend on ``ranks`` ranks, ``ref`` that it did not."""
     with h5py.File(ref, "r") as fa, h5py.File(other, "r") as fb:
         A, B = _attrs(fa), _attrs(fb)
         Ta, Tb = fa["temperature"][()], fb["temperature"][()]
@@ -380,6 +428,10 @@ def compare(ref: Path, other: Path) -> dict:
         dT_rel, T_rel = diff / span, diff / float(np.abs(Ta).max())
     differ = [k for k in SAME_ATTRS if (k in A) != (k in B) or (k in A and not _same(A[k], B[k]))]
     differ += missing
+    if (A.get("backend") == "petsc" or B.get("backend") != "petsc"
+            or int(B.get("ranks", -1)) != ranks):
+        differ.append(f"backend/ranks ({A.get('backend', 'in-process')} / "
+                      f"{B.get('backend', 'in-process')} on {B.get('ranks', '?')})")
     if "neighbours" in A and not _same(A["neighbours"], B.get("neighbours")):
         differ.append("neighbours")
     for k in CLOSE_ATTRS:
@@ -391,7 +443,7 @@ def compare(ref: Path, other: Path) -> dict:
     tol = TOL[kind]
     arr = max(arrays.values()) if arrays else 0.0
     ok = dT_rel <= tol and arr <= tol and not differ
-    return dict(method=method, kind=kind, n=int(A.get("n_particles", 0)), dT_rel=dT_rel,
+    return dict(post=compare_post(ref, other), method=method, kind=kind, n=int(A.get("n_particles", 0)), dT_rel=dT_rel,
                 T_rel=T_rel, arrays=arr, worst_array=max(arrays, key=arrays.get) if arrays else "",
                 array_rel=arrays, flags_ref=A.get("flags", ""), flags=B.get("flags", ""),
                 flags_same=A.get("flags") == B.get("flags"), differ=differ, tol=tol, ok=ok,
@@ -405,6 +457,10 @@ def compare(ref: Path, other: Path) -> dict:
 
 def _e(x) -> str:
     return "inf" if not np.isfinite(x) else ("0" if x == 0 else f"{x:.1e}")
+
+
+def _post(p) -> str:
+    return "-" if p is None else (f"{_e(p[0])} ({p[1]})" if p[0] > 0 else "0")
 
 
 def summary_rows(results) -> list:
@@ -422,6 +478,7 @@ def summary_rows(results) -> list:
                 n=", ".join(str(n) for n in ns), solver=", ".join(kinds), ranks=r,
                 dT=max(c["dT_rel"] for c in cs), T=max(c["T_rel"] for c in cs),
                 arrays=max(c["arrays"] for c in cs),
+                post=(max((c["post"] for c in cs if c["post"]), default=None)),
                 flags="yes" if all(c["flags_same"] for c in cs) else "no",
                 same="yes" if all(not c["differ"] for c in cs) else
                      "no: " + ", ".join(sorted({d for c in cs for d in c["differ"]})),
@@ -433,12 +490,13 @@ def summary_rows(results) -> list:
 def markdown(results, skipped, command, started, load) -> str:
     head = ("| scene | runs | N | solver | ranks | max abs(T - T_in-process) / temperature change"
             " | the same / max abs(T) | flows, ledger, capacity: max rel diff | flags identical |"
-            " counts, dt, bounds identical | tolerance | verdict |\n"
-            "|---|---|---|---|---|---|---|---|---|---|---|---|\n")
+            " counts, dt, bounds identical | tolerance | verdict | campaign's post (γ, τ, ...):"
+            " max rel diff |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
     body = "".join(
         f"| {r['scene']} | {r['runs']} | {r['n']} | {r['solver']} | {r['ranks']} | {_e(r['dT'])} "
         f"| {_e(r['T'])} | {_e(r['arrays'])} | {r['flags']} | {r['same']} | {r['tol']} "
-        f"| {r['ok']} |\n" for r in summary_rows(results))
+        f"| {r['ok']} | {_post(r['post'])} |\n" for r in summary_rows(results))
     lines = [f"# Every scene of runs/ in-process and on 1, 2 and 3 ranks (issue 25)", "",
              f"Written by `{command}` ({started}; load {load}). Each scene run in-process "
              "(`tdem run --threads 1`, `tdem campaign --threads 1`) and with `--ranks 1`, `2`, "
@@ -447,7 +505,10 @@ def markdown(results, skipped, command, started, load) -> str:
              "1e-10 of the run's temperature change (the tests' measure); the flows and ledger "
              "arrays relative to each array's max abs value, judged at the same tolerance; "
              "flags, steps, conducting contacts, rattlers, floating clusters, maximum-principle "
-             "bounds, neighbour choice identical and dt, its bound within 1e-12.", "",
+             "bounds, neighbour choice identical and dt, its bound within 1e-12. The last "
+             "column, for the campaigns, compares the numbers `tdem post` made from each case "
+             "(its `post/summary.json`: γ and its interval, steady γ, τ, flux CoV, ...; "
+             "informative, not in the verdict).", "",
              head + body, "", "Packings:", ""]
     for plan, _ in results:
         lines.append(f"- {plan['label']}: {plan['note']}")
@@ -473,8 +534,10 @@ def console_table(results) -> str:
     rows = summary_rows(results)
     cols = [("scene", "scene"), ("runs", "runs"), ("N", "n"), ("solver", "solver"),
             ("ranks", "ranks"), ("dT rel", "dT"), ("T rel", "T"), ("arrays", "arrays"),
-            ("flags same", "flags"), ("counts same", "same"), ("tol", "tol"), ("verdict", "ok")]
-    cells = [[h for h, _ in cols]] + [[_e(r[k]) if k in ("dT", "T", "arrays") else str(r[k])
+            ("flags same", "flags"), ("counts same", "same"), ("tol", "tol"), ("verdict", "ok"),
+            ("post", "post")]
+    cells = [[h for h, _ in cols]] + [[_e(r[k]) if k in ("dT", "T", "arrays") else
+                                       _post(r[k]) if k == "post" else str(r[k])
                                        for _, k in cols] for r in rows]
     widths = [max(len(c[i]) for c in cells) for i in range(len(cols))]
     return "\n".join("  ".join(c[i].ljust(widths[i]) for i in range(len(cols))) for c in cells)
@@ -490,9 +553,9 @@ def main(argv=None) -> int:
                     help="n_particles of a packing made here when runs/out has none")
     ap.add_argument("--all-pressures", action="store_true",
                     help="every packing of a pressure series, not its lowest and highest")
-    ap.add_argument("--lowest-only", default="campaign_7500,campaign_7500_seeds",
-                    help="campaigns run on their lowest pressure only (6,000 Crank-Nicolson "
-                         "steps on 7,500 spheres a case: minutes a case on ranks here)")
+    ap.add_argument("--lowest-only", default="",
+                    help="comma-separated campaigns to run on their lowest pressure only (e.g. "
+                         "campaign_7500: 6,000 Crank-Nicolson steps on 7,500 spheres a case)")
     ap.add_argument("--fresh", action="store_true", help="run again what the scratch holds")
     ap.add_argument("--plan-only", action="store_true",
                     help="say which scenes run on which packings (builds missing packings)")
@@ -517,7 +580,7 @@ def main(argv=None) -> int:
         runs = run_plan(plan, scratch, args.fresh, log)
         per_rank = {}
         for r in RANKS:
-            per_rank[r] = {name: compare(runs[0][name], path)
+            per_rank[r] = {name: compare(runs[0][name], path, r)
                            for name, path in runs[r].items() if name in runs[0]}
             lost = set(runs[0]) ^ set(runs[r])
             if lost:
