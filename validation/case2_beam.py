@@ -223,6 +223,11 @@ def _beam_run(r: BeamRun, pack_s: float | None) -> BeamRun:
 
 # ---------------------------------------------------------------------------- the case
 
+def _seeds(k: int) -> str:
+    """ "1 seed", "5 seeds"."""
+    return f"{k} seed" + ("" if k == 1 else "s")
+
+
 def judge(numbers: dict) -> Judgement:
     """Issue 23's columns: the paper's N is 19,465; the measure (000: "good agreement", Fig. 9)
     is read strictly as the max |error| / ΔT over the bins and output times, per seed."""
@@ -232,7 +237,7 @@ def judge(numbers: dict) -> Judgement:
     per_seed, series = list(m.per_seed), m.series
 
     def seeds_text(label, ns, errs):        # N (mean) × seeds, each seed's error, how many < 1 %
-        return (f"{label}: N {int(sum(ns) / len(ns)):,} × {len(errs)} seeds "
+        return (f"{label}: N {int(sum(ns) / len(ns)):,} × {_seeds(len(errs))} "
                 + " / ".join(f"{100 * e:.2f}" for e in errs)
                 + f" % ({sum(e < 0.01 for e in errs)} of {len(errs)} < 1 %)")
     # the judged series: pressed ends when built (the paper-like boundary), else the beams of
@@ -384,7 +389,7 @@ def _series_text(extra: dict) -> str:
               f"{w.radius_over_mean_radius:.1f}") for s, w in sorted(beams.items())])
         ok = sum(w.max_error_over_dT < 0.01 for w in beams.values())
         out.append(f"""
-**At the paper's N, {SERIES[series]}.** {ok} of {len(beams)} seeds below 1 % of ΔT at every
+**At the paper's N, {SERIES[series]}.** {ok} of {_seeds(len(beams))} below 1 % of ΔT at every
 output time (max over the bins and the {len(FOURIER)} times; haddad, C_t calibrated on the same
 packing):
 
