@@ -443,7 +443,8 @@ def compare(ref: Path, other: Path, ranks: int) -> dict:
     tol = TOL[kind]
     arr = max(arrays.values()) if arrays else 0.0
     ok = dT_rel <= tol and arr <= tol and not differ
-    return dict(post=compare_post(ref, other), method=method, kind=kind, n=int(A.get("n_particles", 0)), dT_rel=dT_rel,
+    return dict(code=(A.get("git_hash", "?"), B.get("git_hash", "?")),
+                post=compare_post(ref, other), method=method, kind=kind, n=int(A.get("n_particles", 0)), dT_rel=dT_rel,
                 T_rel=T_rel, arrays=arr, worst_array=max(arrays, key=arrays.get) if arrays else "",
                 array_rel=arrays, flags_ref=A.get("flags", ""), flags=B.get("flags", ""),
                 flags_same=A.get("flags") == B.get("flags"), differ=differ, tol=tol, ok=ok,
@@ -512,6 +513,10 @@ def markdown(results, skipped, command, started, load) -> str:
              head + body, "", "Packings:", ""]
     for plan, _ in results:
         lines.append(f"- {plan['label']}: {plan['note']}")
+    codes = sorted({h for _, pr in results for cs in pr.values() for c in cs.values()
+                    for h in c["code"]})
+    lines += ["", "The code the runs ran (each thermal.h5's git_hash; `-dirty`: other files of "
+              "the checkout were being edited): " + ", ".join(f"`{h}`" for h in codes) + "."]
     if skipped:
         lines += ["", "Skipped:", ""] + [f"- {s}: {why}" for s, why in skipped]
     lines += ["", "## Every run", "",
