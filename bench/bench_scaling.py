@@ -375,6 +375,9 @@ LARGEST_CMD = ("bench/bench_scaling.py --n 8e6 --solvers steady --ranks 2 --pcs 
 
 
 BUILD = ROOT / "bench/results/rank_build_memory.json"
+# the section "Every scene of runs/ on 1, 2 and 3 ranks": make bench-ranks' command and its
+# output (bench/ranks_same_answers.py), kept beside its table
+RANKS_SECTION = ROOT / "bench/results/ranks_same_answers_section.md"
 
 
 def build_fit(build):
@@ -447,7 +450,10 @@ def document(data) -> str:
     L += _doc_cuts(data)
     L += _doc_cost_model(model, proj, largest, build)
     L += _doc_projection(proj, build, bfit)
-    return "\n".join(L) + "\n"
+    text = "\n".join(L) + "\n"
+    if RANKS_SECTION.exists():      # make bench-ranks' section (its own run, its own file)
+        text += "\n" + RANKS_SECTION.read_text()
+    return text
 
 
 def _doc_running() -> list[str]:
