@@ -103,7 +103,8 @@ def _same_table(scene: Path, params_override: dict | None = None):
     params = dict(params, **(params_override or {}))
     want = {k: v for k, v in params.items() if k != "output_dir"}
     own = ROOT / "runs" / "out" / scene.stem
-    dirs = [own, own / "packings"] + [d for d in _candidate_dirs() if d not in (own, own / "packings")]
+    dirs = [own, own / "packings"]
+    dirs += [d for d in _candidate_dirs() if d not in dirs]
     for d in dirs:
         done = d / "params.json"
         made = sorted(d.glob("packing*.h5"))
@@ -245,7 +246,8 @@ def _campaign_plan(scene, data, scratch, args):
     else:
         packings = _ends(made, args.all_pressures)
         if len(made) > len(packings):
-            note += f"; {len(packings)} of its {len(made)} packings (the first and last of the series)"
+            note += (f"; {len(packings)} of its {len(made)} packings (the first and last of "
+                     "the series)")
     note += f"; laws {', '.join(camp['laws'])}"
     folder = scratch / label
     folder.mkdir(parents=True, exist_ok=True)
@@ -444,7 +446,8 @@ def compare(ref: Path, other: Path, ranks: int) -> dict:
     arr = max(arrays.values()) if arrays else 0.0
     ok = dT_rel <= tol and arr <= tol and not differ
     return dict(code=(A.get("git_hash", "?"), B.get("git_hash", "?")),
-                post=compare_post(ref, other), method=method, kind=kind, n=int(A.get("n_particles", 0)), dT_rel=dT_rel,
+                post=compare_post(ref, other), method=method, kind=kind,
+                n=int(A.get("n_particles", 0)), dT_rel=dT_rel,
                 T_rel=T_rel, arrays=arr, worst_array=max(arrays, key=arrays.get) if arrays else "",
                 array_rel=arrays, flags_ref=A.get("flags", ""), flags=B.get("flags", ""),
                 flags_same=A.get("flags") == B.get("flags"), differ=differ, tol=tol, ok=ok,
@@ -473,7 +476,6 @@ def summary_rows(results) -> list:
                 continue
             kinds = sorted({c["method"] for c in cs})
             ns = sorted({c["n"] for c in cs})
-            tol = max(c["tol"] for c in cs) if len({c["tol"] for c in cs}) == 1 else None
             rows.append(dict(
                 scene=plan["label"], runs=len(cs),
                 n=", ".join(str(n) for n in ns), solver=", ".join(kinds), ranks=r,
@@ -498,7 +500,7 @@ def markdown(results, skipped, command, started, load) -> str:
         f"| {r['scene']} | {r['runs']} | {r['n']} | {r['solver']} | {r['ranks']} | {_e(r['dT'])} "
         f"| {_e(r['T'])} | {_e(r['arrays'])} | {r['flags']} | {r['same']} | {r['tol']} "
         f"| {r['ok']} | {_post(r['post'])} |\n" for r in summary_rows(results))
-    lines = [f"# Every scene of runs/ in-process and on 1, 2 and 3 ranks (issue 25)", "",
+    lines = ["# Every scene of runs/ in-process and on 1, 2 and 3 ranks (issue 25)", "",
              f"Written by `{command}` ({started}; load {load}). Each scene run in-process "
              "(`tdem run --threads 1`, `tdem campaign --threads 1`) and with `--ranks 1`, `2`, "
              "`3`; every `thermal.h5` compared with the in-process one (a row: the worst of the "
@@ -520,7 +522,8 @@ def markdown(results, skipped, command, started, load) -> str:
     if skipped:
         lines += ["", "Skipped:", ""] + [f"- {s}: {why}" for s, why in skipped]
     lines += ["", "## Every run", "",
-              "| scene | run | N | method | ranks | T diff / change | T diff / max T | worst array (rel) | "
+              "| scene | run | N | method | ranks | T diff / change | T diff / max T | "
+              "worst array (rel) | "
               "flags (in-process) | flags (ranks) | differs | linear solver | verdict |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for plan, per_rank in results:
