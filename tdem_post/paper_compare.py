@@ -17,8 +17,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .fits import PAPER_GAMMA, power_law
-
 PAPER_TAU = dict(a=1.945, b=0.1084, c=-1.332)       # 003 Fig. 10 (p in bar)
 
 
@@ -46,6 +44,8 @@ def plot(campaign_out, out_png, *, law="pipe", diag_out=None,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from thermal_kernel.atomic import savefig_atomic
+
+    from .fits import PAPER_GAMMA, power_law     # scipy.stats: not at `tdem`'s start-up
     table = _load(campaign_out, law)
     g = table.groupby(_key(table))
     p = g["pressure_pa"].mean().to_numpy() / 1e5
