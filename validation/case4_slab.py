@@ -441,9 +441,10 @@ def _result(rows: list[SlabRow], figs: dict) -> CaseResult:
     b5, b6 = by.get("tiled_1e5"), by.get("tiled_1e6")
     parts = _where(b5, b6, n)
     paper = _paper_text(b5, b6, n)
-    section = (_section_setup(rows, figs, b5) + _section_where(by, b5, b6, parts)
+    falls = b5 and b6 and b6.max_err_over_dT < b5.max_err_over_dT    # from 1e5 to 1e6
+    section = (_section_setup(rows, figs, b5) + _section_where(by, b5, b6, parts, falls)
                + _section_steady(rows, figs, b5, b6, paper, by.get("ds_1e5_s1")))
-    return CaseResult(**_columns(rows, b5, b6), section_md=section, numbers=n)
+    return CaseResult(**_columns(rows, b5, b6, falls), section_md=section, numbers=n)
 
 
 def _paper_text(b5, b6, n: dict) -> str:
@@ -508,7 +509,7 @@ criterion of issue 23) and carried over: those packings are not on this machine;
 """ if carried else "")
 
 
-def _section_where(by, b5, b6, parts) -> str:
+def _section_where(by, b5, b6, parts, falls) -> str:
     """Where the error is: the held face's boundary resistance, and from 1e5 to 1e6."""
     b4 = by.get("ds_10000_s1")
     tiled4 = [by[k] for k in ("tiled_10000_s1", "tiled_10000_s2", "tiled_10000_s3") if k in by]
@@ -517,7 +518,6 @@ def _section_where(by, b5, b6, parts) -> str:
         v = [r.max_err_over_dT for r in tiled4]
         seeds = (f" ({100 * np.mean(v):.1f} ± {100 * np.std(v, ddof=1):.1f} % against "
                  f"{_p(b4.max_err_over_dT)} of ΔT)")
-    falls = b5 and b6 and b6.max_err_over_dT < b5.max_err_over_dT
     l6 = b6.length_held_m if b6 else None
     cell_m = next((r.cell_size_m for r in (b5, b6) if r and r.cell_size_m), None)
     cell_txt = "" if cell_m is None else (
@@ -600,9 +600,8 @@ after {cell_cost_text()} of YADE for the cell{at_1e6}.
 in °C, 5 % of ΔT) and the C_t conversion; `tdem validate 4 --quick` runs the same instance."""
 
 
-def _columns(rows, b5, b6) -> dict:
+def _columns(rows, b5, b6, falls) -> dict:
     """The summary's columns: our N, our error, the wall time and the verdict."""
-    falls = b5 and b6 and b6.max_err_over_dT < b5.max_err_over_dT
     big = max(rows, key=lambda r: r.n_particles)
     head = b5 or big
     best = min(rows, key=lambda r: r.max_err_over_dT)

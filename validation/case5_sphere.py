@@ -481,13 +481,18 @@ def _walled_rows(ctx, out) -> list[dict]:
     return rows
 
 
-def walled_text(rows) -> str:
-    """Each ball pressed in its own container (:data:`WALLED`) beside the carved ball of the
-    same nominal N (our bulk C_t), from the runs' records; "" when none was run."""
+def _walled_pairs(rows) -> list[tuple]:
+    """Each ball pressed in its own container (:data:`WALLED`) with the carved ball of the
+    same nominal N (our bulk C_t), None when that one was not run."""
     by = {(r.n_nominal, r.label): r for r in rows}
+    return [(w, by.get((w.n_nominal, PRIMARY))) for w in rows if w.label == WALLED_LABEL]
+
+
+def walled_text(rows) -> str:
+    """Each walled ball beside the carved ball of the same N (:func:`_walled_pairs`), from the
+    runs' records; "" when none was run."""
     parts = []
-    for w in (r for r in rows if r.label == WALLED_LABEL):
-        t = by.get((w.n_nominal, PRIMARY))
+    for w, t in _walled_pairs(rows):
         parts.append(
             f"walled YADE ball, N {w.n_particles:,}: max {w.max_abs_error_c:.2f} °C (at r/R_h "
             f"{w.argmax_r_over_R:.2f}), centre "
@@ -882,19 +887,20 @@ one of the walled cube of the same N and seed (`box_1e4`, `box_1e5_walled`). {wa
 
 def _walled_reading(rows) -> str:
     """What the walled balls show against the carved ones of the same N, from the records."""
-    by = {(r.n_nominal, r.label): r for r in rows}
-    pairs = [(w, by[(w.n_nominal, PRIMARY)]) for w in rows
-             if w.label == WALLED_LABEL and (w.n_nominal, PRIMARY) in by]
+    pairs = [(w, t) for w, t in _walled_pairs(rows) if t is not None]
     if not pairs:
         return ""
     centre = all(abs(w.centre_error_c) < abs(t.centre_error_c) for w, t in pairs)
     peak = all(w.max_abs_error_c < t.max_abs_error_c for w, t in pairs)
-    return ("The pressed surface " + ("makes the centre error smaller" if centre else
-                                      "does not make the centre error smaller")
-            + (" and the max error too." if peak else
-               ", but not the max error, which lies in the layers next to the wall: a wall "
-               "layer is a boundary of its own."
-               if centre else "."))
+    if centre and not peak:
+        return ("The pressed surface makes the centre error smaller, but not the max error, "
+                "which lies in the layers next to the wall: a wall layer is a boundary of its "
+                "own.")
+    return ("The pressed surface makes "
+            + {(True, True): "the centre error and the max error smaller.",
+               (False, True): "the max error smaller, not the centre error.",
+               (False, False): "neither the centre error nor the max error smaller."}[
+                   (centre, peak)])
 
 
 def _section_results(rows, speed, main, m, facts, texts, met) -> str:
