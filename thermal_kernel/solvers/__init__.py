@@ -8,25 +8,19 @@
 :class:`~thermal_kernel.network.Network` (assemble once, run many). ``T0`` is an (N,) array or
 the ``state`` of a previous result, to resume. All return a :class:`ThermalResult`.
 """
-from .common import (  # noqa: F401  the names callers import from the package
-    UnstableTimeStepError,
+from .common import (  # noqa: F401  what callers and docstrings take from the package
+    LEDGER_RTOL,
+    MAX_PRINCIPLE_RTOL,
+    TEMPERATURE_MAX_K,
+    PhysicsCheck,
+    Recorder,
     SolverState,
     ThermalResult,
-    as_network,
-    check_times,
-    interval_steps,
-    step_plan,
-    start_state,
-    Recorder,
+    UnstableTimeStepError,
     blas_threads,
-    MAX_PRINCIPLE_RTOL,
-    LEDGER_RTOL,
-    PhysicsCheck,
-    max_principle_bounds,
-    _ledger_relative,
     check_physics,
-    instantaneous_source,
-    TEMPERATURE_MAX_K,
+    interval_steps,
+    max_principle_bounds,
 )
 from .explicit import run_explicit, explicit_step_reference  # noqa: E402
 from .implicit import run_implicit  # noqa: E402
