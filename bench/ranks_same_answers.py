@@ -75,8 +75,9 @@ ENV = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_TH
 # which scenes, on which packings
 
 def _pressure(path: Path) -> float:
-    m = re.search(r"packing_([0-9.e+-]+)Pa\.h5$", path.name)
-    return float(m.group(1)) if m else 0.0
+    """A series packing's nominal pressure from its name (0 when it has none)."""
+    from tdem.campaign import target_pressure
+    return target_pressure(path, 0.0)
 
 
 def _ends(packings: list, every: bool) -> list:
