@@ -213,3 +213,40 @@ def test_case7_records_round_trip():
         case7_halo.cov_at(bad)
     with pytest.raises(RecordError, match="cov_ratio_4: unknown field"):
         case7_halo.read_numbers(dict(numbers, cov_ratio_4=0.05))
+
+
+def test_case5_walled_balls_stand_beside_the_carved_ones():
+    """A ball pressed in its own container (issue 24) is quoted beside the carved ball of the
+    same N, never instead: the judge's verdict and target come from the carved balls alone,
+    and its figures at the paper's N follow from the records (a synthetic walled row with a
+    changed error moves the quoted number, not the verdict)."""
+    import dataclasses
+    import json
+
+    from tdem_post.records import to_dict
+    from validation import case5_sphere, framework
+    numbers = framework.load_result(5)["result"]["numbers"]
+    m = case5_sphere.read_numbers(numbers)
+    carved = [r for r in m.rows if r.label == case5_sphere.PRIMARY and r.n_nominal == 10_000][0]
+    walled = dataclasses.replace(carved, label=case5_sphere.WALLED_LABEL, max_abs_error_c=0.123,
+                                 centre_error_c=-0.0456)
+    rows = [r for r in m.rows if r.label != case5_sphere.WALLED_LABEL]
+    assert case5_sphere._walled_pairs(rows + [walled]) == [(walled, carved)]
+    assert case5_sphere._walled_pairs(rows) == []
+    text = case5_sphere.walled_text(rows + [walled])
+    assert "max 0.12 °C" in text and "centre -0.05 °C" in text
+    assert f"carved ball of the same N: max {carved.max_abs_error_c:.2f} °C" in text
+    plain = json.loads(json.dumps(numbers))
+    plain["rows"] = [to_dict(r) for r in rows]
+    with_walled = dict(plain, rows=plain["rows"] + [to_dict(walled)])
+    a, b = case5_sphere.judge(plain), case5_sphere.judge(with_walled)
+    assert (a.verdict, a.target_met, a.speed_vs_error) == (b.verdict, b.target_met,
+                                                           b.speed_vs_error)
+    assert b.at_paper_n.startswith(a.at_paper_n) and "walled YADE ball" in b.at_paper_n
+    assert "walled YADE ball" not in a.at_paper_n
+    # the reading names the measured outcome: centre smaller, max larger here
+    assert "centre error smaller, but not the max error" in case5_sphere._walled_reading(
+        rows + [dataclasses.replace(walled, max_abs_error_c=carved.max_abs_error_c + 1)])
+    assert "neither" in case5_sphere._walled_reading(rows + [dataclasses.replace(
+        walled, max_abs_error_c=carved.max_abs_error_c + 1,
+        centre_error_c=abs(carved.centre_error_c) + 1)])
