@@ -4,6 +4,8 @@ paper's formula, the 7-point stencil of Terreros on a simple-cubic lattice, Tabl
 and one step of YADE's ThermalEngine reproduced from hard-coded YADE output."""
 import dataclasses
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,16 +18,14 @@ from thermal_kernel.hand_inputs import lattice_inputs as _lattice
 from thermal_kernel.hand_inputs import one_contact as _one
 from thermal_kernel.hand_inputs import wall_conductance as _g
 from thermal_kernel.laws import LAWS, UnknownLawError, get_law
-from thermal_kernel.laws.base import ContactInput, Law, ParticleInput, WallContactInput
+from thermal_kernel.laws.base import (LAW_KINDS, ContactInput, Law, ParticleInput,
+                                      WallContactInput)
 from thermal_kernel.laws.terreros import local_volume_fraction, transmission_surface_nd
 
-# Laws whose conductance comes from the normal force (no force -> H = 0) and laws that are
-# geometric (every row of the dump conducts, gaps included). A new law must be put in one: the
-# one list kept here by hand (docs/architecture.md, "where a change goes"); the laws themselves
-# are found where they are declared (test_every_declared_law_is_registered).
-FORCE_BASED = {"pipe", "bob", "argento", "ott", "chaudhuri", "pipe_resistance_as_conductance",
-               "liggghts"}        # liggghts: no overlap, no lens, H = 0 (its gaps have F = 0)
-GEOMETRIC = {"terreros", "haddad", "yade"}
+# Which rows conduct is declared by each law (Law.kind, thermal_kernel/laws/base.py LAW_KINDS):
+# "geometric" (every row of the dump, gaps included), "force" (no force -> H = 0) or "overlap"
+# (no overlap -> H = 0, no force enters). The battery below checks each law's behaviour against
+# its declaration, so a law declared wrongly fails.
 # Hypothesis tools, not physical laws (law.diagnostic): the battery runs on them too, except the
 # linear scaling with conductivity (a resistance used as a conductance scales as 1/k: tested).
 DIAGNOSTIC = {name for name, law in LAWS.items() if law.diagnostic}
@@ -96,14 +96,21 @@ def test_every_declared_law_is_registered():
 
 
 def test_every_law_is_classified_and_documented():
-    assert set(LAWS) == FORCE_BASED | GEOMETRIC
-    assert DIAGNOSTIC and not FORCE_BASED & GEOMETRIC
+    kinds = {name: law.kind for name, law in LAWS.items()}
+    assert set(kinds.values()) <= set(LAW_KINDS), kinds
+    # the battery sees both sides: laws whose gaps conduct and laws whose gaps do not
+    assert "geometric" in kinds.values() and set(kinds.values()) - {"geometric"}
+    assert DIAGNOSTIC
     for name, law in LAWS.items():     # a diagnostic says so first, and only a diagnostic
         assert law.formula.startswith("DIAGNOSTIC, not a physical law") == (name in DIAGNOSTIC)
     for name, law in LAWS.items():
         assert law.name == name
         assert law.formula and "\n" not in law.formula
         assert law.reference and law.wall_conductance is not None
+    # docs/laws.md's table gives each law the kind it declares (its last column)
+    text = (Path(__file__).resolve().parents[1] / "docs" / "laws.md").read_text()
+    documented = dict(re.findall(r"^\| `(\w+)` \|.*\| (\w+) \|$", text, re.M))
+    assert documented == kinds
 
 
 def test_unknown_law_lists_the_names():
@@ -129,18 +136,27 @@ def test_conductance_is_symmetric_finite_and_nonnegative(name):
 
 @pytest.mark.parametrize("name", sorted(LAWS))
 def test_no_contact_area_no_heat_where_the_law_says_so(name):
+    """What the law declares (Law.kind) is what it does: on the gap rows (F = 0, overlap < 0)
+    a force or overlap law gives H = 0 exactly, a geometric one H > 0, less the farther apart;
+    with every force set to 0 a force law gives 0 everywhere, the others the same H."""
+    kind = LAWS[name].kind
     c = _contacts()
     h = _h(name, c)
     gap = c.normal_force_n == 0
-    assert gap.any() and (~gap).any()
+    assert np.array_equal(gap, c.overlap_m < 0) and gap.any() and (~gap).any()
     assert np.all(h[~gap] > 0)
-    if name in FORCE_BASED:
-        assert np.all(h[gap] == 0)          # no force, no Hertz spot
-    else:
-        assert np.all(h[gap] > 0)           # geometric: gap neighbours in the dump conduct
+    no_force = _h(name, dataclasses.replace(c, normal_force_n=np.zeros_like(c.normal_force_n)))
+    if kind == "geometric":
+        assert np.all(h[gap] > 0)           # gap neighbours in the dump conduct
         # ... and the farther apart, the less they conduct
         far = dataclasses.replace(c, distance_m=c.distance_m * 1.5)
         assert np.all(_h(name, far) < h)
+    else:
+        assert np.all(h[gap] == 0)          # no force (no overlap), no contact spot
+    if kind == "force":
+        assert np.all(no_force == 0)        # the area comes from the force alone
+    else:
+        np.testing.assert_array_equal(no_force, h)      # no force enters
 
 
 @pytest.mark.parametrize("name", sorted(LAWS))
@@ -181,12 +197,19 @@ def test_wall_conductance_battery(name):
     w = _walls()
     g = _g(name, w)
     assert g.shape == (w.radius_m.size,) and np.all(np.isfinite(g)) and np.all(g >= 0)
+    kind = LAWS[name].kind
     gap = w.normal_force_n == 0
+    assert np.array_equal(gap, w.overlap_m < 0)
     assert np.all(g[~gap] > 0)
-    if name in FORCE_BASED:
-        assert np.all(g[gap] == 0)
-    else:
+    if kind == "geometric":
         assert np.all(g[gap] > 0)
+    else:
+        assert np.all(g[gap] == 0)
+    no_force = _g(name, dataclasses.replace(w, normal_force_n=np.zeros_like(w.normal_force_n)))
+    if kind == "force":
+        assert np.all(no_force == 0)
+    else:
+        np.testing.assert_array_equal(no_force, g)
     s = 2.5
     scaled = dataclasses.replace(w, conductivity_particle=s * w.conductivity_particle,
                                  conductivity_wall=s * w.conductivity_wall)

@@ -2,7 +2,8 @@
 
 Each law is a :class:`~thermal_kernel.laws.base.Law`: a conductance function (W/K per contact),
 a capacity function (J/K per particle), optionally a particle-wall conductance, a one-line
-formula, a reference and default parameters. Laws with ``diagnostic = True`` are hypothesis
+formula, a reference, its ``kind`` (which dumped rows conduct: geometric, force or overlap) and
+default parameters. Laws with ``diagnostic = True`` are hypothesis
 tools, not physical laws (``tdem laws`` lists them apart). ``docs/laws.md`` describes each one.
 """
 from __future__ import annotations

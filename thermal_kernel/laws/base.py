@@ -58,6 +58,9 @@ class WallContactInput:
     poisson: float
 
 
+LAW_KINDS = ("geometric", "force", "overlap")
+
+
 @dataclass(frozen=True)
 class Law:
     name: str
@@ -65,6 +68,11 @@ class Law:
     capacity: Callable[[ParticleInput, dict], np.ndarray]
     formula: str                    # one line, shown by `tdem laws`
     reference: str                  # paper file and equation numbers
+    # which dumped rows conduct (LAW_KINDS; the "kind" column of docs/laws.md): "geometric"
+    # (every row, gaps and F_n = 0 included, less the farther apart), "force" (only a row with
+    # a normal force: F_n = 0 gives H = 0) or "overlap" (only spheres that overlap, no force
+    # enters: a gap gives H = 0). The same for the law's wall conductance.
+    kind: str
     defaults: dict = field(default_factory=dict)
     wall_conductance: Callable[[WallContactInput, dict], np.ndarray] | None = None
     # True for a hypothesis tool that is not a physical law (listed apart by `tdem laws`)

@@ -45,6 +45,7 @@ def chaudhuri_wall_conductance(walls: WallContactInput, params: dict) -> np.ndar
 
 CHAUDHURI = Law(
     name="chaudhuri",
+    kind="force",
     conductance=chaudhuri_conductance,
     capacity=mass_capacity,
     wall_conductance=chaudhuri_wall_conductance,

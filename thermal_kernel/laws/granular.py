@@ -150,6 +150,7 @@ _HERTZ = "a = (3 F_n R*/(4 E*))^(1/3)"
 
 PIPE = Law(
     name="pipe",
+    kind="force",
     conductance=pipe_conductance,
     capacity=mass_capacity,
     wall_conductance=pipe_wall_conductance,
@@ -161,6 +162,7 @@ PIPE = Law(
 
 BOB = Law(
     name="bob",
+    kind="force",
     conductance=bob_conductance,
     capacity=mass_capacity,
     wall_conductance=bob_wall_conductance,
@@ -171,6 +173,7 @@ BOB = Law(
 
 ARGENTO = Law(
     name="argento",
+    kind="force",
     conductance=argento_conductance,
     capacity=mass_capacity,
     wall_conductance=argento_wall_conductance,
@@ -181,6 +184,7 @@ ARGENTO = Law(
 
 OTT = Law(
     name="ott",
+    kind="force",
     conductance=argento_conductance,
     capacity=mass_capacity,
     wall_conductance=argento_wall_conductance,
@@ -229,6 +233,7 @@ def pipe_resistance_as_conductance_wall(walls: WallContactInput, params: dict) -
 
 PIPE_RESISTANCE_AS_CONDUCTANCE = Law(
     name="pipe_resistance_as_conductance",
+    kind="force",
     conductance=pipe_resistance_as_conductance,
     capacity=mass_capacity,
     wall_conductance=pipe_resistance_as_conductance_wall,

@@ -123,6 +123,7 @@ def haddad_wall_conductance(walls: WallContactInput, params: dict) -> np.ndarray
 
 HADDAD = Law(
     name="haddad",
+    kind="geometric",
     conductance=haddad_conductance,
     capacity=haddad_capacity,
     wall_conductance=haddad_wall_conductance,

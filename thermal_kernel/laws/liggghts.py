@@ -114,6 +114,7 @@ def liggghts_wall_conductance(walls: WallContactInput, params: dict) -> np.ndarr
 
 LIGGGHTS = Law(
     name="liggghts",
+    kind="overlap",
     conductance=liggghts_conductance,
     capacity=mass_capacity,
     wall_conductance=liggghts_wall_conductance,

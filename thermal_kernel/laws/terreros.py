@@ -88,6 +88,7 @@ def terreros_wall_conductance(walls: WallContactInput, params: dict) -> np.ndarr
 
 TERREROS = Law(
     name="terreros",
+    kind="geometric",
     conductance=terreros_conductance,
     capacity=terreros_capacity,
     wall_conductance=terreros_wall_conductance,

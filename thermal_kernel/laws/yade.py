@@ -45,6 +45,7 @@ def yade_wall_conductance(walls: WallContactInput, params: dict) -> np.ndarray:
 
 YADE = Law(
     name="yade",
+    kind="geometric",
     conductance=yade_conductance,
     capacity=mass_capacity,
     wall_conductance=yade_wall_conductance,
