@@ -275,27 +275,17 @@ def test_every_declared_kind_is_registered():
 
 
 def test_registry_is_explicit_and_every_kind_documents_itself():
-    # units and TABLES (below): what a new kind adds to this file by hand (docs/architecture.md)
-    assert set(UNITS) == set(TABLES) == set(BOUNDARIES)
+    # each kind declares the unit of its value, a minimal table and that table's default name
+    # (ClassVars: thermal_kernel/boundaries/base.py); its docstring's Keys line states the unit
     for kind, cls in BOUNDARIES.items():
         assert cls.kind == kind
         assert "name" in keys(cls) and "kind" not in keys(cls)
+        assert cls.unit and cls.example and cls.example_name, kind
         doc = cls.__doc__ or ""
-        assert UNITS[kind] in doc and "Keys:" in doc, kind
+        assert f"({cls.unit}" in doc and "Keys:" in doc, kind
+        assert f"``value`` ({cls.unit}" in doc.split("Keys:")[1], kind
         with pytest.raises(dataclasses.FrozenInstanceError):
             cls.__new__(cls).__setattr__("name", "x")
-
-
-# Per kind, by hand: the unit its docstring states, and a minimal [[boundary]] table.
-UNITS = {"temperature": "(K", "flux": "W/m^2", "wall_temperature": "(K)", "source": "W/m^3",
-         "phase_temperature": "(K)"}
-TABLES = {
-    "temperature": 'on = "xmin"\nvalue = 400.0',
-    "flux": 'on = "xmin"\nvalue = -5.0',
-    "wall_temperature": 'on = "xmin"\nvalue = 400.0\nwall_conductivity = 2.0',
-    "source": 'value = 1.0\nshape = "sphere"\nradius_m = 0.5',
-    "phase_temperature": 'liggghts_type = 2\nvalue = 400.0',   # tests/test_liggghts_law.py
-}
 
 
 def _scene(tmp_path, boundary):
@@ -308,25 +298,28 @@ def _scene(tmp_path, boundary):
 
 @pytest.mark.parametrize("kind", list(BOUNDARIES))
 def test_each_kind_parses_its_own_table_and_refuses_the_others_keys(tmp_path, kind):
-    scene = load_scene(_scene(tmp_path, f'kind = "{kind}"\n{TABLES[kind]}'))
+    example = BOUNDARIES[kind].example
+    scene = load_scene(_scene(tmp_path, f'kind = "{kind}"\n{example}'))
     (b,) = scene.boundaries
     assert type(b) is BOUNDARIES[kind]
-    table = tomllib.loads(TABLES[kind])
+    table = tomllib.loads(example)
+    assert "value" in table and "kind" not in table and "name" not in table
     for key, value in table.items():
         got = getattr(b, key)
         assert got == value, (key, got, value)
-    assert b.name == (f"{kind}:{table['on']}" if "on" in table else "source:sphere"
-                      if kind == "source" else "phase_temperature:type2")
+    assert b.name == BOUNDARIES[kind].example_name
+    if "on" in table:
+        assert b.name == f"{kind}:{table['on']}"
     # a key of another kind: refused, naming the kind it belongs to
     for other, cls in BOUNDARIES.items():
         for key in set(keys(cls)) - set(keys(BOUNDARIES[kind])):
             value = '"x"' if key in ("on", "shape") else "1.0"
             with pytest.raises(SceneError) as e:
-                load_scene(_scene(tmp_path, f'kind = "{kind}"\n{TABLES[kind]}\n{key} = {value}'))
+                load_scene(_scene(tmp_path, f'kind = "{kind}"\n{example}\n{key} = {value}'))
             assert f"boundary[0].{key}: only for kind = " in str(e.value)
             assert f'"{other}"' in str(e.value)
     with pytest.raises(SceneError, match=r"boundary\[0\]\.colour: unknown key"):
-        load_scene(_scene(tmp_path, f'kind = "{kind}"\n{TABLES[kind]}\ncolour = 1'))
+        load_scene(_scene(tmp_path, f'kind = "{kind}"\n{example}\ncolour = 1'))
 
 
 def test_the_solvers_do_not_know_the_boundary_kinds():

@@ -8,8 +8,9 @@ Its docstring says what it imposes, in which units, by which formula; ``docs/sce
 describes each one.
 
 A new kind: a module here with its class (``kind``, fields, ``parse``, ``contribute``,
-docstring), one line in :data:`BOUNDARIES`, and its end-to-end test in
-``tests/test_boundaries.py``. The solvers never change: they see rows, not kinds.
+docstring; ``unit``, ``example`` and ``example_name``, which ``tests/test_boundaries.py``
+checks against the docstring and the parser), one line in :data:`BOUNDARIES`, and its
+end-to-end test in ``tests/test_boundaries.py``. The solvers never change: they see rows, not kinds.
 """
 from __future__ import annotations
 

@@ -26,6 +26,12 @@ FACES = {"xmin": (0, -1), "xmax": (0, +1), "ymin": (1, -1), "ymax": (1, +1),
 class BoundaryKind:
     """One ``[[boundary]]`` entry. ``name`` labels it in the outputs (boundary_heat_flow)."""
     kind: ClassVar[str] = ""
+    # Declared by every kind (no default here): the unit of its ``value`` as its docstring's
+    # Keys line states it, a minimal ``[[boundary]]`` table of it (TOML, ``kind`` left out)
+    # and the ``name`` that table gets by default (tests/test_boundaries.py reads all three).
+    unit: ClassVar[str]
+    example: ClassVar[str]
+    example_name: ClassVar[str]
     name: str
 
     @classmethod

@@ -23,6 +23,9 @@ class FluxBoundary(BoundaryKind):
     sign), ``name`` (default ``flux:<on>``).
     """
     kind: ClassVar[str] = "flux"
+    unit: ClassVar[str] = "W/m^2"
+    example: ClassVar[str] = 'on = "xmin"\nvalue = -5.0'
+    example_name: ClassVar[str] = "flux:xmin"
     on: str
     value: float                     # W/m^2
 

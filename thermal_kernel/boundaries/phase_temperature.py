@@ -38,6 +38,9 @@ class PhaseTemperatureBoundary(BoundaryKind):
     ``phase_temperature:type<k>``).
     """
     kind: ClassVar[str] = "phase_temperature"
+    unit: ClassVar[str] = "K"
+    example: ClassVar[str] = 'liggghts_type = 2\nvalue = 400.0'  # tests/test_liggghts_law.py
+    example_name: ClassVar[str] = "phase_temperature:type2"
     value: float                     # K
     phase: int | None = None
     liggghts_type: int | None = None

@@ -45,6 +45,9 @@ class SourceBoundary(BoundaryKind):
     ``name`` (default ``source:<shape>``).
     """
     kind: ClassVar[str] = "source"
+    unit: ClassVar[str] = "W/m^3"
+    example: ClassVar[str] = 'value = 1.0\nshape = "sphere"\nradius_m = 0.5'
+    example_name: ClassVar[str] = "source:sphere"
     value: float                           # W/m^3
     shape: str = "cylinder"
     centre_m: tuple = (0.0, 0.0, 0.0)      # position at t = 0

@@ -21,6 +21,9 @@ class TemperatureBoundary(BoundaryKind):
     ``temperature:<on>``).
     """
     kind: ClassVar[str] = "temperature"
+    unit: ClassVar[str] = "K"
+    example: ClassVar[str] = 'on = "xmin"\nvalue = 400.0'
+    example_name: ClassVar[str] = "temperature:xmin"
     on: str
     value: float                     # K
 

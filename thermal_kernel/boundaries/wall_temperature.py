@@ -25,6 +25,9 @@ class WallTemperatureBoundary(BoundaryKind):
     (optional, W/m/K > 0), ``name`` (default ``wall_temperature:<on>``).
     """
     kind: ClassVar[str] = "wall_temperature"
+    unit: ClassVar[str] = "K"
+    example: ClassVar[str] = 'on = "xmin"\nvalue = 400.0\nwall_conductivity = 2.0'
+    example_name: ClassVar[str] = "wall_temperature:xmin"
     on: str
     value: float                     # K
     wall_conductivity: float = math.nan   # W/m/K; NaN = the particle's
