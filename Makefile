@@ -20,8 +20,8 @@ demo: deps
 test: deps
 	$(BIN)/python -m pytest -q
 
-# The day-to-day subset (~45 s): no YADE, no LIGGGHTS, none of the tests marked slow in
-# tests/conftest.py. `make test` runs them all.
+# The day-to-day subset (~45 s): no YADE, no LIGGGHTS, none of the tests marked slow
+# (@pytest.mark.slow at the test). `make test` runs them all.
 test-fast: deps
 	$(BIN)/python -m pytest -q -m "not yade and not liggghts and not slow"
 

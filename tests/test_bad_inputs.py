@@ -27,6 +27,10 @@ import pytest
 from tdem.committed_beds import BED_THERMAL
 from faults import FullDiskFile
 
+# slow, the whole module: every case runs `tdem` in a subprocess (~1 s each even when refused
+# at once; ~90 s in all on the shared 2-core machine, --durations 2026-12-01)
+pytestmark = pytest.mark.slow
+
 DATA = Path(__file__).resolve().parent / "data"
 BED = DATA / "bed_small_1.6e+06Pa.h5"
 PERIODIC = DATA / "dense_periodic.h5"

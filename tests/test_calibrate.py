@@ -83,6 +83,9 @@ def test_periodic_axis_is_refused(tmp_path):
         calibrate_ct(scene, read_packing(DATA / "dense_periodic.h5"), "x")
 
 
+# slow: `tdem calibrate` in a subprocess;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_wrong_law_and_cli(tmp_path):
     path = scene_file(tmp_path, DATA / "dense_box.h5", law="terreros")
     with pytest.raises(SceneError, match="law: tdem calibrate calibrates the haddad"):

@@ -147,6 +147,9 @@ def _case_flags(out):
     return flags
 
 
+# slow: a campaign on the committed beds, run twice;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_report_shows_each_runs_flags(tmp_path, monkeypatch, capsys):
     # plain Crank-Nicolson at dt = 5 s rings on the stiff 405-bar bed (tests/test_max_principle)
     out, table, report = _campaign_on_committed_beds(
@@ -171,6 +174,9 @@ def test_report_shows_each_runs_flags(tmp_path, monkeypatch, capsys):
     assert list(again["flags"]) == list(table["flags"])
 
 
+# slow: a campaign on the committed beds;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_report_of_a_clean_campaign(tmp_path, monkeypatch):
     # the default second-order scheme (Crank-Nicolson with Rannacher start-up) does not ring
     out, table, report = _campaign_on_committed_beds(tmp_path, monkeypatch, "theta = 0.5\n",
@@ -219,6 +225,9 @@ def test_case_scenes_checked_before_any_packing(tmp_path, monkeypatch, capsys, o
 
 # --- seeds (issue 15): one packing series per seed, without YADE -----------------------------
 
+# slow: two seeds' campaigns, then a rerun;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_seeds_campaign_runs_each_series_and_resumes(tmp_path, monkeypatch, capsys):
     """[campaign] seeds = [3, 5]: the committed beds stand in for each seed's series (the fake
     build records the seed and folder); the cases go to seed_<s>/cases/, results.csv has a seed

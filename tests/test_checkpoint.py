@@ -62,6 +62,9 @@ def lattice(tmp_path):
     return tmp_path
 
 
+# slow: `tdem run` twice in subprocesses, per case;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", [
     'method = "explicit"\nend_time = 2.0\noutput_times = [0.2, 0.5, 0.9, 1.4, 2.0]\n',
     'method = "implicit"\ntheta = 0.5\ndt = 0.05\nend_time = 2.0\n'
@@ -76,6 +79,9 @@ def test_checkpoints_do_not_change_the_bits(lattice, solver):
     assert not (lattice / "ck" / "thermal.checkpoint.h5").exists()
 
 
+# slow: a `tdem run` killed mid-way (~1 s per output interval), then resumed;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_killed_run_resumes_to_the_same_bits(lattice):
     # long enough (~1 s per output interval) to be killed after the first checkpoint
     (lattice / "s.toml").write_text(SCENE + 'method = "explicit"\nend_time = 100.0\n'
@@ -102,6 +108,9 @@ def test_killed_run_resumes_to_the_same_bits(lattice):
     assert_same_bits(read(lattice / "plain" / "thermal.h5"), read(out / "thermal.h5"))
 
 
+# slow: refused resumes, each a `tdem` subprocess;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_resume_errors_are_one_line(lattice):
     (lattice / "s.toml").write_text(SCENE + 'method = "explicit"\nend_time = 1.0\n'
                                     'output_times = [0.5, 1.0]\n')
@@ -128,6 +137,9 @@ def test_resume_errors_are_one_line(lattice):
     assert steady.returncode == 2 and "steady" in steady.stderr
 
 
+# slow: `tdem run` and resumes in subprocesses;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_resume_on_another_packing_of_the_same_size_is_refused(lattice):
     """The checkpoint stores the packing's content hash: a packing with the same particle count
     but other positions is refused (exit 2, one line naming the packing file); the packing it

@@ -94,6 +94,9 @@ def test_dispersion_does_not_overlap_and_is_seeded(setup):
     assert 0 < a.sum() < packing.n_particles
 
 
+# slow: `tdem etc`: a sweep of whole runs;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_etc_command(tmp_path, capsys):
     out = tmp_path / "etc"
     assert main(["etc", str(SCENE), "--packing", str(DUMP), "--out", str(out),

@@ -4,6 +4,7 @@ import sys
 
 import meshio
 import numpy as np
+import pytest
 
 from thermal_kernel.lattice import simple_cubic_packing
 from thermal_kernel.packing import write_packing
@@ -28,6 +29,9 @@ def test_export_round_trips_particles_and_contacts(tmp_path):
     assert not list(tmp_path.glob("*.tmp*"))
 
 
+# slow: `tdem run` and `tdem export` in subprocesses;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_export_with_the_temperatures_of_a_run(tmp_path):
     """A steady run on a lattice held at 400 K (xmin) and 300 K (xmax): the exported fields are
     the run's temperatures, bit for bit; a thermal file of another packing is a one-line error."""

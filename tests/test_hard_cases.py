@@ -168,6 +168,9 @@ def test_conductivity_contrast(tmp_path, contrast):
 
 
 # ---------------------------------------------------------------- radii 1e-9 m and 1e3 m
+# slow: whole explicit and implicit runs, per radius;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 @pytest.mark.parametrize("radius_m", [1e-9, 1e3])
 def test_extreme_radii(tmp_path, radius_m):
     """A uniform lattice of nanometre or kilometre spheres: linear steady profile along x

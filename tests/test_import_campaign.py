@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import h5py
+import pytest
 
 DATA = Path(__file__).resolve().parent / "data"
 BED = DATA / "bed_small_1.6e+06Pa.h5"
@@ -56,6 +57,9 @@ def test_invalid_packing_refused(tmp_path):
     assert "campaign.packings[0]" in err and "particles/radius" in err
 
 
+# slow: two refused `tdem campaign` subprocesses;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_not_with_pack_or_seeds(tmp_path):
     shutil.copy(BED, tmp_path / "p.h5")
     assert "not both" in campaign(tmp_path, '["p.h5"]', '[pack]\ngenerator = "bed"\n')

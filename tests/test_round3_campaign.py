@@ -88,6 +88,8 @@ def case_lines(stdout):
 
 # --- stale cases ----------------------------------------------------------------------------
 
+# slow (issue 28): whole campaigns run twice, 11-18 s each on the shared machine
+@pytest.mark.slow
 def test_rerun_after_a_scene_edit_equals_a_fresh_campaign(tmp_path, capsys):
     """k / 10 and the hot wall at 600 K, rerun into the same --out: the case is recomputed (its
     line says the scene changed), and the table and report are those of a fresh campaign on the
@@ -116,6 +118,8 @@ def test_rerun_after_a_scene_edit_equals_a_fresh_campaign(tmp_path, capsys):
     assert "camp_edited.toml" in (out / "report.md").read_text().splitlines()[0]
 
 
+# slow (issue 28): whole campaigns run twice, 11-18 s each on the shared machine
+@pytest.mark.slow
 def test_rerun_after_a_packing_edit_recomputes_that_case_only(tmp_path, capsys):
     """One listed packing file edited (the pressure it records, which the report's fits over
     pressure read): that case is recomputed ("the packing file changed"), the other kept, and
@@ -138,6 +142,8 @@ def test_rerun_after_a_packing_edit_recomputes_that_case_only(tmp_path, capsys):
     assert sorted(results(out).pressure_pa) != sorted(before.pressure_pa)   # the edit matters
 
 
+# slow (issue 28): whole campaigns run twice, 11-18 s each on the shared machine
+@pytest.mark.slow
 def test_a_kept_run_is_posted_again_when_post_changed_or_its_file_is_bad(tmp_path, capsys):
     """A case posted by other post-processing code (its stored hash of tdem_post differs, and
     its gamma with it) is posted again from its thermal.h5, not kept. A NaN put into a kept

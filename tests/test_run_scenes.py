@@ -187,6 +187,9 @@ def test_bad_scene_is_one_line_exit_2_and_writes_nothing(tmp_path, change, key):
     assert not (tmp_path / "out" / "thermal.h5").exists()
 
 
+# slow: `tdem run` in a subprocess;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_dt_above_the_bound_is_refused_with_the_bound(tmp_path):
     scene = tmp_path / "dt.toml"
     scene.write_text(bed_scene("pipe", "explicit", extra_solver="dt = 10.0\n"))

@@ -282,6 +282,9 @@ def hard_problem(seed=13):
     return prob, rng
 
 
+# slow: two 600-step explicit runs of the hard network;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_hard_case_default_dt_stays_positive_and_bound_is_tight():
     prob, rng = hard_problem()
     net = assemble(prob)

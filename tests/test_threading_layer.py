@@ -63,6 +63,9 @@ def _available(layer):
     return p.returncode == 0 and p.stdout.strip() == layer
 
 
+# slow: `tdem run` on the 300-sphere bed under each threading layer;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_tdem_uses_openmp_the_users_layer_wins_and_the_bits_do_not_change(tmp_path):
     """`tdem run` (explicit, 2 threads) on the 300-sphere bed: OpenMP by default; with
     NUMBA_THREADING_LAYER set, that layer; the same temperatures and ledger to the bit."""

@@ -69,6 +69,9 @@ def test_cut_interface_factor():
     assert s[0] == pytest.approx(0.5)
 
 
+# slow: a quick validation case;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_case8_quick_within_documented_error():
     result = case8.run(Context(8, quick=True))
     n = case8.read_numbers(result.numbers)
@@ -85,6 +88,9 @@ def test_case8_quick_within_documented_error():
     assert case8.max_err(per[1], "err_rayleigh") < case8.max_err(per[0], "err_rayleigh")
 
 
+# slow: a quick validation case;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_case9_quick_reference_and_error():
     result = case9.run(Context(9, quick=True))
     n = result.numbers
@@ -106,6 +112,9 @@ def test_case9_quick_reference_and_error():
     assert run["q"]["common_11"] != run["q"]["own_11"]
 
 
+# slow: a quick validation case;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_case10_quick_realisation_and_error():
     centres, r, method, jam, _ = case10.realisation(0.2)
     assert method == "RSA" and len(centres) == 83 and r == case10.RADIUS   # 002: 83 at 20 %

@@ -10,6 +10,9 @@ import pytest
 from tdem.committed_beds import BEDS, NO_PACK
 
 
+# slow: a campaign case, then its window fit;
+# over ~1.3 s on the shared 2-core machine, warm numba cache (--durations, 2026-12-01)
+@pytest.mark.slow
 def test_window_fit_of_a_campaign_case(tmp_path, monkeypatch, capsys):
     from tdem import campaign as camp
     from tdem_post.window import main, window_fit
