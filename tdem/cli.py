@@ -372,16 +372,7 @@ def _module_command(sub, name, module, help, func, description=None):
     p.set_defaults(func=func)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The command line: every command, its arguments and their help. One function over 80
-    lines (issue 26) because it is a flat declaration, one ``add_argument`` after another, read
-    top to bottom like the help it prints; each command's work is its ``_cmd_*``."""
-    from . import __version__
-    parser = argparse.ArgumentParser(
-        prog="tdem", description="Thermal DEM on real packings of spheres (YADE-made).")
-    parser.add_argument("--version", action="version", version=f"tdem {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
-
+def _add_pack(sub):
     p = sub.add_parser("pack", help="build packing(s) with YADE from a scene's [pack] table")
     p.add_argument("scene", help="scene TOML file with a [pack] table")
     p.add_argument("--out", help="output folder (default: runs/out/<scene name>/ beside the scene)")
@@ -394,6 +385,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="do not stream YADE's output")
     p.set_defaults(func=_cmd_pack)
 
+
+def _add_run(sub):
     p = sub.add_parser("run", help="run a thermal scene (TOML) and write thermal.h5")
     p.add_argument("scene")
     p.add_argument("--packing", help="packing.h5 to use instead of the scene's")
@@ -409,6 +402,8 @@ def build_parser() -> argparse.ArgumentParser:
                         ".venv-mpi, docs/scaling.md)")
     p.set_defaults(func=_cmd_run)
 
+
+def _add_calibrate_laws_demo(sub):
     p = sub.add_parser("calibrate", help="calibrate the haddad law's C_t on a packing by a "
                                          "steady flux test (002, eq. 8-9)")
     p.add_argument("scene", help="scene TOML with law = \"haddad\" and its material")
@@ -430,6 +425,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cmd_demo)
 
+
+def _add_campaign(sub):
     p = sub.add_parser("campaign", help="pressure campaign: packings, thermal runs, post, "
                                         "report (resumes where it stopped)")
     p.add_argument("campaign", help="campaign TOML ([pack] + [campaign] + thermal scene)")
@@ -449,6 +446,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "\"petsc\" runs on 1 without it; needs .venv-mpi, docs/scaling.md)")
     p.set_defaults(func=_cmd_campaign)
 
+
+def _add_post(sub):
     p = sub.add_parser("post", help="post-process a run: profiles, gamma, tau, mean field, "
                                     "flux field")
     p.add_argument("run", help="run folder (with thermal.h5) or a thermal.h5")
@@ -462,6 +461,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "each particle's own radius (own)")
     p.set_defaults(func=_cmd_post)
 
+
+def _add_etc(sub):
     p = sub.add_parser("etc", help="ETC of a composite vs contrast and volume fraction "
                                    "(steady flux tests, 002 sec. 4-5) with Maxwell, HS, Bruggeman")
     p.add_argument("scene", help="scene TOML (law, [material] of the matrix) with its packing")
@@ -481,10 +482,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the dispersion (default 0)")
     p.set_defaults(func=_cmd_etc)
 
+
+def _add_info(sub):
     p = sub.add_parser("info", help="validate a packing.h5 and print its statistics")
     p.add_argument("packing")
     p.set_defaults(func=_cmd_info)
 
+
+def _add_import_yade_path(sub):
     p = sub.add_parser("import", help="import a packing made by another DEM code "
                                       "(docs/import.md)")
     isub = p.add_subparsers(dest="source", required=True)
@@ -514,6 +519,8 @@ def build_parser() -> argparse.ArgumentParser:
                                          "sys.path in your own YADE script (docs/import.md)")
     p.set_defaults(func=_cmd_yade_path)
 
+
+def _add_export_plot(sub):
     p = sub.add_parser("export", help="export a packing to VTK (.vtu) for ParaView")
     p.add_argument("packing")
     p.add_argument("-o", "--output", help="output .vtu (default: beside the input)")
@@ -525,6 +532,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", help="output .png (default: beside the input)")
     p.set_defaults(func=_cmd_plot)
 
+
+def _add_module_commands(sub):
+    """validate, window, paper-compare, fft-reference: options that live in their modules."""
     p = sub.add_parser("validate", help="run the cases of docs/validation.md (the papers' own "
                                         "cases) and rebuild it from the results (resumes)")
     from validation.run import add_arguments as validate_arguments   # one home for its options
@@ -545,6 +555,24 @@ def build_parser() -> argparse.ArgumentParser:
                                 "tdem_post/fft_conductivity.py).",
                     help="the FFT reference's convergence against Rayleigh's formula on one "
                          "sphere in the periodic cube (docs/fft_reference.md)")
+
+
+# the subcommands in the order `tdem --help` lists them, one function per group
+_SUBCOMMANDS = (_add_pack, _add_run, _add_calibrate_laws_demo, _add_campaign, _add_post,
+                _add_etc, _add_info, _add_import_yade_path, _add_export_plot, _add_module_commands)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line: every command, its arguments and their help (each group of commands
+    declared by one of :data:`_SUBCOMMANDS`, in the order of ``tdem --help``; each command's
+    work is its ``_cmd_*``)."""
+    from . import __version__
+    parser = argparse.ArgumentParser(
+        prog="tdem", description="Thermal DEM on real packings of spheres (YADE-made).")
+    parser.add_argument("--version", action="version", version=f"tdem {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add in _SUBCOMMANDS:
+        add(sub)
     return parser
 
 
