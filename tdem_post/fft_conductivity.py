@@ -41,8 +41,9 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft as sfft
-from scipy.optimize import brentq
+
+# scipy.fft and scipy.optimize are imported where they are used: `tdem` builds its parser from
+# this module's add_arguments, and importing them here cost every `tdem` start-up ~95 ms
 
 SCHEMES = ("willot", "spectral")
 RULES = ("laminate", "arithmetic", "harmonic", "binary")
@@ -162,6 +163,7 @@ class _Projection:
         self.g, self.inv = _theta_g(freqs, h, scheme)
 
     def _forward(self, x, a):
+        import scipy.fft as sfft
         odd = self.odd[a]
         even = [c for c in range(3) if c not in odd]
         y = x
@@ -174,6 +176,7 @@ class _Projection:
         return out
 
     def _inverse(self, coef, a):
+        import scipy.fft as sfft
         odd = self.odd[a]
         even = [c for c in range(3) if c not in odd]
         y = coef[tuple(slice(1, None) if c in odd else slice(0, -1) for c in range(3))]
@@ -184,6 +187,7 @@ class _Projection:
         return y
 
     def __call__(self, tau):
+        import scipy.fft as sfft
         g, inv, w = self.g, self.inv, self.workers
         out = np.empty_like(tau)
         s = None
@@ -422,6 +426,7 @@ def extrapolate(h, values) -> Extrapolation:
 
     def fn(p):
         return (h1 ** p - h2 ** p) / (h2 ** p - h3 ** p) - ratio
+    from scipy.optimize import brentq
     try:
         p = brentq(fn, 0.2, 6.0)
     except ValueError:
