@@ -7,6 +7,10 @@ from scipy.sparse.linalg import splu
 
 from tdem_post import analytic
 
+# `make coverage` counts this module (marker kernel: its subject is thermal_kernel, and it is
+# fast enough with NUMBA_DISABLE_JIT=1)
+pytestmark = pytest.mark.kernel
+
 L, ALPHA = 0.1, 1e-4
 
 

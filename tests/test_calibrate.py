@@ -21,6 +21,10 @@ from thermal_kernel.laws import LAWS
 from thermal_kernel.packing import PackingError, read_packing, write_packing
 from thermal_kernel.scene import SceneError, load_scene
 
+# `make coverage` counts this module (marker kernel: its subject is thermal_kernel, and it is
+# fast enough with NUMBA_DISABLE_JIT=1)
+pytestmark = pytest.mark.kernel
+
 DATA = Path(__file__).resolve().parent / "data"
 SCENE = '''packing = "{packing}"
 law = "{law}"

@@ -19,6 +19,10 @@ import pytest
 from thermal_kernel.lattice import simple_cubic_packing
 from thermal_kernel.packing import write_packing
 
+# `make coverage` counts this module (marker kernel: its subject is thermal_kernel, and it is
+# fast enough with NUMBA_DISABLE_JIT=1)
+pytestmark = pytest.mark.kernel
+
 SCENE = '''packing = "lattice.h5"
 law = "terreros"
 [material]

@@ -29,6 +29,10 @@ from thermal_kernel.run import run_scene
 from thermal_kernel.scene import SceneError, load_scene
 from thermal_kernel.solvers import LEDGER_RTOL, MAX_PRINCIPLE_RTOL
 
+# `make coverage` counts this module (marker kernel: its subject is thermal_kernel, and it is
+# fast enough with NUMBA_DISABLE_JIT=1)
+pytestmark = pytest.mark.kernel
+
 T_INIT, T_HOT, T_COLD = 300.0, 500.0, 400.0          # xmin hot, xmax cold
 LO, HI = 300.0, 500.0
 SPAN = HI - LO

@@ -22,6 +22,10 @@ from thermal_kernel.laws.base import (LAW_KINDS, ContactInput, Law, ParticleInpu
                                       WallContactInput)
 from thermal_kernel.laws.terreros import local_volume_fraction, transmission_surface_nd
 
+# `make coverage` counts this module (marker kernel: its subject is thermal_kernel, and it is
+# fast enough with NUMBA_DISABLE_JIT=1)
+pytestmark = pytest.mark.kernel
+
 # Which rows conduct is declared by each law (Law.kind, thermal_kernel/laws/base.py LAW_KINDS):
 # "geometric" (every row of the dump, gaps included), "force" (no force -> H = 0) or "overlap"
 # (no overlap -> H = 0, no force enters). The battery below checks each law's behaviour against

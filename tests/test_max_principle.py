@@ -20,6 +20,10 @@ from thermal_kernel.run import run_scene
 from thermal_kernel.scene import load_scene
 from thermal_kernel.solvers import MAX_PRINCIPLE_RTOL, check_physics, run_implicit
 
+# `make coverage` counts this module (marker kernel: its subject is thermal_kernel, and it is
+# fast enough with NUMBA_DISABLE_JIT=1)
+pytestmark = pytest.mark.kernel
+
 BED = Path(__file__).parent / "data" / "bed_small_4.05e+07Pa.h5"
 
 

@@ -9,6 +9,10 @@ import pytest
 from thermal_kernel.lattice import simple_cubic_packing
 from thermal_kernel.packing import PackingError, packing_statistics, read_packing, write_packing
 
+# `make coverage` counts this module (marker kernel: its subject is thermal_kernel, and it is
+# fast enough with NUMBA_DISABLE_JIT=1)
+pytestmark = pytest.mark.kernel
+
 ARRAYS = ("position", "radius", "phase", "pair", "overlap", "normal_force", "branch",
           "wall_point", "wall_normal", "wall_radius", "wall_particle", "wall_index",
           "wall_overlap", "wall_normal_force", "domain_lo", "domain_hi", "periodic",

@@ -24,6 +24,10 @@ from tdem.committed_beds import BED_THERMAL
 from tdem.cli import main
 from thermal_kernel.laws import LAWS
 
+# `make coverage` counts this module (marker kernel: its subject is thermal_kernel, and it is
+# fast enough with NUMBA_DISABLE_JIT=1)
+pytestmark = pytest.mark.kernel
+
 DATA = Path(__file__).resolve().parent / "data"
 BED = DATA / "bed_small_4.05e+07Pa.h5"
 DENSE = DATA / "dense_box.h5"

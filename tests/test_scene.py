@@ -7,6 +7,10 @@ import pytest
 
 from thermal_kernel.scene import SceneError, load_scene, read_toml
 
+# `make coverage` counts this module (marker kernel: its subject is thermal_kernel, and it is
+# fast enough with NUMBA_DISABLE_JIT=1)
+pytestmark = pytest.mark.kernel
+
 LAWS = ("haddad", "pipe")
 
 GOOD = """

@@ -15,6 +15,10 @@ from thermal_kernel.solvers import (UnstableTimeStepError, run_explicit, run_imp
                                     solve_steady)
 from thermal_kernel.solvers.explicit import explicit_step, explicit_step_reference
 
+# `make coverage` counts this module (marker kernel: its subject is thermal_kernel, and it is
+# fast enough with NUMBA_DISABLE_JIT=1)
+pytestmark = pytest.mark.kernel
+
 
 def lattice(shape, seed=0, h=(0.5, 2.0), c=(1.0, 3.0)):
     pk = simple_cubic_packing(shape, 1e-3)

@@ -13,6 +13,10 @@ import pytest
 
 from thermal_kernel.threading_layer import PRIORITY, prefer_openmp
 
+# `make coverage` counts this module (marker kernel: its subject is thermal_kernel, and it is
+# fast enough with NUMBA_DISABLE_JIT=1)
+pytestmark = pytest.mark.kernel
+
 ROOT = Path(__file__).resolve().parent.parent
 
 # `tdem run` in-process in a fresh interpreter, then the layer numba launched
