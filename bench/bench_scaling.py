@@ -700,8 +700,8 @@ def _doc_cost_model(model, proj, largest, build) -> list[str]:
           f"whole network needs ~{per:.0f} B per particle in all (rank 0's whole network + the "
           f"solver, whatever the ranks): the largest it holds with 10 % to spare is "
           f"~{0.9 * 24e9 / per:.1e} particles"
-          + (" (measured: the last row of that table, {:.2g} particles, the sum of its ranks' peaks {:.1f} "
-             "GB)."
+          + (" (measured: the last row of that table, {:.2g} particles, the sum of its "
+             "ranks' peaks {:.1f} GB)."
              .format(largest["rows"][0]["n"], sum(largest["rows"][0]["rss_ranks_gb"]))
              if largest else ".")
           + (" Built on the ranks, the sum of the ranks' peaks is lower (the table 'Memory of "
