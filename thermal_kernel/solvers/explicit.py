@@ -255,6 +255,59 @@ def _source_into_rhs(net, arr, energy, t0, t1, h) -> float:
     return q
 
 
+class _Steps:
+    """The step loops of :func:`run_explicit` and their running totals (steps done, source
+    energy, seconds spent in the kernel): chunks of kernel calls through an output interval
+    without a source, one call a step with it (its power differs from step to step)."""
+
+    def __init__(self, net, arr, energy, src_energy, n_total, chunk, progress):
+        self.net, self.arr, self.energy = net, arr, energy
+        self.n_total, self.chunk, self.progress = n_total, chunk, progress
+        self.src_energy, self.done, self.step_seconds = src_energy, 0, 0.0
+
+    def in_chunks(self, ta, tb, n, h, t_prev, tk):
+        """The ``n`` steps of ``h`` from ``t_prev`` to ``tk``, ``chunk`` steps a kernel call."""
+        s = 0
+        while s < n:
+            m = min(self.chunk, n - s)
+            c0 = time.perf_counter()
+            ta, tb = self.arr.advance(m, h, ta, tb, self.energy)
+            self.step_seconds += time.perf_counter() - c0
+            s += m
+            self.done += m
+            if self.progress is not None:
+                self.progress(self.done, self.n_total, t_prev + s * h if s < n else tk)
+        return ta, tb
+
+    def with_source(self, ta, tb, n, h, t_prev, tk):
+        """The ``n`` steps of ``h`` from ``t_prev`` to ``tk``, one kernel call each after the
+        source's power over the step is put in the right-hand side (:func:`_source_into_rhs`)."""
+        for s in range(n):
+            t0 = t_prev + s * h
+            t1 = tk if s == n - 1 else t_prev + (s + 1) * h
+            c0 = time.perf_counter()
+            self.src_energy += _source_into_rhs(self.net, self.arr, self.energy, t0, t1, h)
+            ta, tb = self.arr.advance(1, h, ta, tb, self.energy)
+            self.step_seconds += time.perf_counter() - c0
+            self.done += 1
+            if self.progress is not None and (self.done % self.chunk == 0 or s == n - 1):
+                self.progress(self.done, self.n_total, t1)
+        return ta, tb
+
+    def run(self, ta, tb, times, plan, t, rec):
+        """Every output interval's steps from ``ta`` at ``t``, each output time recorded in
+        ``rec``: the last temperatures."""
+        prob = self.net.problem
+        interval = self.in_chunks if prob.source is None else self.with_source
+        t_prev = t
+        for k, (tk, (n, h)) in enumerate(zip(times, plan)):
+            tk = float(tk)
+            ta, tb = interval(ta, tb, n, h, t_prev, tk)
+            t_prev = tk
+            rec.record(k, ta, self.energy, self.src_energy, instantaneous_source(prob, tk))
+        return ta
+
+
 def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
                  allow_unstable=False, progress=None, threads=None, keep_temperatures=True,
                  on_output=None) -> ThermalResult:
@@ -268,21 +321,19 @@ def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
     ``result.state`` reproduces the single run bit for bit when the split time was one of its
     output times. ``progress(step, n_steps, t)`` is called every ~0.1 s of work;
     ``threads`` sets numba's thread count for this run (result independent of it);
-    ``on_output(k, t, T)`` is called at each output time. One function (~85 lines): the two
-    step loops (chunks of kernel calls without a source, one call a step with it) share the
-    plan, the buffers, the ledger and the timings the result is made of."""
+    ``on_output(k, t, T)`` is called at each output time. The steps: :class:`_Steps` (the
+    loops) and :func:`_explicit_result`."""
     net = as_network(problem)
     prob = net.problem
     (T, t, step0, energy, src_energy, ref, times, dt,
      flags) = explicit_start(net, T0, times, t_start, dt, safety, allow_unstable)
     use_rhs = prob.source is not None or net.has_exchange or net.has_constant_rhs
     arr = _Arrays(net, use_rhs)
-    sb = prob.source_boundary
     rec = Recorder(net, times, ref, keep_temperatures, on_output)
     plan = step_plan(times, t, dt)
-    n_total = sum(n for n, _ in plan)
     # ~0.1 s of work per kernel call, also without a progress bar: Ctrl-C is seen between calls
     chunk = max(1, int(2e7 // (net.adjacency.nnz + net.n + 1)))
+    steps = _Steps(net, arr, energy, src_energy, sum(n for n, _ in plan), chunk, progress)
 
     old_threads = numba.get_num_threads()
     if threads is not None:
@@ -290,52 +341,34 @@ def run_explicit(problem, T0, times, *, t_start=None, dt=None, safety=0.9,
     ta, tb = T, np.empty_like(T)
     with _signals_deferred():          # a signal inside numba's compiler leaves it broken
         arr.advance(0, dt if math.isfinite(dt) else 1.0, ta, tb, energy)  # compile, untimed
-    step_seconds = 0.0
-    done = 0
     wall0 = time.perf_counter()
     try:
-        t_prev = t
-        for k, (tk, (n, h)) in enumerate(zip(times, plan)):
-            tk = float(tk)
-            if prob.source is None:
-                s = 0
-                while s < n:
-                    m = n - s if chunk is None else min(chunk, n - s)
-                    c0 = time.perf_counter()
-                    ta, tb = arr.advance(m, h, ta, tb, energy)
-                    step_seconds += time.perf_counter() - c0
-                    s += m
-                    done += m
-                    if progress is not None:
-                        progress(done, n_total, t_prev + s * h if s < n else tk)
-            else:
-                for s in range(n):
-                    t0 = t_prev + s * h
-                    t1 = tk if s == n - 1 else t_prev + (s + 1) * h
-                    c0 = time.perf_counter()
-                    src_energy += _source_into_rhs(net, arr, energy, t0, t1, h)
-                    ta, tb = arr.advance(1, h, ta, tb, energy)
-                    step_seconds += time.perf_counter() - c0
-                    done += 1
-                    if progress is not None and (done % (chunk or 1) == 0 or s == n - 1):
-                        progress(done, n_total, t1)
-            t_prev = tk
-            rec.record(k, ta, energy, src_energy, instantaneous_source(prob, tk))
+        ta = steps.run(ta, tb, times, plan, t, rec)
     finally:
         if threads is not None:
             numba.set_num_threads(old_threads)
     wall = time.perf_counter() - wall0
     if not np.all(np.isfinite(ta)):
         flags.append("non_finite")
+    return _explicit_result(net, rec, steps, ta, times, plan, dt=dt, ref=ref, step0=step0,
+                            wall_seconds=wall, flags=flags, threads=threads)
+
+
+def _explicit_result(net, rec, steps, ta, times, plan, *, dt, ref, step0, wall_seconds, flags,
+                     threads) -> ThermalResult:
+    """The :class:`ThermalResult` of :func:`run_explicit`'s run: ``ta`` the last temperatures,
+    ``steps`` the finished :class:`_Steps`, ``rec`` the output times' records."""
+    prob = net.problem
+    done, step_seconds = steps.done, steps.step_seconds
     state = SolverState(temperature_k=ta.copy(), time_s=float(times[-1]), step=step0 + done,
-                        boundary_energy_j=energy.copy(), source_energy_j=src_energy,
+                        boundary_energy_j=steps.energy.copy(), source_energy_j=steps.src_energy,
                         reference_temperature_k=ref, dt_s=dt, method="explicit")
     cups = net.n_active_contacts * done / step_seconds if step_seconds > 0 else float("nan")
     return ThermalResult(
         method="explicit", times=times, temperature_k=rec.T, boundary_heat_flow_w=rec.flow,
         boundary_energy_j=rec.energy, source_energy_j=rec.source, stored_energy_j=rec.stored,
-        boundary_names=prob.boundary_names, source_boundary=sb, dt=dt, dt_max=net.dt_max_s,
-        dt_paper=net.dt_paper_s, steps=done, wall_seconds=wall,
+        boundary_names=prob.boundary_names, source_boundary=prob.source_boundary, dt=dt,
+        dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=done, wall_seconds=wall_seconds,
         contact_updates_per_second=cups, flags=tuple(flags),
         info=dict(step_seconds=step_seconds, threads=numba.get_num_threads()
                   if threads is None else int(threads), clusters=net.clusters.summary(),

@@ -266,6 +266,88 @@ def _step(op, x, energy, sw, h, solver, scheme, theta):
     return x + inc
 
 
+class _Factorisations:
+    """The run's factorisations (or AMG hierarchies) by ``op.factor``, one per distinct matrix
+    M = C/h + th K, and the seconds they took."""
+
+    def __init__(self, op):
+        self.op, self.cache, self.seconds = op, {}, 0.0
+
+    def __call__(self, h, th):
+        """(h0, solver) for M = C/h0 + th K, h0 = h or a factorised step within 1e-9."""
+        for (h0, th0), s in self.cache.items():
+            if th0 == th and abs(h - h0) <= 1e-9 * h0:
+                return h0, s
+        f0 = time.perf_counter()
+        s = self.op.factor(h, th)
+        self.seconds += time.perf_counter() - f0
+        self.cache[(h, th)] = s
+        return h, s
+
+
+class _TimeLoop:
+    """The theta / Rannacher / TR-BDF2 time loop of :func:`drive_implicit` and its running
+    totals (steps done, source energy, seconds spent stepping)."""
+
+    def __init__(self, op, factors, scheme, theta, startup_steps, step0, src_energy, progress):
+        self.op, self.factors, self.progress = op, factors, progress
+        self.scheme, self.theta, self.startup_steps, self.step0 = (scheme, theta, startup_steps,
+                                                                   step0)
+        self.src_energy, self.done, self.step_seconds = src_energy, 0, 0.0
+
+    def interval_solver(self, h):
+        """(h, solver) of an output interval's steps of ``h``: TR-BDF2's C/d + K (``h`` from a
+        factorised d), or C/h + theta K."""
+        if self.scheme == "tr-bdf2":
+            d, solver = self.factors(_TRB_D * h, 1.0)
+            return d / _TRB_D, solver
+        return self.factors(h, self.theta)
+
+    def step(self, x, energy, h, solver, t0, t1):
+        """One step over [t0, t1] (of ``h``): the source's energy booked, a Rannacher start-up
+        step (two backward-Euler half steps) or the scheme's :func:`_step`; the new ``x``."""
+        op = self.op
+        s0 = time.perf_counter()
+        sw = op.source(t0, t1)
+        if sw is not None:
+            self.src_energy += h * op.source_power(sw)
+        if self.step0 + self.done < self.startup_steps:
+            # Rannacher start-up: two backward-Euler half steps
+            hh, half = self.factors(0.5 * h, 1.0)
+            for _ in range(2):
+                x = x + half.solve(op.rhs(x, sw))
+                op.ledger(energy, hh, x, sw)
+        else:
+            x = _step(op, x, energy, sw, h, solver, self.scheme, self.theta)
+        self.step_seconds += time.perf_counter() - s0
+        self.done += 1
+        return x
+
+    def run(self, x, energy, times, plan, t, started):
+        """Every output interval's steps from ``x`` at ``t``, each output time recorded: the
+        last ``x``. ``progress`` (on the root) about every 0.1 s after ``started`` and at the
+        end."""
+        op, progress = self.op, self.progress
+        n_total = sum(n for n, _ in plan)
+        last_report = started
+        t_prev = t
+        for k, (tk, (n, h)) in enumerate(zip(times, plan)):
+            tk = float(tk)
+            if n:
+                h, solver = self.interval_solver(h)
+            for s in range(n):
+                t0 = t_prev + s * h
+                t1 = tk if s == n - 1 else t_prev + (s + 1) * h
+                x = self.step(x, energy, h, solver, t0, t1)
+                if progress is not None and op.is_root and (
+                        time.perf_counter() - last_report > 0.1 or self.done == n_total):
+                    last_report = time.perf_counter()
+                    progress(self.done, n_total, t1)
+            t_prev = tk
+            op.record(k, x, energy, self.src_energy, tk)
+        return x
+
+
 def drive_implicit(op, T0, times, *, dt, theta, scheme, startup_steps, t_start=None,
                    progress=None) -> ThermalResult | None:
     """The theta / Rannacher / TR-BDF2 time loop over an operator ``op``: the in-process
@@ -274,9 +356,8 @@ def drive_implicit(op, T0, times, *, dt, theta, scheme, startup_steps, t_start=N
     ledger's weights, the progress and the result are the same for both; ``op`` supplies the
     linear algebra (see :class:`LocalOperator`). ``theta`` and ``startup_steps`` as
     :func:`scheme_args` returns them. The result on the rank that holds the network (None on
-    the others). One function on purpose (~95 lines): the plan, the factorisations' cache, the
-    running ledger and the timings are the loop's state, shared with the result it returns; the
-    step itself is :func:`_step`."""
+    the others). Its steps: :class:`_Factorisations` (the cache), :class:`_TimeLoop` (the loop;
+    the step itself is :func:`_step`) and :func:`_implicit_result`."""
     dt = float(dt)
     if not dt > 0:
         raise ValueError(f"dt = {dt}: the time step must be > 0")
@@ -284,82 +365,46 @@ def drive_implicit(op, T0, times, *, dt, theta, scheme, startup_steps, t_start=N
     c0 = time.perf_counter()
     op.setup()
     setup_seconds = time.perf_counter() - c0
-    factor_seconds = 0.0
-    cache: dict = {}
-
-    def solver_for(h, th):
-        """(h0, solver) for M = C/h0 + th K, h0 = h or a factorised step within 1e-9."""
-        nonlocal factor_seconds
-        for (h0, th0), s in cache.items():
-            if th0 == th and abs(h - h0) <= 1e-9 * h0:
-                return h0, s
-        f0 = time.perf_counter()
-        s = op.factor(h, th)
-        factor_seconds += time.perf_counter() - f0
-        cache[(h, th)] = s
-        return h, s
-
+    factors = _Factorisations(op)
+    loop = _TimeLoop(op, factors, scheme, theta, startup_steps, step0, src_energy, progress)
     plan = step_plan(times, t, dt)
-    n_total = sum(n for n, _ in plan)
     x, energy = op.unknowns()
-    done, step_seconds = 0, 0.0
     op.barrier()
-    wall0 = last_report = time.perf_counter()
-    t_prev = t
-    for k, (tk, (n, h)) in enumerate(zip(times, plan)):
-        tk = float(tk)
-        if n:
-            if scheme == "tr-bdf2":
-                d, solver = solver_for(_TRB_D * h, 1.0)
-                h = d / _TRB_D
-            else:
-                h, solver = solver_for(h, theta)
-        for s in range(n):
-            t0 = t_prev + s * h
-            t1 = tk if s == n - 1 else t_prev + (s + 1) * h
-            s0 = time.perf_counter()
-            sw = op.source(t0, t1)
-            if sw is not None:
-                src_energy += h * op.source_power(sw)
-            if step0 + done < startup_steps:
-                # Rannacher start-up: two backward-Euler half steps
-                hh, half = solver_for(0.5 * h, 1.0)
-                for _ in range(2):
-                    x = x + half.solve(op.rhs(x, sw))
-                    op.ledger(energy, hh, x, sw)
-            else:
-                x = _step(op, x, energy, sw, h, solver, scheme, theta)
-            step_seconds += time.perf_counter() - s0
-            done += 1
-            if progress is not None and op.is_root and (
-                    time.perf_counter() - last_report > 0.1 or done == n_total):
-                last_report = time.perf_counter()
-                progress(done, n_total, t1)
-        t_prev = tk
-        op.record(k, x, energy, src_energy, tk)
+    wall0 = time.perf_counter()
+    x = loop.run(x, energy, times, plan, t, started=wall0)
     wall = time.perf_counter() - wall0
     end = op.finish(x, energy, flags)
     if end is None:
         return None
+    return _implicit_result(op, end, loop, times, plan, dt=dt,
+                            wall_seconds=wall + setup_seconds, setup_seconds=setup_seconds)
+
+
+def _implicit_result(op, end, loop, times, plan, *, dt, wall_seconds,
+                     setup_seconds) -> ThermalResult:
+    """The :class:`ThermalResult` of :func:`drive_implicit`'s run: ``end`` is ``op.finish``'s
+    (temperatures, ledger, flags), ``loop`` the finished :class:`_TimeLoop`."""
     T_end, energy_total, flags = end
     net, rec = op.net, op.recorder
     prob = net.problem
-    state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=step0 + done,
-                        boundary_energy_j=energy_total, source_energy_j=src_energy,
+    scheme, theta, done = loop.scheme, loop.theta, loop.done
+    state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=loop.step0 + done,
+                        boundary_energy_j=energy_total, source_energy_j=loop.src_energy,
                         reference_temperature_k=op.ref, dt_s=dt, method="implicit")
-    solvers = list(cache.values())
+    solvers = list(loop.factors.cache.values())
+    step_seconds = loop.step_seconds
     return ThermalResult(
         method=scheme_name(scheme, theta), times=times, temperature_k=rec.T,
         boundary_heat_flow_w=rec.flow, boundary_energy_j=rec.energy,
         source_energy_j=rec.source, stored_energy_j=rec.stored,
         boundary_names=prob.boundary_names, source_boundary=prob.source_boundary, dt=dt,
         dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=done,
-        wall_seconds=wall + setup_seconds,
+        wall_seconds=wall_seconds,
         contact_updates_per_second=(net.n_active_contacts * done / step_seconds
                                     if step_seconds > 0 else float("nan")),
         flags=tuple(flags),
-        info=dict(theta=theta, scheme=scheme, startup_steps=startup_steps,
-                  factorisations=len(solvers), factor_seconds=factor_seconds,
+        info=dict(theta=theta, scheme=scheme, startup_steps=loop.startup_steps,
+                  factorisations=len(solvers), factor_seconds=loop.factors.seconds,
                   setup_seconds=setup_seconds, step_seconds=step_seconds, tol=op.tol,
                   steps_per_interval=[n for n, _ in plan], clusters=net.clusters.summary(),
                   **op.solver_info(solvers)),
