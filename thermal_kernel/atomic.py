@@ -9,7 +9,8 @@ the interpreter (segfault seen on a 40 KB tmpfs), while ``write`` just raises ``
 
 This is the one home of writing a file all or nothing (issue 17): text
 (:func:`write_text_atomic`), bytes (:func:`write_bytes_atomic`), a stream (:func:`open_atomic`,
-e.g. for ``csv``), an HDF5 file built in memory (:func:`write_h5_atomic`), a figure
+e.g. for ``csv``), an HDF5 file built in memory, or on disk in room reserved first when it is
+large (:func:`write_h5_atomic`), a figure
 (:func:`savefig_atomic`), or any writer that takes a file name (:func:`replacing`). Only the
 YADE side (``yade_scripts/``) keeps its own, since it cannot import this package. At module
 level this file imports only the standard library: ``packing_h5.py`` loads it by file path
@@ -82,13 +83,78 @@ def savefig_atomic(fig, path, **kwargs) -> Path:
     return path
 
 
-def write_h5_atomic(path, fill) -> Path:
-    """An HDF5 file made by ``fill(h5py.File)`` in memory, then written to ``path`` at once."""
+# An HDF5 file whose datasets hold more than this is written on disk into space reserved first
+# (below) rather than built in memory: a long run's temperature history would otherwise be held
+# twice (the history and the file's image) while it is written.
+ON_DISK_FROM_BYTES = 256 * 2 ** 20
+# what an HDF5 file adds to its datasets' bytes, at most (the header, attributes such as the
+# scene's text, the chunk index: ~40 B per chunk of >= 8 KB, < 1 %)
+_RESERVE_MARGIN = (0.02, 16 * 2 ** 20)
+_FALLOC_FL_KEEP_SIZE = 1
+
+
+def _reserve(f, nbytes: int) -> bool:
+    """Reserve ``nbytes`` of disk for the open, empty file ``f`` without changing its size
+    (Linux fallocate, FALLOC_FL_KEEP_SIZE: HDF5 must still see an empty file). True when
+    reserved; False where the call or the filesystem does not offer it; OSError (ENOSPC) when
+    the disk has not that much room."""
+    import ctypes
+    import errno
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fallocate = libc.fallocate
+    except (OSError, AttributeError):
+        return False
+    fallocate.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_long, ctypes.c_long]
+    if fallocate(f.fileno(), _FALLOC_FL_KEEP_SIZE, 0, int(nbytes)) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL):
+        return False
+    raise OSError(err, os.strerror(err))
+
+
+def write_h5_atomic(path, fill, data_bytes: int = 0) -> Path:
+    """An HDF5 file made by ``fill(h5py.File)``, written to ``path`` all or nothing.
+
+    ``data_bytes``: about how many bytes its datasets hold. Up to :data:`ON_DISK_FROM_BYTES`
+    (or where the filesystem cannot reserve space) the file is built in memory and written at
+    once (HDF5's own writer crashes on a full disk, see above). Above it, the temporary file's
+    room is reserved first (that many bytes and a margin; a disk without it raises ENOSPC
+    before HDF5 writes anything) and HDF5 writes into it through a Python file object, so the
+    file's image is never in memory."""
     import h5py
+    path = Path(path)
+    if data_bytes > ON_DISK_FROM_BYTES:
+        try:
+            return _write_h5_reserved(path, fill, data_bytes)
+        except _NotReserved:
+            pass                        # the filesystem cannot reserve: in memory, as below
     buf = io.BytesIO()
     with h5py.File(buf, "w") as f:
         fill(f)
     return write_bytes_atomic(path, buf.getbuffer())
+
+
+class _NotReserved(Exception):
+    """The filesystem does not reserve space (fallocate unsupported)."""
+
+
+def _write_h5_reserved(path: Path, fill, data_bytes: int) -> Path:
+    """:func:`write_h5_atomic` on disk: the temporary file's room reserved, then HDF5 writing
+    into it through a Python file object; :class:`_NotReserved` (nothing left) where the
+    filesystem cannot reserve."""
+    import h5py
+    rel, extra = _RESERVE_MARGIN
+    with replacing(path) as tmp:
+        with open(tmp, "wb+") as f:
+            if not _reserve(f, int(data_bytes * (1 + rel)) + extra):
+                raise _NotReserved
+            with h5py.File(f, "w") as h5:
+                fill(h5)
+            f.flush()
+            os.fsync(f.fileno())
+    return path
 
 
 class OutputBusyError(RuntimeError):

@@ -107,7 +107,8 @@ def write_checkpoint(path: Path, state: SolverState, outputs: dict, totals: dict
         for key in _OUTPUTS:
             o.create_dataset(key, data=np.asarray(outputs[key], dtype=np.float64))
         f.create_group("totals").attrs.update(totals)
-    return write_h5_atomic(path, fill)
+    # the temperatures so far dominate (written on disk when large: atomic.write_h5_atomic)
+    return write_h5_atomic(path, fill, data_bytes=np.asarray(outputs["temperature_k"]).nbytes)
 
 
 def read_checkpoint(path: Path, scene_text: str, n_particles: int, packing_hash: str = "",

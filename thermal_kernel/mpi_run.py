@@ -236,33 +236,36 @@ def _solve(args, scene, dist, T0, built, comm, resumed_at):
             _transient_step(args, scene, dist, progress), T0, scene, args.checkpoint_every,
             built.get("resumed"), built["net"].n if rank == 0 else 0,
             built.get("packing_hash", ""), n_contacts=dist.n_active_contacts,
-            on_root=lambda fn: backend.on_root(comm, fn), resumed_at=resumed_at)
+            on_root=lambda fn: backend.on_root(comm, fn), resumed_at=resumed_at,
+            history_dir=scene.output.parent if rank == 0 else None)
     finally:
         if bar is not None:
             bar.close()
 
 
 def _transient_step(args, scene, dist, progress):
-    """The chunk loop's solver: ``(start temperatures K, output times s) -> result`` by the
-    scene's method on the ranks; an unstable explicit dt is the scene's error, as in-process."""
+    """The chunk loop's solver: ``(start temperatures K, output times s, on_output) -> result``
+    by the scene's method on the ranks (rank 0 hands its temperatures to ``on_output``, not
+    kept); an unstable explicit dt is the scene's error, as in-process."""
     from .scene import SceneError
     from .solvers import UnstableTimeStepError
     from .solvers import petsc_backend as backend
 
     solver = scene.solver
 
-    def transient(start, times):
+    def transient(start, times, on_output):
         if solver.method == "explicit":
             try:
                 return backend.run_explicit(
                     dist, start, times, dt=None if np.isnan(solver.dt) else solver.dt,
                     safety=solver.safety, allow_unstable=solver.allow_unstable,
-                    progress=progress)
+                    progress=progress, on_output=on_output)
             except UnstableTimeStepError as e:
                 raise SceneError(f"{scene.path}: solver.dt: {e}") from None
         return backend.run_implicit(
             dist, start, times, dt=solver.dt, theta=solver.theta, scheme=solver.scheme,
-            startup_steps=solver.startup_steps, pc=args.pc, progress=progress)
+            startup_steps=solver.startup_steps, pc=args.pc, progress=progress,
+            on_output=on_output)
 
     return transient
 

@@ -2,8 +2,10 @@
 
 Read back by :func:`read_thermal` (the one reader: every field checked) and
 :func:`read_run_packing` (the packing, checked against the stored content hash).
-Built in memory, written to ``<path>.tmp`` and renamed (:mod:`thermal_kernel.atomic`): a killed
-run or a full disk never leaves a half-written file.
+Built in memory (or, when large, on disk in room reserved first), written to ``<path>.tmp`` and
+renamed (:mod:`thermal_kernel.atomic`): a killed run or a full disk never leaves a half-written
+file. A long run's temperatures at its output times are kept in :func:`history_rows` until
+then: on disk when they are large.
 Layout (SI units, documented in docs/solvers.md):
   time (K,) s; temperature (K, N) K; boundary_heat_flow (K, B) W (heat entering through each
   boundary at that time); boundary_energy (K, B) J and source_energy (K,) J (cumulative since
@@ -36,6 +38,7 @@ import h5py
 import numpy as np
 
 from . import __version__
+from . import atomic
 from .atomic import write_h5_atomic
 
 
@@ -55,16 +58,40 @@ def git_hash() -> str:
     return "unknown"
 
 
+def history_rows(n_times: int, n_particles: int, folder=None) -> np.ndarray:
+    """(n_times, n_particles) float64 rows for a run's temperatures at its output times: in
+    memory, or, above :data:`~thermal_kernel.atomic.ON_DISK_FROM_BYTES` with a ``folder``
+    given (the output's), a memory map of an unnamed temporary file there (unlinked at once:
+    nothing is left behind, even by a killed run), so the history is paged to disk instead of
+    held: a long run's memory does not grow with its output times."""
+    shape = (int(n_times), int(n_particles))
+    if folder is None or 8 * shape[0] * shape[1] <= atomic.ON_DISK_FROM_BYTES:
+        return np.empty(shape)
+    import tempfile
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryFile(dir=folder) as f:     # the map outlives the file object
+        return np.memmap(f, dtype=np.float64, mode="w+", shape=shape)
+
+
+def stored_energy_change(temperatures, initial_temperature_k, capacity_j_k) -> np.ndarray:
+    """(K,) J: sum_p C_p (T_p - T0_p) at each output time, a row at a time (no (K, N)
+    temporary: a long run's rows may be on disk, :func:`history_rows`)."""
+    t0 = np.asarray(initial_temperature_k, dtype=np.float64)
+    cap = np.asarray(capacity_j_k, dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):   # a flagged run's huge values
+        return np.array([float(np.dot(row - t0, cap)) for row in temperatures],
+                        dtype=np.float64)
+
+
 def write_thermal(path, *, times, temperatures, boundary_heat_flow_w, boundary_energy_j,
                   source_energy_j, capacity_j_k, initial_temperature_k, boundary_names,
                   attrs: dict) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     temperatures = np.asarray(temperatures, dtype=np.float64)
-    if not np.all(np.isfinite(temperatures)):
+    if not all(np.all(np.isfinite(row)) for row in temperatures):
         raise FloatingPointError(f"{path}: temperature: non-finite values; not written")
-    with np.errstate(over="ignore", invalid="ignore"):   # a flagged run's huge values
-        stored = (temperatures - np.asarray(initial_temperature_k)[None, :]) @ capacity_j_k
+    stored = stored_energy_change(temperatures, initial_temperature_k, capacity_j_k)
 
     def fill(f):
         f.create_dataset("time", data=np.asarray(times, dtype=np.float64))
@@ -86,7 +113,7 @@ def write_thermal(path, *, times, temperatures, boundary_heat_flow_w, boundary_e
         f.attrs["git_hash"] = git_hash()
         for key, value in attrs.items():
             f.attrs[key] = value
-    return write_h5_atomic(path, fill)
+    return write_h5_atomic(path, fill, data_bytes=temperatures.nbytes)
 
 
 # ----------------------------------------------------------------------------- the resolved scene

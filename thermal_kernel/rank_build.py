@@ -36,9 +36,10 @@ over an mpi4py communicator:
    the other rows (``adjacency_rows``): what its ledger, steady's floating clusters, the checks
    and the output read.
 
-What stays whole: on rank 0 the particles and the network's per-particle arrays (and the
-temperatures it gathers for the output). ``mpi_run --whole-build`` builds the network whole
-on rank 0 instead (for comparison).
+What stays whole: on rank 0 the particles and the network's per-particle arrays (the
+temperatures it gathers at an output time go, one time at a time, into the run's history,
+paged to disk when large: :func:`~.output.history_rows`). ``mpi_run --whole-build`` builds
+the network whole on rank 0 instead (for comparison).
 """
 from __future__ import annotations
 

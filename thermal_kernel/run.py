@@ -24,7 +24,7 @@ from .atomic import OutputBusyError, output_lock
 from .checkpoint import checkpoint_path, packing_sha256, read_checkpoint, write_checkpoint
 from .network import Network, ThermalProblem, assemble
 from .neighbours import NeighbourChoice
-from .output import scene_text_difference, scene_to_json, write_thermal
+from .output import history_rows, scene_text_difference, scene_to_json, write_thermal
 from .packing import Packing, read_packing, write_packing
 from .problem import build_problem
 from .scene import Scene, SceneError, load_scene
@@ -102,25 +102,29 @@ def _progress_bar(total_steps, end_time, quiet, label="explicit"):
     return bar, progress
 
 
-def _transient(net, start, times, scene, threads, progress):
-    """One explicit or theta-scheme run from ``start`` (array or state) through ``times``."""
+def _transient(net, start, times, scene, threads, progress, on_output):
+    """One explicit or theta-scheme run from ``start`` (array or state) through ``times``, its
+    temperatures handed to ``on_output(k, t, T)`` (:func:`run_in_chunks`), not kept."""
     solver = scene.solver
     if solver.method == "explicit":
         dt = None if math.isnan(solver.dt) else solver.dt
         try:
             return run_explicit(net, start, times, dt=dt, safety=solver.safety,
                                 allow_unstable=solver.allow_unstable, progress=progress,
-                                threads=threads)
+                                threads=threads, keep_temperatures=False,
+                                on_output=on_output)
         except UnstableTimeStepError as e:
             raise SceneError(f"{scene.path}: solver.dt: {e}") from None
     return run_implicit(net, start, times, dt=solver.dt, theta=solver.theta,
                         scheme=solver.scheme, startup_steps=solver.startup_steps,
-                        progress=progress)
+                        progress=progress, keep_temperatures=False, on_output=on_output)
 
 
-def _check_finite(scene, result):
-    """A run that blew up (allow_unstable above the bound) ends in one line, nothing written."""
-    bad = ~np.all(np.isfinite(result.temperature_k), axis=1)
+def _check_finite(scene, result, temperatures=None):
+    """A run that blew up (allow_unstable above the bound) ends in one line, nothing written.
+    ``temperatures``: the result's rows where they are kept apart (:func:`run_in_chunks`)."""
+    rows = result.temperature_k if temperatures is None else temperatures
+    bad = np.array([not np.all(np.isfinite(row)) for row in rows], dtype=bool)
     if not bad.any():
         return
     t = float(result.times[int(np.argmax(bad))])
@@ -132,12 +136,17 @@ def _check_finite(scene, result):
 
 
 def run_in_chunks(transient, T0, scene, every, resumed, n_particles, packing_hash="", *,
-                  n_contacts=0, on_root=None, resumed_at=None):
+                  n_contacts=0, on_root=None, resumed_at=None, history_dir=None):
     """The transient through the scene's output times in chunks of ``every`` of them, a
     checkpoint after each (0: one chunk, no checkpoint); or from a checkpoint ``resumed`` =
-    (state, outputs, totals). ``transient(start, times)`` runs one chunk from ``start`` (array
-    or state) and returns its ThermalResult. Returns (ThermalResult over all output times,
-    checkpoint path).
+    (state, outputs, totals). ``transient(start, times, on_output)`` runs one chunk from
+    ``start`` (array or state), calls ``on_output(k, t, T)`` at its k-th output time (rank 0)
+    and returns its ThermalResult (without the temperatures, which ``on_output`` keeps).
+    Returns (ThermalResult over all output times, checkpoint path).
+
+    The temperatures at every output time go into one :func:`~.output.history_rows` array
+    (``history_dir``: the output's folder, where a large history is paged to disk; None: in
+    memory), never a list of chunks joined at the end.
 
     The one loop of the in-process run and of the PETSc backend's ranks
     (thermal_kernel/mpi_run.py), where ``transient`` is collective and returns the result on
@@ -148,27 +157,38 @@ def run_in_chunks(transient, T0, scene, every, resumed, n_particles, packing_has
     on_root = on_root or (lambda fn: fn())
     times = np.asarray(scene.solver.output_times, dtype=np.float64)
     ckpt = checkpoint_path(scene.output)
-    outputs = {key: [] for key in ("times", "temperature_k", "boundary_heat_flow_w",
-                                   "boundary_energy_j", "source_energy_j", "stored_energy_j")}
+    outputs = {key: [] for key in ("times", "boundary_heat_flow_w", "boundary_energy_j",
+                                   "source_energy_j", "stored_energy_j")}
     totals = {"steps": 0, "wall_seconds": 0.0, "step_seconds": 0.0}
     start = T0
+    # rank 0's temperatures at every output time (n_particles is 0 on the other ranks)
+    history = history_rows(len(times), n_particles, history_dir)
+    rows = 0                # output times recorded in it
     if resumed is not None:
         start, done, totals = resumed
         resumed_at = start.time_s
         for key in outputs:
             outputs[key].append(done[key])
-        print(f"  resuming from {ckpt} at t = {start.time_s:.6g} s ({len(done['times'])} "
+        rows = len(done["times"])
+        history[:rows] = done["temperature_k"]
+        print(f"  resuming from {ckpt} at t = {start.time_s:.6g} s ({rows} "
               f"outputs done, {int(np.sum(times > start.time_s))} to go)", flush=True)
     if resumed_at is not None:
+        rows = int(np.sum(times <= resumed_at))
         times = times[times > resumed_at]
     size = every if every > 0 else max(len(times), 1)
     last = None
     for i in range(0, len(times), size):
-        last = transient(start, times[i:i + size])
+        first = rows
 
-        def keep(last=last):
+        def into_history(k, t, T, first=first):
+            history[first + k] = T
+
+        last = transient(start, times[i:i + size], into_history)
+
+        def keep(last=last, first=first):
             nonlocal totals
-            _check_finite(scene, last)
+            _check_finite(scene, last, history[first:first + len(last.times)])
             for key in outputs:
                 outputs[key].append(getattr(last, key))
             totals = {"steps": totals["steps"] + last.steps,
@@ -177,17 +197,20 @@ def run_in_chunks(transient, T0, scene, every, resumed, n_particles, packing_has
                       + last.info.get("step_seconds", 0.0)}
             if every > 0:
                 write_checkpoint(ckpt, last.state,
-                                 {k: np.concatenate(v) for k, v in outputs.items()},
+                                 {**{k: np.concatenate(v) for k, v in outputs.items()},
+                                  "temperature_k": history[:first + len(last.times)]},
                                  totals, scene.text, n_particles, packing_hash)
             return True
         on_root(keep)
+        rows += len(times[i:i + size])
         start = None if last is None else last.state
     if last is None:
         return None, ckpt
     joined = {k: np.concatenate(v) for k, v in outputs.items()}
     cups = (n_contacts * totals["steps"] / totals["step_seconds"]
             if totals["step_seconds"] > 0 else float("nan"))
-    return dataclasses.replace(last, **joined, steps=int(totals["steps"]),
+    return dataclasses.replace(last, **joined, temperature_k=history,
+                               steps=int(totals["steps"]),
                                wall_seconds=float(totals["wall_seconds"]),
                                contact_updates_per_second=cups), ckpt
 
@@ -378,17 +401,19 @@ def _build_network(scene: Scene, packing: Packing, conductance_factor=None):
 
 
 def _solve(scene: Scene, net, T0, threads, *, progress=None, checkpoint_every=0, resumed=None,
-           n_particles=0, packing_hash=""):
+           n_particles=0, packing_hash="", history_dir=None):
     """The scene's solver on the network from ``T0`` (an array; a transient also a
     SolverState): a steady solve, or the transient through the output times
-    (:func:`run_in_chunks`; checkpoints only with ``checkpoint_every``).
+    (:func:`run_in_chunks`; checkpoints only with ``checkpoint_every``; ``history_dir``: where
+    a large history of temperatures is paged to disk, None: memory).
     (ThermalResult, checkpoint path or None)."""
     if scene.solver.method == "steady":
         return solve_steady(net, T0), None
     return run_in_chunks(
-        lambda start, times: _transient(net, start, times, scene, threads, progress),
+        lambda start, times, on_output: _transient(net, start, times, scene, threads,
+                                                   progress, on_output),
         T0, scene, checkpoint_every, resumed, n_particles, packing_hash,
-        n_contacts=net.n_active_contacts)
+        n_contacts=net.n_active_contacts, history_dir=history_dir)
 
 
 def _start(scene: Scene, n_particles: int, initial_temperature_k=None) -> np.ndarray:
@@ -610,7 +635,8 @@ def _run_scene(scene, packing_path, *, quiet, threads, checkpoint_every, resume,
     try:
         result, ckpt = _solve(scene, net, T0, threads, progress=progress,
                               checkpoint_every=checkpoint_every, resumed=resumed,
-                              n_particles=packing.n_particles, packing_hash=packing_hash)
+                              n_particles=packing.n_particles, packing_hash=packing_hash,
+                              history_dir=scene.output.parent)
     finally:
         if bar is not None:
             bar.close()

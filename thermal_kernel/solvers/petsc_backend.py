@@ -32,13 +32,15 @@ increment is 0.
 
 The energy ledger: each rank sums the heat through the held particles and exchange rows it owns,
 every step (the fluxes the step used, as in-process); the sums meet at the output times only.
-Rank 0 gathers the temperatures at the output times and records them with the in-process
-:class:`~thermal_kernel.solvers.Recorder`; a source is evaluated on rank 0 (it is a function of
-the whole packing) and its powers scattered, each step.
+Rank 0 gathers the temperatures at each output time and records them with the in-process
+:class:`~thermal_kernel.solvers.Recorder` (or hands them to ``on_output``: ``tdem run`` keeps
+them in :func:`~thermal_kernel.output.history_rows`, on disk when large); a source is
+evaluated on rank 0 (it is a function of the whole packing) and its powers scattered, each
+step.
 
 Still whole on rank 0 (docs/scaling.md): the network's per-particle arrays and boundary rows
-(with the per-rank build; the whole network with ``net``), a source's powers and the output's
-temperatures.
+(with the per-rank build; the whole network with ``net``), a source's powers, and one output
+time's temperatures while they are recorded.
 """
 from __future__ import annotations
 
@@ -414,9 +416,11 @@ def _land():
 
 # ----------------------------------------------------------------------------- explicit
 def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, safety=0.9,
-                 allow_unstable=False, progress=None) -> ThermalResult | None:
+                 allow_unstable=False, progress=None, on_output=None) -> ThermalResult | None:
     """Forward Euler on the ranks; the in-process :func:`~.explicit.run_explicit`'s arguments
-    and result (on rank 0; None on the others). ``T0`` matters on rank 0 only. Collective."""
+    and result (on rank 0; None on the others). ``T0`` matters on rank 0 only. Collective.
+    ``on_output(k, t, T)`` (rank 0): the temperatures at each output time go there instead of
+    into the result (the in-process ``keep_temperatures=False``)."""
     start = {}
 
     def prelude():
@@ -431,7 +435,8 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
     energy = start["energy0"].copy() if dist.rank == 0 else np.zeros(dist.nb)
     const_b = np.asarray(net.constant_boundary_flow_w, dtype=np.float64) if dist.rank == 0 \
         else np.zeros(dist.nb)
-    rec = Recorder(net, times, start["ref"]) if dist.rank == 0 else None
+    rec = Recorder(net, times, start["ref"], on_output is None, on_output) \
+        if dist.rank == 0 else None
     src = [p["src"]]
     plan = step_plan(times, t, dt)
     n_total = sum(n for n, _ in plan)
@@ -513,8 +518,9 @@ class DistributedOperator:
     rank's temperatures (held rows kept at their temperature, their increment 0), the matrices
     MPIAIJ, each solved by CG + ``pc``; the ledger's partial sums meet at the output times."""
 
-    def __init__(self, dist: DistributedNetwork, tol, pc):
+    def __init__(self, dist: DistributedNetwork, tol, pc, on_output=None):
         self.dist, self.tol, self.pc = dist, tol, pc
+        self.on_output = on_output       # rank 0: the temperatures go there, not kept
         self.net = dist.net
         self.is_root = dist.rank == 0
         self.iterations: list = []
@@ -536,7 +542,8 @@ class DistributedOperator:
         self.const_b = (np.asarray(self.net.constant_boundary_flow_w, dtype=np.float64)
                         if self.is_root else np.zeros(dist.nb))
         if self.is_root:
-            self.recorder = Recorder(self.net, p["times"], self.ref)
+            self.recorder = Recorder(self.net, p["times"], self.ref, self.on_output is None,
+                                     self.on_output)
         return p["times"], p["t"], p["step0"], p["src"], p["flags"]
 
     def setup(self):
@@ -598,13 +605,13 @@ class DistributedOperator:
 
 def run_implicit(dist: DistributedNetwork, T0, times, *, dt, theta=1.0, scheme="theta",
                  startup_steps=None, t_start=None, tol=1e-12, pc="gamg",
-                 progress=None) -> ThermalResult | None:
+                 progress=None, on_output=None) -> ThermalResult | None:
     """theta / Rannacher / TR-BDF2 on the ranks: the in-process time loop
     (:func:`~.implicit.drive_implicit`) over this rank's rows, each increment solved by
     PETSc's CG + ``pc`` to the relative residual ``tol``. Result on rank 0 (None elsewhere).
     Collective."""
     theta, startup_steps = scheme_args(scheme, theta, startup_steps)
-    op = DistributedOperator(dist, tol, dist.preconditioner(pc))
+    op = DistributedOperator(dist, tol, dist.preconditioner(pc), on_output)
     return drive_implicit(op, T0, times, dt=dt, theta=theta, scheme=scheme,
                           startup_steps=startup_steps, t_start=t_start, progress=progress)
 
