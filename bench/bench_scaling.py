@@ -380,6 +380,8 @@ LARGEST = LARGEST_RUNS[-1][0]
 
 
 BUILD = ROOT / "bench/results/rank_build_memory.json"
+# bench/bench_output_memory.py's rows: a long run's memory against its output times
+OUTPUT_MEMORY = ROOT / "bench/results/output_memory.json"
 # the section "Every scene of runs/ on 1, 2 and 3 ranks": make bench-ranks' command and its
 # output (bench/ranks_same_answers.py), kept beside its table
 RANKS_SECTION = ROOT / "bench/results/ranks_same_answers_section.md"
@@ -452,6 +454,8 @@ def document(data) -> str:
         L += _doc_largest(largest)
     if build:
         L.append(build_memory_section(build))
+    if OUTPUT_MEMORY.exists():
+        L += _doc_output_memory(json.loads(OUTPUT_MEMORY.read_text()))
     L += _doc_cuts(data)
     L += _doc_cost_model(model, proj, largest, build)
     L += _doc_projection(proj, build, bfit)
@@ -524,11 +528,13 @@ def _doc_agreement() -> list[str]:
       "particles by position, and for the Morton order, a sort of every centre), the "
       "network's per-particle arrays and boundary rows (its ledger, the flags, the checks), "
       "a source's powers (a function of the whole packing, evaluated there and scattered each "
-      "step) and the temperatures at the output times (gathered there and written by it): "
-      "bytes per particle, not per contact. No rank holds the whole contact list or evaluates "
-      "the law on every contact, and the other ranks hold only their blocks (the table "
-      "'Memory of the build on the ranks' below). Next: the boundary kinds on blocks, a "
-      "parallel sort of the Morton keys and parallel output (rank 0's per-particle part). "
+      "step) and one output time's temperatures while it records them (a run's history of "
+      "them goes to disk when it is large: the table 'Memory of a long run's output' "
+      "below): bytes per particle, not per contact. No rank holds the whole contact list or "
+      "evaluates the law on every contact, and the other ranks hold only their blocks (the "
+      "table 'Memory of the build on the ranks' below). Next: the boundary kinds on blocks, "
+      "a parallel sort of the Morton keys and the ledger and checks on the ranks (rank 0's "
+      "per-particle part). "
       "A `[neighbours]` scene (`runs/dense_box_1e5.toml` among them) is built on the ranks "
       "like any other since the criterion is chosen with collectives; its bulk flags come "
       "from rank 0's whole particles (per particle).\n")
@@ -641,6 +647,32 @@ def _doc_largest(largest) -> list[str]:
               f"{r['cpu_s']:.3g} | {r['iterations']} | {r['rss_ranks_gb'][0]:.2f} | "
               f"{max(r['rss_ranks_gb'][1:], default=float('nan')):.2f} | {run['date']} | "
               f"{load} | `{cmd}` |")
+    w("")
+    return L
+
+
+def _doc_output_memory(om) -> list[str]:
+    """A long run's memory against its output times (bench/bench_output_memory.py)."""
+    L = []
+    w = L.append
+    load = " / ".join(" ".join(x) for x in om["load"])
+    w("### Memory of a long run's output\n")
+    w(f"Peak anonymous memory (RssAnon, sampled every 10 ms by each process; {om['date']}; "
+      f"`bench/bench_output_memory.py`, not part of `make bench-scaling`; load {load}) of "
+      "an explicit `tdem run` of the dense box with 50 and 500 output times, in-process "
+      f"(one thread) and on 2 ranks. Before: the code of {om['before']}, which held the "
+      "temperatures of every output time in memory (on rank 0: gathered there) and built "
+      f"thermal.h5's image beside them; after: {om['after']}, where a history over 256 MiB "
+      "is a memory map of an unnamed file beside the output and thermal.h5 is written on "
+      "disk into room reserved first (below 256 MiB both stay in memory, as before).\n")
+    w("| packing | N | output times | history GB | ranks | before: GB per process | "
+      "after: GB per process |")
+    w("|---|---|---|---|---|---|---|")
+    for r in om["rows"]:
+        before = " / ".join(f"{v:.2f}" for v in r["anon_before_gb"])
+        after = " / ".join(f"{v:.2f}" for v in r["anon_after_gb"])
+        w(f"| {r['packing']} | {r['n']} | {r['output_times']} | {r['history_gb']:.2f} | "
+          f"{r['ranks'] or 'in-process'} | {before} | {after} |")
     w("")
     return L
 
