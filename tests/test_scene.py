@@ -184,6 +184,34 @@ def test_source_time_intervals_match_the_sampled_region(shape):
     np.testing.assert_array_equal(f <= l_, MovingSource(still, position, np.ones(4000)).inside(1.0))
 
 
+@pytest.mark.parametrize("shape", ["sphere", "box", "cylinder"])
+@pytest.mark.parametrize("periodic", [False, True], ids=["open", "periodic"])
+def test_a_source_restricted_to_a_block_gives_its_particles_powers_bit_for_bit(shape, periodic):
+    """MovingSource.restricted (what a rank of the PETSc backend evaluates for its block): over
+    any subset of the particles, in any order, the powers of the whole source's particles, bit
+    for bit: moving across several cells, still, at an instant, outside its on-time."""
+    import numpy as np
+    from thermal_kernel.boundaries import MovingSource, SourceBoundary
+    rng = np.random.default_rng(5)
+    position = rng.uniform(-1.0, 1.0, (3000, 3))
+    volume = rng.uniform(0.5, 1.5, 3000)
+    b = SourceBoundary(name="s", value=2.0, shape=shape, centre_m=(-0.8, 0.1, -0.2),
+                       radius_m=0.3, depth_m=0.4, axis=(0.3, 0.2, 1.0),
+                       half_size_m=(0.2, 0.3, 0.25), velocity_m_s=(1.5, -0.1, 0.2),
+                       start_time=0.1, stop_time=2.5)
+    cell = dict(periodic=(True, True, False), length=(2.0, 2.0, 2.0)) if periodic else {}
+    block = rng.permutation(3000)[:1100]
+    for boundary in (b, dataclasses.replace(b, velocity_m_s=(0.0, 0.0, 0.0))):
+        whole = MovingSource(boundary, position, volume, **cell)
+        part = whole.restricted(block)
+        heated = 0
+        for t0, t1 in ((0.0, 0.05), (0.2, 0.3), (0.3, 2.0), (1.0, 1.0), (2.4, 3.0), (2.6, 2.7)):
+            w = whole(t0, t1)
+            np.testing.assert_array_equal(part(t0, t1), w[block])
+            heated += int(np.count_nonzero(w[block]))
+        assert heated > 20          # the source reaches the block: the comparison means it
+
+
 def test_read_toml_is_the_one_reader(tmp_path):
     """One TOML reader (tdem pack, campaigns, scenes): each failure is one line of the caller's
     error type, naming the file."""

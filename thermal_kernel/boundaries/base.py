@@ -69,7 +69,10 @@ class Rows:
     - ``exchange``: g (Tw - T_p) between a particle and a reservoir at Tw;
     - ``power``: a constant power into particles;
     - ``source``: a time-dependent power ``term(t0, t1) -> (N,) W``, made by ``make()`` once
-      every boundary has contributed (at most one per scene).
+      every boundary has contributed (at most one per scene); a term whose powers are each
+      particle's own offers ``term.restricted(particles)``, the same term over those
+      particles, which the PETSc backend's ranks evaluate on their blocks (without it rank 0
+      evaluates the whole term and scatters its powers).
     """
 
     def __init__(self):

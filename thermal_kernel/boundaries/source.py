@@ -358,6 +358,14 @@ class MovingSource:
             first, last = _intervals(self.b, base + s, self.velocity, 0.0, h)
             out[idx] += np.clip(last - first, 0.0, None)
 
+    def restricted(self, particles) -> MovingSource:
+        """The same source over the particles ``particles`` only (their powers in that order,
+        equal to the whole source's bit for bit: every particle's power is its own): what a
+        rank of the PETSc backend evaluates for its block."""
+        idx = np.asarray(particles, dtype=np.int64)
+        return MovingSource(self.b, self.position[idx], self.volume[idx],
+                            periodic=self.periodic, length=self.length)
+
     # ------------------------------------------------------------------ the solvers' term
     def __call__(self, t0, t1):
         t0, t1 = float(t0), float(t1)

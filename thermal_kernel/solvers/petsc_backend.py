@@ -34,13 +34,15 @@ The energy ledger: each rank sums the heat through the held particles and exchan
 every step (the fluxes the step used, as in-process); the sums meet at the output times only.
 Rank 0 gathers the temperatures at each output time and records them with the in-process
 :class:`~thermal_kernel.solvers.Recorder` (or hands them to ``on_output``: ``tdem run`` keeps
-them in :func:`~thermal_kernel.output.history_rows`, on disk when large); a source is
-evaluated on rank 0 (it is a function of the whole packing) and its powers scattered, each
-step.
+them in :func:`~thermal_kernel.output.history_rows`, on disk when large). A source's power
+is each particle's own: each rank evaluates the source restricted to its block every step
+(:meth:`DistributedNetwork.source_powers`; one number a step is summed over the ranks, the
+heat it put in), nothing is scattered from rank 0.
 
 Still whole on rank 0 (docs/scaling.md): the network's per-particle arrays and boundary rows
-(with the per-rank build; the whole network with ``net``), a source's powers, and one output
-time's temperatures while they are recorded.
+(with the per-rank build; the whole network with ``net``), the source as the boundary kind
+made it (its instantaneous power at the output times, for the flows), and one output time's
+temperatures while they are recorded.
 """
 from __future__ import annotations
 
@@ -189,7 +191,57 @@ class DistributedNetwork:
         self.A = self._mat(self.block)
         self.x = self.A.createVecRight()
         self.y = self.A.createVecLeft()
+        self._share_source()
         self.setup_seconds = time.perf_counter() - t0
+
+    def _share_source(self):
+        """A source's power is a function of each particle alone: rank 0 sends each rank the
+        source restricted to its block (``source.restricted(particles)``), evaluated there
+        every step; the column it is booked under goes to every rank. A source without
+        ``restricted`` stays on rank 0, which evaluates it whole and scatters its powers."""
+        self.local_source, self.source_boundary = None, -1
+        if not self.has_source:
+            return
+        restricted = None
+        if self.rank == 0:
+            restricted = getattr(self.net.problem.source, "restricted", None)
+            self.source_boundary = int(self.net.problem.source_boundary)
+        local, self.source_boundary = self.mpi.bcast(
+            (restricted is not None, self.source_boundary), root=0)
+        if not local:
+            return
+        if self.rank == 0:
+            for r in range(1, self.size):       # one block at a time
+                self.mpi.send(restricted(self.order[self.starts[r]:self.starts[r + 1]]),
+                              dest=r, tag=_SHARE_TAG)
+            self.local_source = restricted(self.order[:self.starts[1]])
+        else:
+            self.local_source = self.mpi.recv(source=0, tag=_SHARE_TAG)
+
+    def source_powers(self, t0, t1):
+        """This rank's rows of the source's mean power over [t0, t1] (W), or None without a
+        source."""
+        if not self.has_source:
+            return None
+        if self.local_source is not None:
+            return np.asarray(self.local_source(t0, t1), dtype=np.float64)
+        whole = np.asarray(self.net.problem.source(t0, t1), dtype=np.float64) \
+            if self.rank == 0 else None
+        return self.scatter(whole)
+
+    def source_total(self, sw_local) -> float:
+        """The source's power summed over every rank's rows (W; on every rank)."""
+        return float(self.mpi.allreduce(float(sw_local.sum())))
+
+    def source_ledger(self, energy, sw_local, h):
+        """The source's heat over ``h`` in this rank's part of the ledger, as the in-process
+        solvers book it: under its column, less what lands on the held particles (this rank's
+        held rows)."""
+        if self.source_boundary >= 0:
+            energy[self.source_boundary] += h * float(sw_local.sum())
+        if self.fixed_local.size:
+            energy -= h * np.bincount(self.fixed_boundary, weights=sw_local[self.fixed_local],
+                                      minlength=energy.size)
 
     def _send_shares(self, net, position_m):
         """Rank 0 (holding the whole ``net``) sends each rank its share; (meta, own share)."""
@@ -376,32 +428,6 @@ def _share_keys():
             "fixed_local", "fixed_boundary", "ex_local", "ex_g", "ex_t", "ex_b", "ex_held_b")
 
 
-def _source_step(dist, t0, t1, h, src):
-    """The source's mean power over [t0, t1]: (this rank's rows, the whole array on rank 0)
-    ((None, None) without a source). Rank 0 evaluates it (a function of the whole packing),
-    adds its heat to ``src`` (a one-element list) and scatters it."""
-    if not dist.has_source:
-        return None, None
-    sw = None
-    if dist.rank == 0:
-        sw = np.asarray(dist.net.problem.source(t0, t1), dtype=np.float64)
-        src[0] += h * float(sw.sum())
-    return dist.scatter(sw), sw
-
-
-def _source_ledger(net, energy, sw, h):
-    """The source's heat in the ledger (rank 0), as the in-process solvers put it: under its
-    column, less what lands on held particles."""
-    if sw is None:
-        return
-    prob = net.problem
-    if prob.source_boundary >= 0:
-        energy[prob.source_boundary] += h * float(sw.sum())
-    if net.fixed_particle.size:
-        energy -= h * np.bincount(net.fixed_boundary, weights=sw[net.fixed_particle],
-                                  minlength=energy.size)
-
-
 def _record(dist, rec, k, t_local, energy_partial, src_energy, tk):
     energy = dist.total(energy_partial)
     T = dist.gather(t_local)
@@ -453,8 +479,10 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
         for s in range(n):
             t0 = t_prev + s * h
             t1 = tk if s == n - 1 else t_prev + (s + 1) * h
-            sw_local, sw_root = _source_step(dist, t0, t1, h, src)
-            _source_ledger(net, energy, sw_root, h)
+            sw_local = dist.source_powers(t0, t1)
+            if sw_local is not None:
+                src[0] += h * dist.source_total(sw_local)
+                dist.source_ledger(energy, sw_local, h)
             at = dist.matvec(tl)
             energy += h * (dist.partial_flows(tl, at) + const_b)
             rhs = dist.b - at if sw_local is None else dist.b + sw_local - at
@@ -565,20 +593,15 @@ class DistributedOperator:
         + S_f in-process: A T on a free row is K_ff T_f + L_fd T_d)."""
         r = self.dist.b - self.dist.matvec(tl)
         if sw is not None:
-            r = r + sw[0]
+            r = r + sw
         return np.where(self.dist.free, r, 0.0)
 
     def source(self, t0, t1):
-        """(this rank's powers, the whole array on rank 0), or None without a source."""
-        dist = self.dist
-        if not dist.has_source:
-            return None
-        sw = np.asarray(dist.net.problem.source(t0, t1), dtype=np.float64) \
-            if self.is_root else None
-        return dist.scatter(sw), sw
+        """This rank's rows of the source's powers (W), or None without a source."""
+        return self.dist.source_powers(t0, t1)
 
     def source_power(self, sw):
-        return float(sw[1].sum()) if self.is_root else 0.0
+        return self.dist.source_total(sw)
 
     def ledger(self, energy, h, tl, sw):
         """This rank's part of the heat through the boundaries over ``h`` (the held rows at
@@ -587,7 +610,7 @@ class DistributedOperator:
         tl = np.where(dist.free, tl, dist.held_t)
         energy += h * (dist.partial_flows(tl, dist.matvec(tl)) + self.const_b)
         if sw is not None:
-            _source_ledger(self.net, energy, sw[1], h)
+            self.dist.source_ledger(energy, sw, h)
 
     def record(self, k, tl, energy, src_energy, tk):
         _record(self.dist, self.recorder, k, tl, energy, src_energy, tk)
