@@ -141,7 +141,14 @@ def _cmd_calibrate(args):
     from thermal_kernel.laws import get_law
     from thermal_kernel.problem import law_params
     scene, path, packing = _scene_and_packing(args)
-    results, skipped, ct = calibrate_axes(scene, packing, args.axis)
+    if args.ranks is None:
+        results, skipped, ct = calibrate_axes(scene, packing, args.axis)
+    else:       # each flux test's steady solve on MPI ranks (issue 25, docs/scaling.md)
+        from thermal_kernel.run import ranks_of_run_in_memory
+        if args.ranks < 1:
+            raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {args.ranks}")
+        with ranks_of_run_in_memory(args.ranks):
+            results, skipped, ct = calibrate_axes(scene, packing, args.axis)
     mean_radius = law_params(scene, get_law(scene.law))["mean_radius"]   # with the default
     print(f"tdem calibrate: {args.scene} on {path} ({packing.n_particles} particles), law haddad"
           f" (R_m {mean_radius} mean), lambda = {results[0].conductivity_w_mk:.6g} W/m/K (002, "
@@ -411,6 +418,9 @@ def _add_calibrate_laws_demo(sub):
     p.add_argument("--axis", default="all", choices=["x", "y", "z", "all"],
                    help="direction of the flux test (default: all: every axis whose cross-section "
                         "is a box face or a cylinder along it, averaged; the others skipped)")
+    p.add_argument("--ranks", type=int, default=None, metavar="N",
+                   help="each flux test's steady solve on N MPI ranks with PETSc (needs "
+                        ".venv-mpi, docs/scaling.md)")
     p.set_defaults(func=_cmd_calibrate)
 
     p = sub.add_parser("laws", help="list the conductance laws with formula and reference")

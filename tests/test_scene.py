@@ -234,3 +234,23 @@ def test_read_toml_is_the_one_reader(tmp_path):
         assert str(e.value).startswith(f"{tmp_path / name}: {words}") and "\n" not in str(e.value)
     with pytest.raises(SceneError, match="line 1"):
         read_toml(tmp_path / "bad.toml")
+
+
+def test_toml_text_is_read_back_as_the_tables_it_was_given():
+    """thermal_kernel.scene.toml_text, the one writer of a scene's text (validation's cases,
+    the calibration's flux test on MPI ranks): read_toml gives back the very tables, floats bit
+    for bit, nested tables ([material.1]) and arrays of tables ([[boundary]]) included."""
+    import math
+
+    from thermal_kernel.scene import read_toml, toml_text
+    tables = {"packing": 'a "quoted" name.h5', "law": "haddad",
+              "law_params": {"ct": 0.1 + 0.2, "tiny": 5e-324, "big": 1.7976931348623157e308},
+              "material": {"conductivity": 33.0, "1": {"conductivity": 1e-3}},
+              "initial": {"temperature": 298.15},
+              "boundary": [{"kind": "temperature", "on": "xmin", "value": 308.15},
+                           {"kind": "source", "centre_m": [0.0, -1.5, 2.25], "value": 1e9,
+                            "stop_time": math.inf}],
+              "solver": {"method": "implicit", "output_times": [1.0, 2.0], "on": True}}
+    back, _ = read_toml("t.toml", toml_text(tables))
+    assert back == tables
+    assert back["law_params"]["ct"] == 0.1 + 0.2

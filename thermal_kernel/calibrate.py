@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .boundaries import TemperatureBoundary, boundary_particles
-from .effective import EffectiveConductivity, effective_conductivity
-from .network import assemble
+from .effective import EffectiveConductivity, steady_effective_conductivity
+from .output import scene_text_difference, scene_to_json
 from .packing import Packing
-from .problem import build_problem
-from .scene import Scene, SceneError, SolverConfig
+from .run import ranks_in_effect, run_in_memory
+from .scene import Scene, SceneError, SolverConfig, load_scene, read_toml, toml_text
 from .section import AXES, cross_section, flux_axes, section_problem
 
 
@@ -102,27 +102,56 @@ def flux_test(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.
                          f"normal to {axis}: {problem} (expected a box face or a cylinder "
                          f"along {axis}; axes with one: {', '.join(flux_axes(packing)) or 'none'})")
     faces = (f"{axis}min", f"{axis}max")
-    test = dataclasses.replace(
-        scene,
-        boundaries=(TemperatureBoundary(name="hot", on=faces[0], value=t_hot),
-                    TemperatureBoundary(name="cold", on=faces[1], value=t_cold)),
-        solver=SolverConfig(method="steady"))
-    problem, info = build_problem(test, packing)
-    net = assemble(problem)
-    effective = effective_conductivity(                                 # 002, eq. 8
-        net, "hot", "cold", t_in=t_hot, t_out=t_cold,
+    test, shift = _flux_scene(scene, faces, t_hot, t_cold)
+    t_hot, t_cold = t_hot + shift, t_cold + shift
+    run = run_in_memory(test, packing, initial_temperature_k=0.5 * (t_hot + t_cold))
+    effective = steady_effective_conductivity(                          # 002, eq. 8
+        run.result, run.network, "hot", "cold", t_in=t_hot, t_out=t_cold,
         length_m=float(packing.domain_hi[k] - packing.domain_lo[k]),
-        area_m2=cross_section(packing, k), length_convention="domain",
-        initial_k=np.full(packing.n_particles, 0.5 * (t_hot + t_cold)),
-        where=scene.path)
+        area_m2=cross_section(packing, k), length_convention="domain", where=scene.path)
     if not effective.q_in_w > 0:
         raise SceneError(f"{scene.path}: boundary: no heat flows from {faces[0]} to {faces[1]} "
                          f"in {packing.path} (the two faces are not connected by contacts)")
     return FluxTest(
         n_hot=len(boundary_particles(test, packing, faces[0], "boundary[0]")),
         n_cold=len(boundary_particles(test, packing, faces[1], "boundary[1]")),
-        law_params=dict(info["law_params"]), effective=effective,
-        neighbours=info["neighbours"], conductance_w_k=problem.conductance_w_k)
+        law_params=dict(run.law_params), effective=effective,
+        neighbours=run.neighbours, conductance_w_k=run.problem.conductance_w_k)
+
+
+# a flux test on MPI ranks holds its faces this much above the test's temperatures when the
+# colder is not above 0 K (the default 1 / 0: a scene refuses 0 K); the flow and lambda_e are
+# the same (linear, the same temperature difference)
+RANKS_SHIFT_K = 300.0
+
+
+def _flux_scene(scene: Scene, faces, t_hot: float, t_cold: float) -> tuple[Scene, float]:
+    """The flux test's scene and the shift of its temperatures (K): ``scene`` with the two
+    faces held at ``t_hot`` and ``t_cold`` instead of its boundaries, and a steady solve.
+    In-process: the scene changed in memory (the shift 0). On MPI ranks (``run_in_memory``
+    under ``ranks_of_run_in_memory``: ``tdem calibrate --ranks``), which read a scene's text:
+    the scene's own tables with those two changed, as TOML text (``toml_text``), the faces
+    shifted by :data:`RANKS_SHIFT_K` when the colder is not above 0 K; a scene its text no
+    longer says (changed through the API, a campaign's case) is refused there."""
+    if not ranks_in_effect():
+        return dataclasses.replace(
+            scene, boundaries=(TemperatureBoundary(name="hot", on=faces[0], value=t_hot),
+                               TemperatureBoundary(name="cold", on=faces[1], value=t_cold)),
+            solver=SolverConfig(method="steady")), 0.0
+    if not scene.text or scene_text_difference(scene.text, str(scene.path),
+                                               scene_to_json(scene), scene.law,
+                                               scene.output.parent) is not None:
+        raise SceneError(f"{scene.path}: the flux test on MPI ranks reads the scene's text, "
+                         "and the scene was changed after it was read; expected a scene read "
+                         "from its file (load_scene)")
+    shift = 0.0 if min(t_hot, t_cold) > 0 else RANKS_SHIFT_K
+    held = [dict(kind="temperature", name="hot", on=faces[0], value=float(t_hot + shift)),
+            dict(kind="temperature", name="cold", on=faces[1], value=float(t_cold + shift))]
+    tables, _ = read_toml(scene.path, scene.text)
+    tables = {key: value for key, value in tables.items() if key not in ("boundary", "solver")}
+    return load_scene(scene.path, text=toml_text(
+        dict(tables, boundary=held, solver=dict(method="steady"))),
+        out_dir=scene.output.parent), shift
 
 
 def calibrate_ct(scene: Scene, packing: Packing, axis: str = "x", t_hot: float = 1.0,

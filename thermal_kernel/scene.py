@@ -194,6 +194,53 @@ def read_toml(path, text=None, error=SceneError, what="a scene TOML file") -> tu
         raise error(f"{path}: not valid TOML ({e})") from None
 
 
+def toml_value(value) -> str:
+    """One TOML value: a bool, string (a basic string), number (repr: read back bit for bit;
+    nan, inf) or a list of them."""
+    import json
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)            # a TOML basic string
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    if isinstance(value, float) and not value == value:
+        return "nan"
+    if isinstance(value, float) and abs(value) == float("inf"):
+        return "inf" if value > 0 else "-inf"
+    return repr(value)
+
+
+def toml_text(tables: dict) -> str:
+    """The TOML text of ``tables`` (what :func:`read_toml` parses back to them): the plain
+    keys first, then each dict as a table ``[name]`` (a dict in it as ``[name.sub]``) and each
+    list of dicts as an array of tables ``[[name]]``, in the order given. The one writer of a
+    scene's text (validation's cases, the calibration's flux test)."""
+    lines = []
+
+    def key(name):
+        bare = name.replace("_", "").replace("-", "").isalnum() and name.isascii()
+        return name if bare else toml_value(name)
+
+    def table(prefix, t):
+        subs = []
+        for name, value in t.items():
+            if isinstance(value, dict):
+                subs.append((name, value))
+            elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+                subs.append((name, value))
+            else:
+                lines.append(f"{key(name)} = {toml_value(value)}")
+        for name, value in subs:
+            full = f"{prefix}{key(name)}"
+            for t_ in (value if isinstance(value, list) else [value]):
+                lines.append(f"[[{full}]]" if isinstance(value, list) else f"[{full}]")
+                table(full + ".", t_)
+
+    table("", tables)
+    return "\n".join(lines) + "\n"
+
+
 def load_scene(path, known_laws=None, out_dir=None, text=None, data=None) -> Scene:
     """Parse and check a scene file. ``known_laws``: names accepted for ``law`` (default: the
     registry). ``out_dir``: folder for a relative ``[output] path`` (default

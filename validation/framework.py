@@ -380,31 +380,15 @@ def today() -> str:
     return time.strftime("%Y-%m-%d")
 
 
-def _toml(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return json.dumps(value)            # a TOML basic string
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml(v) for v in value) + "]"
-    if isinstance(value, float) and not value == value:
-        return "nan"
-    if isinstance(value, float) and abs(value) == float("inf"):
-        return "inf" if value > 0 else "-inf"
-    return repr(value)
-
-
 def scene_toml(packing, law: str, **tables) -> str:
     """A case's scene as the TOML text a user would write (docs/scenes.md), for
     :func:`case_scene`: ``packing`` and ``law``, then each of
     ``tables`` in the order given, a dict as a table ``[name]`` and a list of dicts as an array
-    of tables ``[[name]]`` (``boundary=[...]``); a table that is None or empty is left out."""
-    lines = [f"packing = {_toml(str(packing))}", f"law = {_toml(law)}"]
-    for name, table in tables.items():
-        for t in (table if isinstance(table, list) else [table] if table else []):
-            lines.append(f"[[{name}]]" if isinstance(table, list) else f"[{name}]")
-            lines += [f"{key} = {_toml(value)}" for key, value in t.items()]
-    return "\n".join(lines) + "\n"
+    of tables ``[[name]]`` (``boundary=[...]``); a table that is None or empty is left out.
+    Written by the kernel's one TOML writer (``thermal_kernel.scene.toml_text``)."""
+    from thermal_kernel.scene import toml_text
+    return toml_text({"packing": str(packing), "law": law,
+                      **{name: table for name, table in tables.items() if table}})
 
 
 def case_scene(text: str | None, where: Path):
