@@ -28,6 +28,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from bench_rank_build import THERMAL as RANK_BUILD_THERMAL  # noqa: E402 (bench/ on sys.path)
+
 BEFORE = "40456fb"
 OUT = ROOT / "bench/out/output_memory"
 PACKING = ROOT / "runs/out/dense_box_1e5/packing.h5"
@@ -35,26 +37,8 @@ JSON = ROOT / "bench/results/output_memory.json"
 OUTPUT_TIMES = (50, 500)
 INTERVAL_S = 1e-3        # one output every ms (the explicit bound of this box is ~ms: 1-2 steps)
 
-THERMAL = '''law = "haddad"
-[law_params]
-ct = 0.806
-[material]
-conductivity = 33.0
-density = 7800.0
-heat_capacity = 460.0
-[initial]
-temperature = 298.15
-[[boundary]]
-kind = "temperature"
-on = "xmin"
-value = 308.15
-[[boundary]]
-kind = "temperature"
-on = "xmax"
-value = 298.15
-[solver]
-method = "explicit"
-'''
+# the dense box between two held faces, haddad's law (bench_rank_build's scene), explicit
+THERMAL = RANK_BUILD_THERMAL + 'method = "explicit"\n'
 # each process samples its own anonymous memory and reports the peak at exit
 SAMPLER = '''import atexit, os, runpy, sys, threading, time
 peak = [0]
