@@ -569,14 +569,15 @@ def _doc_agreement() -> list[str]:
       "gives the in-process case's numbers (the profile within 1e-12 of ΔT, the steady "
       "profile within 1e-10), a run with a start, factors and flipped phases the in-process "
       "run (1e-12, flags identical), a Rannacher run continued from its state the in-process "
-      "two stages (1e-10, the same steps). The quick instances of cases 2, 3, 5, 7, 8, 9 and "
-      "10 on 2 ranks gave their in-process numbers (the errors against the papers' solutions "
-      "and references, C_t, CoV, k, T: within 2e-12 relative, but for case 9's Halo flux "
-      "errors against the FE values, 1.3e-11, and case 10's error against the FFT reference, "
-      "5.6e-12 (its k within 2e-13); the differences of two runs, the dt checks of cases 2 and "
-      "3, within 3e-11 and 1e-8 of themselves; heat-balance residuals and a zero flux at "
-      "round-off, <= 1e-12; case 6 runs no scene through `run_in_memory`; 2026-12-02, by "
-      "hand, not in the suite).\n")
+      "two stages (1e-10, the same steps). The quick instances of cases 2 to 10 on 2 ranks, "
+      "their flux tests on the ranks too, gave their in-process numbers (every number of "
+      "each case's record compared: the errors against the papers' solutions and "
+      "references, C_t, CoV, k, T within 7.1e-12 relative, C_t within 1.6e-13, but for "
+      "case 4's profile errors, 1.4e-11 of an error of 0.8 % (1e-13 of ΔT), and case 9's "
+      "Halo flux errors against the FE values, 1.2e-11; the differences of two runs, the "
+      "dt checks of cases 2 and 3, within 3.8e-11 and 9.1e-9 of themselves; heat-balance "
+      "residuals and a zero flux at round-off, <= 1e-12; seconds apart; 2026-12-02 after "
+      "dd4e1a7, by hand, not in the suite).\n")
     w("Limits of the backend today: the preconditioner is GAMG unless PETSC_OPTIONS says "
       "`-pc_type hypre` (hypre was faster here, the table; GAMG stays the default because it "
       "is part of every PETSc build, hypre an optional package).\n")

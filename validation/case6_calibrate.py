@@ -157,13 +157,18 @@ def read_rows(numbers: dict) -> list[CalibRow]:
 
 
 def _scene(variant: str):
-    from thermal_kernel.scene import NeighbourCriterion
-    scene = case_scene(None, ROOT / SCENE)
+    """The scene file's text with the variant's [neighbours] criterion (or none) and mean
+    radius rule, read as a user's scene (so that `tdem validate 6 --ranks R` runs its flux
+    tests on the ranks, which read a scene's text)."""
+    from thermal_kernel.scene import read_toml, toml_text
+    tables, _ = read_toml(ROOT / SCENE)
     cut, rule = VARIANTS[variant]
-    crit = (NeighbourCriterion(target_z_with_gaps=HADDAD_Z, bulk_margin_diameters=BULK_MARGIN)
-            if cut else None)
-    return dataclasses.replace(scene, neighbours=crit,
-                               law_params={**scene.law_params, "mean_radius": rule})
+    tables = {k: v for k, v in tables.items() if k != "neighbours"}
+    tables["law_params"] = {**tables.get("law_params", {}), "mean_radius": rule}
+    if cut:
+        tables["neighbours"] = dict(target_z_with_gaps=HADDAD_Z,
+                                    bulk_margin_diameters=BULK_MARGIN)
+    return case_scene(toml_text(tables), ROOT / SCENE)
 
 
 def _measure_variant(packing, variant: str) -> dict:
@@ -190,8 +195,13 @@ def _measure_variant(packing, variant: str) -> dict:
 
 
 def _cache_key(path, variant):
+    """The packing file (its size and time) and the variant; ``|ranksR`` when the flux tests run
+    on R MPI ranks (``tdem validate 6 --ranks R``): runs on ranks are cached apart."""
+    from thermal_kernel.run import ranks_in_effect
     st = path.stat()
-    return f"{path.relative_to(ROOT)}|{st.st_size}|{st.st_mtime_ns}|{variant}"
+    ranks = ranks_in_effect()
+    return (f"{path.relative_to(ROOT)}|{st.st_size}|{st.st_mtime_ns}|{variant}"
+            + (f"|ranks{ranks}" if ranks else ""))
 
 
 def measure(key: str, path, variants=BASE, seed: int = 0) -> CalibRow:
