@@ -1,6 +1,6 @@
 """A long run's temperatures at its output times are not held in memory (issue 25: what rank 0,
 and the in-process run, held whole): above ``thermal_kernel.atomic.ON_DISK_FROM_BYTES`` the
-history is a memory map of an unnamed file beside the output (``output.history_rows``) and
+history is a memory map of an unnamed file beside the output (``atomic.history_rows``) and
 thermal.h5 / the checkpoints are written on disk into room reserved first
 (``atomic.write_h5_atomic``), instead of built in memory.
 
@@ -20,7 +20,7 @@ import pytest
 
 from tdem.committed_beds import BED_THERMAL, BEDS
 from thermal_kernel import atomic
-from thermal_kernel.output import history_rows
+from thermal_kernel.atomic import history_rows
 from thermal_kernel.run import run_scene
 from thermal_kernel.scene import load_scene
 
@@ -98,6 +98,12 @@ def test_a_run_resumed_on_the_disk_path_equals_the_uninterrupted_one(tmp_path, m
     with pytest.raises(KeyboardInterrupt, match="checkpoint .* kept"):
         run_scene(scene, quiet=True, threads=1, checkpoint_every=1)
     assert not scene.output.exists()
+    from thermal_kernel.checkpoint import checkpoint_path, packing_sha256, read_checkpoint
+    from thermal_kernel.packing import read_packing
+    _, done, _ = read_checkpoint(checkpoint_path(scene.output), scene.text, 300,
+                                 packing_sha256(read_packing(BEDS[1])))
+    assert isinstance(done["temperature_k"], np.memmap)      # read back to disk, not memory
+    np.testing.assert_array_equal(done["temperature_k"], whole["temperature"][:2])
     monkeypatch.setattr(run_module, "_check_finite", check)
     resumed = run_scene(scene, quiet=True, threads=1, resume=True)
     assert isinstance(resumed.run.result.temperature_k, np.memmap)

@@ -136,6 +136,23 @@ def write_h5_atomic(path, fill, data_bytes: int = 0) -> Path:
     return write_bytes_atomic(path, buf.getbuffer())
 
 
+def history_rows(n_times: int, n_particles: int, folder=None):
+    """(n_times, n_particles) float64 rows (a numpy array) for a run's temperatures at its
+    output times: in memory, or, above :data:`ON_DISK_FROM_BYTES` with a ``folder`` given (the
+    output's), a memory map of an unnamed temporary file there (unlinked at once:
+    nothing is left behind, even by a killed run), so the history is paged to disk instead of
+    held: a long run's memory does not grow with its output times."""
+    import tempfile
+
+    import numpy as np      # here: at module level this file takes the standard library only
+    shape = (int(n_times), int(n_particles))
+    if folder is None or 8 * shape[0] * shape[1] <= ON_DISK_FROM_BYTES:
+        return np.empty(shape)
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryFile(dir=folder) as f:     # the map outlives the file object
+        return np.memmap(f, dtype=np.float64, mode="w+", shape=shape)
+
+
 class _NotReserved(Exception):
     """The filesystem does not reserve space (fallocate unsupported)."""
 

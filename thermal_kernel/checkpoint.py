@@ -17,7 +17,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from .atomic import write_h5_atomic
+from .atomic import history_rows, write_h5_atomic
 from .scene import SceneError
 from .solvers import SolverState
 
@@ -150,7 +150,14 @@ def read_checkpoint(path: Path, scene_text: str, n_particles: int, packing_hash:
                 source_energy_j=float(g.attrs["source_energy_j"]),
                 reference_temperature_k=g["reference_temperature_k"][()],
                 dt_s=float(g.attrs["dt_s"]), method=str(g.attrs["method"]))
-            outputs = {key: f["outputs"][key][()] for key in _OUTPUTS}
+            outputs = {key: f["outputs"][key][()] for key in _OUTPUTS
+                       if key != "temperature_k"}
+            # the temperatures so far: a long run's history, paged to disk beside the
+            # checkpoint when large (atomic.history_rows), never read whole into memory
+            stored_t = f["outputs"]["temperature_k"]
+            outputs["temperature_k"] = history_rows(*stored_t.shape, path.parent)
+            if stored_t.size:
+                stored_t.read_direct(outputs["temperature_k"])
             totals = dict(f["totals"].attrs)
     except (OSError, KeyError) as e:
         raise SceneError(f"{path}: checkpoint: unreadable ({e})") from None

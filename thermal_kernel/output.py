@@ -4,8 +4,8 @@ Read back by :func:`read_thermal` (the one reader: every field checked) and
 :func:`read_run_packing` (the packing, checked against the stored content hash).
 Built in memory (or, when large, on disk in room reserved first), written to ``<path>.tmp`` and
 renamed (:mod:`thermal_kernel.atomic`): a killed run or a full disk never leaves a half-written
-file. A long run's temperatures at its output times are kept in :func:`history_rows` until
-then: on disk when they are large.
+file. A long run's temperatures at its output times are kept in
+:func:`~thermal_kernel.atomic.history_rows` until then: on disk when they are large.
 Layout (SI units, documented in docs/solvers.md):
   time (K,) s; temperature (K, N) K; boundary_heat_flow (K, B) W (heat entering through each
   boundary at that time); boundary_energy (K, B) J and source_energy (K,) J (cumulative since
@@ -38,7 +38,6 @@ import h5py
 import numpy as np
 
 from . import __version__
-from . import atomic
 from .atomic import write_h5_atomic
 
 
@@ -58,24 +57,9 @@ def git_hash() -> str:
     return "unknown"
 
 
-def history_rows(n_times: int, n_particles: int, folder=None) -> np.ndarray:
-    """(n_times, n_particles) float64 rows for a run's temperatures at its output times: in
-    memory, or, above :data:`~thermal_kernel.atomic.ON_DISK_FROM_BYTES` with a ``folder``
-    given (the output's), a memory map of an unnamed temporary file there (unlinked at once:
-    nothing is left behind, even by a killed run), so the history is paged to disk instead of
-    held: a long run's memory does not grow with its output times."""
-    shape = (int(n_times), int(n_particles))
-    if folder is None or 8 * shape[0] * shape[1] <= atomic.ON_DISK_FROM_BYTES:
-        return np.empty(shape)
-    import tempfile
-    Path(folder).mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryFile(dir=folder) as f:     # the map outlives the file object
-        return np.memmap(f, dtype=np.float64, mode="w+", shape=shape)
-
-
 def stored_energy_change(temperatures, initial_temperature_k, capacity_j_k) -> np.ndarray:
     """(K,) J: sum_p C_p (T_p - T0_p) at each output time, a row at a time (no (K, N)
-    temporary: a long run's rows may be on disk, :func:`history_rows`)."""
+    temporary: a long run's rows may be on disk, :func:`~.atomic.history_rows`)."""
     t0 = np.asarray(initial_temperature_k, dtype=np.float64)
     cap = np.asarray(capacity_j_k, dtype=np.float64)
     with np.errstate(over="ignore", invalid="ignore"):   # a flagged run's huge values

@@ -38,7 +38,7 @@ over an mpi4py communicator:
 
 What stays whole: on rank 0 the particles and the network's per-particle arrays (the
 temperatures it gathers at an output time go, one time at a time, into the run's history,
-paged to disk when large: :func:`~.output.history_rows`). ``mpi_run --whole-build`` builds
+paged to disk when large: :func:`~.atomic.history_rows`). ``mpi_run --whole-build`` builds
 the network whole on rank 0 instead (for comparison).
 """
 from __future__ import annotations

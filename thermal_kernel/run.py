@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import OutputBusyError, output_lock
+from .atomic import OutputBusyError, history_rows, output_lock
 from .checkpoint import checkpoint_path, packing_sha256, read_checkpoint, write_checkpoint
 from .network import Network, ThermalProblem, assemble
 from .neighbours import NeighbourChoice
-from .output import history_rows, scene_text_difference, scene_to_json, write_thermal
+from .output import scene_text_difference, scene_to_json, write_thermal
 from .packing import Packing, read_packing, write_packing
 from .problem import build_problem
 from .scene import Scene, SceneError, load_scene
@@ -144,7 +144,7 @@ def run_in_chunks(transient, T0, scene, every, resumed, n_particles, packing_has
     and returns its ThermalResult (without the temperatures, which ``on_output`` keeps).
     Returns (ThermalResult over all output times, checkpoint path).
 
-    The temperatures at every output time go into one :func:`~.output.history_rows` array
+    The temperatures at every output time go into one :func:`~.atomic.history_rows` array
     (``history_dir``: the output's folder, where a large history is paged to disk; None: in
     memory), never a list of chunks joined at the end.
 

@@ -34,7 +34,7 @@ The energy ledger: each rank sums the heat through the held particles and exchan
 every step (the fluxes the step used, as in-process); the sums meet at the output times only.
 Rank 0 gathers the temperatures at each output time and records them with the in-process
 :class:`~thermal_kernel.solvers.Recorder` (or hands them to ``on_output``: ``tdem run`` keeps
-them in :func:`~thermal_kernel.output.history_rows`, on disk when large). A source's power
+them in :func:`~thermal_kernel.atomic.history_rows`, on disk when large). A source's power
 is each particle's own: each rank evaluates the source restricted to its block every step
 (:meth:`DistributedNetwork.source_powers`; one number a step is summed over the ranks, the
 heat it put in), nothing is scattered from rank 0.
