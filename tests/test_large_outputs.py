@@ -167,3 +167,24 @@ def test_no_room_on_disk_is_refused_before_hdf5_writes(tmp_path):
     assert e.value.errno in (errno.ENOSPC, errno.EFBIG)
     assert e.value.filename == str(target)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_history_the_disk_cannot_hold_is_refused_before_the_run(tmp_path, monkeypatch):
+    """The history's file is reserved before it is mapped: a disk without the room raises
+    ENOSPC at once, naming the folder (a write through the map to a full disk would kill the
+    process with SIGBUS instead), and nothing is left there."""
+    free = os.statvfs(tmp_path).f_bavail * os.statvfs(tmp_path).f_frsize
+    with open(tmp_path / "probe", "wb+") as f:
+        try:
+            if not atomic._reserve(f, 4096, keep_size=False):
+                pytest.skip("this filesystem reserves no space (fallocate unsupported)")
+        except OSError:
+            pytest.skip("this filesystem cannot reserve 4 KB")
+    os.unlink(tmp_path / "probe")
+    monkeypatch.setattr(atomic, "ON_DISK_FROM_BYTES", 0)
+    n_times = (free + 2 ** 40) // 8000 + 1
+    with pytest.raises(OSError) as e:
+        history_rows(n_times, 1000, tmp_path)
+    assert e.value.errno in (errno.ENOSPC, errno.EFBIG)
+    assert e.value.filename == str(tmp_path)
+    assert list(tmp_path.iterdir()) == []

@@ -93,11 +93,12 @@ _RESERVE_MARGIN = (0.02, 16 * 2 ** 20)
 _FALLOC_FL_KEEP_SIZE = 1
 
 
-def _reserve(f, nbytes: int) -> bool:
-    """Reserve ``nbytes`` of disk for the open, empty file ``f`` without changing its size
-    (Linux fallocate, FALLOC_FL_KEEP_SIZE: HDF5 must still see an empty file). True when
-    reserved; False where the call or the filesystem does not offer it; OSError (ENOSPC) when
-    the disk has not that much room."""
+def _reserve(f, nbytes: int, keep_size: bool = True) -> bool:
+    """Reserve ``nbytes`` of disk for the open file ``f`` (Linux fallocate, never glibc's
+    emulation that writes zeros): ``keep_size``, without changing its size
+    (FALLOC_FL_KEEP_SIZE: HDF5 must still see an empty file), else the file grows to it. True
+    when reserved; False where the call or the filesystem does not offer it; OSError (ENOSPC)
+    when the disk has not that much room."""
     import ctypes
     import errno
     try:
@@ -106,7 +107,7 @@ def _reserve(f, nbytes: int) -> bool:
     except (OSError, AttributeError):
         return False
     fallocate.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_long, ctypes.c_long]
-    if fallocate(f.fileno(), _FALLOC_FL_KEEP_SIZE, 0, int(nbytes)) == 0:
+    if fallocate(f.fileno(), _FALLOC_FL_KEEP_SIZE if keep_size else 0, 0, int(nbytes)) == 0:
         return True
     err = ctypes.get_errno()
     if err in (errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL):
@@ -150,7 +151,15 @@ def history_rows(n_times: int, n_particles: int, folder=None):
         return np.empty(shape)
     Path(folder).mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryFile(dir=folder) as f:     # the map outlives the file object
-        return np.memmap(f, dtype=np.float64, mode="w+", shape=shape)
+        # its blocks reserved first: a write through the map to a disk that has filled since
+        # would kill the process (SIGBUS), where this raises ENOSPC at once, naming the folder
+        try:
+            reserved = _reserve(f, 8 * shape[0] * shape[1], keep_size=False)
+        except OSError as e:
+            raise OSError(e.errno, f"{e.strerror} (the temperatures of {shape[0]} output "
+                          f"times, {8 * shape[0] * shape[1] / 1e9:.3g} GB)", str(folder)) \
+                from None
+        return np.memmap(f, dtype=np.float64, mode="r+" if reserved else "w+", shape=shape)
 
 
 class _NotReserved(Exception):
