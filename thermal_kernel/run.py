@@ -24,7 +24,7 @@ from .atomic import OutputBusyError, history_rows, output_lock
 from .checkpoint import checkpoint_path, packing_sha256, read_checkpoint, write_checkpoint
 from .network import Network, ThermalProblem, assemble
 from .neighbours import NeighbourChoice
-from .output import scene_text_difference, scene_to_json, write_thermal
+from .output import scene_text_difference, scene_to_json, stored_energy_change, write_thermal
 from .packing import Packing, read_packing, write_packing
 from .problem import build_problem
 from .scene import Scene, SceneError, load_scene
@@ -120,11 +120,10 @@ def _transient(net, start, times, scene, threads, progress, on_output):
                         progress=progress, keep_temperatures=False, on_output=on_output)
 
 
-def _check_finite(scene, result, temperatures=None):
+def _check_finite(scene, result, temperatures):
     """A run that blew up (allow_unstable above the bound) ends in one line, nothing written.
-    ``temperatures``: the result's rows where they are kept apart (:func:`run_in_chunks`)."""
-    rows = result.temperature_k if temperatures is None else temperatures
-    bad = np.array([not np.all(np.isfinite(row)) for row in rows], dtype=bool)
+    ``temperatures``: the result's rows, kept apart in the run's history (:func:`run_in_chunks`)."""
+    bad = np.array([not np.all(np.isfinite(row)) for row in temperatures], dtype=bool)
     if not bad.any():
         return
     t = float(result.times[int(np.argmax(bad))])
@@ -603,7 +602,7 @@ def _ranks_result(output, scene, problem, info, net, state):
         data.update(boundary_energy_j=np.full((1, nb), np.nan), source_energy_j=np.full(1, np.nan))
     return ThermalResult(
         method=a["method"], **data,
-        stored_energy_j=np.array([float(np.dot(net.capacity_j_k, T - T0)) for T in temps]),
+        stored_energy_j=stored_energy_change(temps, T0, net.capacity_j_k),
         boundary_names=tuple(problem.boundary_names), source_boundary=problem.source_boundary,
         dt=float(a["dt"]), dt_max=float(a["dt_max"]), dt_paper=float(a["dt_paper"]),
         steps=int(a["steps"]), wall_seconds=float(a["wall_seconds"]),
