@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import subprocess
 import sys
@@ -73,7 +74,7 @@ def run(code_root: Path, scene_path: Path, ranks: int, tag: str) -> list[float]:
     if ranks == 0:
         cmd = [sys.executable, str(wrapper), "tdem.cli", "run", str(scene_path), "--out",
                str(out), "--threads", "1", "--quiet"]
-        env = dict(__import__("os").environ, PYTHONPATH=str(code_root))
+        env = dict(os.environ, PYTHONPATH=str(code_root))
     else:
         cmd = ["mpirun", "-n", str(ranks), *MPIRUN_LOCAL, "-x", "PYTHONPATH", "-x",
                "OMP_NUM_THREADS", "-x", "NUMBA_NUM_THREADS", str(mpi_python()), str(wrapper),

@@ -147,17 +147,18 @@ def history_rows(n_times: int, n_particles: int, folder=None):
 
     import numpy as np      # here: at module level this file takes the standard library only
     shape = (int(n_times), int(n_particles))
-    if folder is None or 8 * shape[0] * shape[1] <= ON_DISK_FROM_BYTES:
+    nbytes = 8 * shape[0] * shape[1]
+    if folder is None or nbytes <= ON_DISK_FROM_BYTES:
         return np.empty(shape)
     Path(folder).mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryFile(dir=folder) as f:     # the map outlives the file object
         # its blocks reserved first: a write through the map to a disk that has filled since
         # would kill the process (SIGBUS), where this raises ENOSPC at once, naming the folder
         try:
-            reserved = _reserve(f, 8 * shape[0] * shape[1], keep_size=False)
+            reserved = _reserve(f, nbytes, keep_size=False)
         except OSError as e:
             raise OSError(e.errno, f"{e.strerror} (the temperatures of {shape[0]} output "
-                          f"times, {8 * shape[0] * shape[1] / 1e9:.3g} GB)", str(folder)) \
+                          f"times, {nbytes / 1e9:.3g} GB)", str(folder)) \
                 from None
         return np.memmap(f, dtype=np.float64, mode="r+" if reserved else "w+", shape=shape)
 
