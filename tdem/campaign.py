@@ -252,8 +252,9 @@ def _ranks(campaign_path, scenes, ranks, threads_given=False):
     petsc = any(s.solver.backend == "petsc" for s in scenes.values())
     if ranks is None and not petsc:
         return None
-    if ranks is not None and int(ranks) < 1:
-        raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
+    if ranks is not None:
+        from thermal_kernel.solvers.mpi_launch import checked_ranks
+        checked_ranks(ranks)
     if threads_given:
         raise UserError("--threads: not with --ranks (each rank runs one thread); expected an "
                         "in-process campaign for it" if ranks is not None else

@@ -104,10 +104,8 @@ def _cmd_run(args):
                         f"{args.checkpoint_every}")
     if args.ranks is not None or scene.solver.backend == "petsc":
         # the PETSc backend on MPI ranks (issue 25, docs/scaling.md); --ranks implies it
-        from thermal_kernel.solvers.mpi_launch import run_on_ranks
-        ranks = 1 if args.ranks is None else args.ranks
-        if ranks < 1:
-            raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
+        from thermal_kernel.solvers.mpi_launch import checked_ranks, run_on_ranks
+        ranks = 1 if args.ranks is None else checked_ranks(args.ranks)
         if args.threads:
             raise UserError("--threads: not with the PETSc backend (--ranks, or solver.backend"
                             " = \"petsc\"); expected an in-process run for it")
@@ -145,9 +143,8 @@ def _cmd_calibrate(args):
         results, skipped, ct = calibrate_axes(scene, packing, args.axis)
     else:       # each flux test's steady solve on MPI ranks (issue 25, docs/scaling.md)
         from thermal_kernel.run import ranks_of_run_in_memory
-        if args.ranks < 1:
-            raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {args.ranks}")
-        with ranks_of_run_in_memory(args.ranks):
+        from thermal_kernel.solvers.mpi_launch import checked_ranks
+        with ranks_of_run_in_memory(checked_ranks(args.ranks)):
             results, skipped, ct = calibrate_axes(scene, packing, args.axis)
     mean_radius = law_params(scene, get_law(scene.law))["mean_radius"]   # with the default
     print(f"tdem calibrate: {args.scene} on {path} ({packing.n_particles} particles), law haddad"

@@ -94,6 +94,14 @@ def command(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg"
     return cmd
 
 
+def checked_ranks(ranks) -> int:
+    """``--ranks`` as given: a number of MPI ranks, at least 1, else one line (UserError). The
+    one check of ``tdem run``, ``tdem calibrate``, ``tdem campaign`` and :func:`run_on_ranks`."""
+    if int(ranks) < 1:
+        raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
+    return int(ranks)
+
+
 def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="gamg",
                  run_args=None, checkpoint_every=0, resume=False, data=None,
                  output=None, inputs=None, log=None) -> None:
@@ -107,8 +115,7 @@ def run_on_ranks(scene, ranks: int, *, packing=None, out=None, quiet=False, pc="
     {mpi_run option: file} (``thermal_kernel.run.run_in_memory``'s scene text, start and
     conductance factors, written by it); ``log``: a file that takes what mpirun and the ranks
     print (its last lines then in the error when mpirun fails), instead of the terminal."""
-    if int(ranks) < 1:
-        raise UserError(f"--ranks: expected a number of MPI ranks >= 1, got {ranks}")
+    ranks = checked_ranks(ranks)
     if shutil.which("mpirun") is None:
         raise UserError("--ranks: mpirun not found (Debian: apt-get install openmpi-bin)")
     with tempfile.TemporaryDirectory(prefix="tdem-mpi-") as tmp:
