@@ -2,7 +2,8 @@
 against the whole build on rank 0 (build_problem + assemble, each rank's share cut from it), on
 the same ranks:
 
-- each rank's share -- its rows of A = L + diag(g) (CSR: indptr, indices, data), capacities,
+- each rank's block of the Morton order (sorted on the ranks, rank 0 sorting every centre) and
+  its share -- its rows of A = L + diag(g) (CSR: indptr, indices, data), capacities,
   held flags and temperatures, g, b, tied flags, its held and exchange rows -- bit for bit;
 - rank 0's Network: degrees, cluster labels and counts, the explicit bound and its particle,
   the conducting and zero-H contacts, the flags, the held and untied particles' adjacency rows
@@ -30,6 +31,7 @@ from thermal_kernel.problem import build_problem  # noqa: E402
 from thermal_kernel.rank_build import build_on_ranks  # noqa: E402
 from thermal_kernel.scene import load_scene  # noqa: E402
 from thermal_kernel.solvers import petsc_backend as backend  # noqa: E402
+from thermal_kernel.solvers.partition import particle_order  # noqa: E402
 
 
 def same(a, b, what):
@@ -56,11 +58,12 @@ def main(scene_path):
     # dense), its columns in the Morton order; a stored diagonal on every row
     dense = None
     if rank == 0:
-        dense = (whole.laplacian + sp.diags(whole.exchange_g_w_k)).toarray()[ref.order][
-            :, ref.order]
+        order = particle_order(packing.position, "morton")
+        dense = (whole.laplacian + sp.diags(whole.exchange_g_w_k)).toarray()[order][:, order]
     dense = comm.bcast(dense, root=0)
     same(mine.block.toarray(), dense[mine.lo:mine.lo + mine.n_local], f"rank {rank}: A")
     assert mine._diag_pos.size == mine.n_local, rank
+    same(ref.mine, mine.mine, f"rank {rank}: its block of the Morton order")
     for key in ("capacity", "held", "held_t", "g", "b", "tied", "fixed_local",
                 "fixed_boundary", "ex_local", "ex_g", "ex_t", "ex_b", "ex_held_b"):
         same(getattr(ref, key), getattr(mine, key), f"rank {rank}: {key}")

@@ -200,6 +200,26 @@ def test_a_bad_scene_on_the_ranks_is_one_line_and_exit_2(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------ the per-rank build
+def test_the_morton_order_sorted_on_the_ranks_is_the_whole_sort():
+    """thermal_kernel/solvers/partition.py on 1-4 ranks (tests/mpi_partition_check.py, under
+    mpirun): the Morton order sorted on the ranks (a sample sort, no rank holding every key)
+    equals morton_order of every centre, and the routes between the ranks' blocks and the
+    file's order (places, gather on rank 0, scatter from it, to and from the directories)
+    equal indexing with the whole order; on ties (equal keys across ranks), a flat axis, a
+    cluster in one corner and fewer particles than ranks. What could fail: a tie split in
+    index order the wrong way at a splitter, a bounding box reduced otherwise than the whole
+    one (other keys), a block one row off after the rebalance, an empty rank."""
+    import subprocess
+
+    from thermal_kernel.solvers.mpi_launch import MPIRUN_LOCAL, mpi_env, mpi_python
+    check = Path(__file__).resolve().parent / "mpi_partition_check.py"
+    for ranks in (1, 2, 3, 4):
+        done = subprocess.run(["mpirun", "-n", str(ranks), *MPIRUN_LOCAL, str(mpi_python()),
+                               str(check)], env=mpi_env(), capture_output=True, text=True)
+        assert done.returncode == 0, (ranks, done.stdout[-3000:], done.stderr[-3000:])
+        assert f"partition OK {ranks}" in done.stdout, (ranks, done.stdout[-3000:])
+
+
 @pytest.mark.parametrize("ranks", [2, 3])
 def test_each_rank_builds_its_own_rows_as_the_whole_build_does(tmp_path, ranks):
     """thermal_kernel/rank_build.py against the whole build on rank 0 (tests/

@@ -23,11 +23,14 @@ def _spread_bits(v: np.ndarray) -> np.ndarray:
     return v
 
 
-def morton_keys(position_m: np.ndarray) -> np.ndarray:
+def morton_keys(position_m: np.ndarray, lo_m=None, hi_m=None) -> np.ndarray:
     """(N,) uint64 Z-order keys of the (N, 3) centres, each axis scaled to 21 bits over the
-    bounding box (a flat axis gets key bits 0)."""
+    bounding box (a flat axis gets key bits 0): the centres' own, or ``lo_m`` .. ``hi_m``
+    given (the bounding box of every rank's centres: the MPI ranks' sort,
+    :func:`~thermal_kernel.solvers.partition.morton_blocks_on_ranks`)."""
     x = np.asarray(position_m, dtype=np.float64)
-    lo, hi = x.min(axis=0), x.max(axis=0)
+    lo = x.min(axis=0) if lo_m is None else np.asarray(lo_m, dtype=np.float64)
+    hi = x.max(axis=0) if hi_m is None else np.asarray(hi_m, dtype=np.float64)
     span = np.where(hi > lo, hi - lo, 1.0)
     q = np.floor((x - lo) / span * ((1 << MORTON_BITS) - 1)).astype(np.uint64)
     return (_spread_bits(q[:, 0]) | (_spread_bits(q[:, 1]) << np.uint64(1))

@@ -57,7 +57,8 @@ from .packing import (CONTACT_BLOCK_ROWS, Packing, PackingError, _check_pairs,
                       read_packing, read_particle_rows)
 from .problem import boundary_problem, evaluate_law
 from .scene import SceneError
-from .solvers.partition import block_starts, particle_order
+from .solvers.partition import (Routes, alltoallv, block_starts, exchange_counts,
+                                 morton_blocks_on_ranks)
 
 class RankError(RuntimeError):
     """Another rank's part of the build failed: its one-line message (each rank raises)."""
@@ -66,12 +67,14 @@ class RankError(RuntimeError):
 @dataclasses.dataclass
 class RankBuild:
     """One rank's result: ``share`` and ``meta`` for
-    :class:`~.solvers.petsc_backend.DistributedNetwork` (``built=``); on rank 0 the packing
-    without contacts, the Network (without the other ranks' rows), the problem's info and the
-    Morton order; None on the others."""
+    :class:`~.solvers.petsc_backend.DistributedNetwork` (``built=``), this rank's block of the
+    Morton order (``mine``, packing indices) and the routes between the blocks and the file's
+    order; on rank 0 the packing without contacts, the Network (without the other ranks'
+    rows) and the problem's info; None on the others."""
     share: dict
     meta: dict
-    order: np.ndarray | None
+    mine: np.ndarray
+    routes: Routes
     particles: object = None
     net: object = None
     info: dict | None = None
@@ -95,45 +98,9 @@ def agree(comm, fn):
     return value
 
 
-def _displs(counts):
-    return np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-
-
 def _max():
     from mpi4py import MPI
     return MPI.MAX
-
-
-def _gather_whole(comm, local, order, starts, dtype):
-    """This rank's values (its block of the order) gathered on rank 0 in the packing's order."""
-    counts = np.diff(starts)
-    local = np.ascontiguousarray(local, dtype=dtype)
-    if comm.Get_rank() != 0:
-        comm.Gatherv(local, None, root=0)
-        return None
-    buf = np.empty(int(starts[-1]), dtype=dtype)
-    comm.Gatherv(local, (buf, counts), root=0)
-    out = np.empty_like(buf)
-    out[order] = buf
-    return out
-
-
-def _alltoallv(comm, send, send_n, recv_n):
-    """``send`` (rows grouped by destination rank, ``send_n`` rows each) exchanged: the rows
-    this rank receives, ``recv_n`` from each rank, in rank order."""
-    send = np.ascontiguousarray(send)
-    width = int(np.prod(send.shape[1:], dtype=np.int64))
-    recv = np.empty((int(recv_n.sum()),) + send.shape[1:], dtype=send.dtype)
-    comm.Alltoallv([send, (send_n * width, _displs(send_n) * width)],
-                   [recv, (recv_n * width, _displs(recv_n) * width)])
-    return recv
-
-
-def _counts(comm, dest, size):
-    send_n = np.bincount(dest, minlength=size).astype(np.int64)
-    recv_n = np.empty(size, dtype=np.int64)
-    comm.Alltoall(send_n, recv_n)
-    return send_n, recv_n
 
 
 def _fetch(comm, ids, fblock, columns):
@@ -142,9 +109,9 @@ def _fetch(comm, ids, fblock, columns):
     this rank's own arrays over its block. Arrays aligned with ``ids``."""
     rank, size = comm.Get_rank(), comm.Get_size()
     dest = np.searchsorted(fblock, ids, side="right") - 1      # sorted ids: grouped by rank
-    send_n, recv_n = _counts(comm, dest, size)
-    asked = _alltoallv(comm, np.asarray(ids, dtype=np.int64), send_n, recv_n) - fblock[rank]
-    return [_alltoallv(comm, np.asarray(c)[asked], recv_n, send_n) for c in columns]
+    send_n, recv_n = exchange_counts(comm, dest, size)
+    asked = alltoallv(comm, np.asarray(ids, dtype=np.int64), send_n, recv_n) - fblock[rank]
+    return [alltoallv(comm, np.asarray(c)[asked], recv_n, send_n) for c in columns]
 
 
 def _sum_at_directories(comm, ids, values, fblock):
@@ -152,9 +119,9 @@ def _sum_at_directories(comm, ids, values, fblock):
     sums over every rank, this rank's file block (int64)."""
     rank, size = comm.Get_rank(), comm.Get_size()
     dest = np.searchsorted(fblock, ids, side="right") - 1
-    send_n, recv_n = _counts(comm, dest, size)
-    got = _alltoallv(comm, np.asarray(ids, dtype=np.int64), send_n, recv_n) - fblock[rank]
-    vals = _alltoallv(comm, np.asarray(values, dtype=np.int64), send_n, recv_n)
+    send_n, recv_n = exchange_counts(comm, dest, size)
+    got = alltoallv(comm, np.asarray(ids, dtype=np.int64), send_n, recv_n) - fblock[rank]
+    vals = alltoallv(comm, np.asarray(values, dtype=np.int64), send_n, recv_n)
     return np.bincount(got, weights=vals, minlength=int(fblock[rank + 1] - fblock[rank])
                        ).astype(np.int64)
 
@@ -175,12 +142,12 @@ def _exchange_contacts(comm, fields: dict, oi, oj, size):
     rows = np.concatenate([np.arange(oi.size), np.flatnonzero(oj != oi)])
     dest = np.concatenate([oi, oj[oj != oi]])
     rows = rows[np.argsort(dest, kind="stable")]
-    send_n, recv_n = _counts(comm, dest, size)
+    send_n, recv_n = exchange_counts(comm, dest, size)
     del dest
     got = {}
     for name in list(fields):
         a = fields.pop(name)
-        got[name] = None if a is None else _alltoallv(comm, a[rows], send_n, recv_n)
+        got[name] = None if a is None else alltoallv(comm, a[rows], send_n, recv_n)
         del a
     order = np.argsort(got["contact_row"], kind="stable")
     for name in got:                    # one field at a time: one extra copy at most
@@ -198,15 +165,18 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     memory per rank: docs/scaling.md)."""
     rank, size = comm.Get_rank(), comm.Get_size()
 
-    # 1. rank 0: the particles whole, the Morton order; each rank its blocks
+    # 1. rank 0: the particles whole; each rank its block of the file's particles, the Morton
+    # order sorted on the ranks, its block of it
     particles, head = _read_particles(comm, packing_path)
     n, m, path = head["n"], head["m"], head["path"]
     starts = block_starts(n, size)          # the ranks' blocks of the Morton order
-    fblock = block_starts(n, size)          # the directories' blocks of the file's particles
+    fblock = starts                         # the directories' blocks of the file's particles
     lo, hi = int(starts[rank]), int(starts[rank + 1])
-    order, mine, own_new = _morton_blocks(comm, particles, n, starts, fblock)
-    n_bulk, own_bulk = _bulk_flags(comm, scene.neighbours, particles, fblock)
     fb = agree(comm, lambda: read_particle_rows(path, fblock[rank], fblock[rank + 1]))
+    mine = morton_blocks_on_ranks(comm, fb["position"], starts)
+    routes = Routes(comm, mine, starts)     # owners <-> directories <-> rank 0 (file order)
+    own_new = routes.places()               # the file block's places in the order
+    n_bulk, own_bulk = _bulk_flags(comm, scene.neighbours, particles, fblock)
 
     # 2. this rank's slice of the contact rows, checked, chosen, sent to their particles' owners
     got, nb_block, choice = _contacts_to_owners(scene, comm, head, starts, fblock, fb, own_new,
@@ -226,8 +196,8 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
 
     # 4. clusters: components of this rank's own contacts, joined on rank 0 by the cut ones
     gid, cut_edges, n_comp = _local_components(comm, adjacency, columns, lo, hi)
-    gid_all = _gather_whole(comm, gid, order, starts, np.int64)
-    degree_all = _gather_whole(comm, degree, order, starts, np.float64)
+    gid_all = routes.gather(gid, np.int64)
+    degree_all = routes.gather(degree)
     cut_all = comm.gather(cut_edges, root=0)
     total_comp = comm.allreduce(int(n_comp))
     del gid, cut_edges
@@ -238,19 +208,19 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
         scene, particles, whole, choice, cut_all, gid_all, total_comp, built))
         if rank == 0 else (lambda: None)), root=0)
     cut_all = gid_all = None
-    from .solvers.petsc_backend import share_block, share_particles
-    own = _send_particle_shares(comm, built, order, starts, mine, n, share_particles)
+    from .solvers.petsc_backend import share_block
+    own = _send_particle_shares(comm, built, routes, starts)
     own.update(share_block(adjacency, degree, own["g"], lo, n, columns))
     del columns
-    pieces = _held_rows(comm, built, order, starts, mine, adjacency)
+    pieces = _held_rows(comm, built, routes, mine, adjacency)
     del adjacency
     meta = dict(n=n, starts=starts, nb=nb_count, has_source=has_source, cut=totals["cut"],
                 active_contacts=totals["n_active"])
     if rank != 0:
-        return RankBuild(share=own, meta=meta, order=None)
+        return RankBuild(share=own, meta=meta, mine=mine, routes=routes)
     net = _root_network(built, pieces, n, m, degree_all, totals)
-    return RankBuild(share=own, meta=meta, order=order, particles=particles, net=net,
-                     info=built["info"])
+    return RankBuild(share=own, meta=meta, mine=mine, routes=routes, particles=particles,
+                     net=net, info=built["info"])
 
 
 def _index_dtype(n):
@@ -273,21 +243,6 @@ def _read_particles(comm, packing_path):
                     lo=p.domain_lo, hi=p.domain_hi, periodic=p.periodic,
                     scales=contact_check_scales(p.position, p.domain_lo, p.domain_hi))
     return particles, comm.bcast(head, root=0)
-
-
-def _morton_blocks(comm, particles, n, starts, fblock):
-    """Step 1: rank 0 orders the particles along the Morton curve (contacts stay within a
-    rank's block). Returns the order (rank 0 only; packing indices), this rank's block of it
-    (``starts``) and, for this rank's block of the file's particles (``fblock``), their places
-    in the order (a directory answers with them)."""
-    order = new_index = None
-    if comm.Get_rank() == 0:
-        order = particle_order(particles.position, "morton")
-        new_index = np.empty(n, dtype=np.int64)
-        new_index[order] = np.arange(n, dtype=np.int64)
-    mine = _scatter_blocks(comm, order, starts)
-    own_new = _scatter_blocks(comm, new_index, fblock)      # the file block's places
-    return order, mine, own_new
 
 
 def _bulk_flags(comm, crit, particles, fblock):
@@ -508,13 +463,12 @@ def _join_components(cut_all, gid_all, total_comp, n):
     return k, renumber[label_raw].astype(np.int32)
 
 
-def _held_rows(comm, built, order, starts, mine, adjacency):
+def _held_rows(comm, built, routes, mine, adjacency):
     """Rank 0 keeps the adjacency rows of the held and untied particles (its ledger, steady's
     floating clusters): each rank sends its rows of them. Returns the pieces on rank 0 (rows
     and columns as packing indices, H W/K), None on the others."""
-    rank = comm.Get_rank()
-    want = np.flatnonzero(_scatter_blocks(comm, built["keep"][order] if rank == 0 else None,
-                                          starts, np.uint8))
+    want = np.flatnonzero(routes.scatter(built["keep"] if comm.Get_rank() == 0 else None,
+                                         np.uint8))
     sub = adjacency[want].tocoo()
     return comm.gather((mine[want][sub.row], sub.col.astype(np.int64), sub.data), root=0)
 
@@ -548,28 +502,61 @@ def _gather_file_order(comm, local, fblock):
     return buf
 
 
-def _send_particle_shares(comm, built, order, starts, mine, n, share_particles):
-    """Rank 0 cuts each rank's per-particle and boundary rows (share_particles) from its whole
-    arrays and sends them, one rank at a time; this rank's."""
+def _send_particle_shares(comm, built, routes, starts):
+    """Each rank's per-particle and boundary rows (the keys of ``share_particles``) from rank
+    0's whole arrays, in the file's order: the per-particle ones through the directories
+    (:class:`~.solvers.partition.Routes`), the boundary rows to the owners of their particles
+    (:func:`_rows_to_owners`, in their order on rank 0). This rank's."""
+    root = comm.Get_rank() == 0
+    v, t = (built["v"], built["terms"]) if root else ({}, {})
+    own = {}
+    for key, whole, dtype in (
+            ("capacity", v.get("capacity"), np.float64), ("held", t.get("held"), np.uint8),
+            ("held_t", t.get("held_t"), np.float64), ("g", t.get("g_p"), np.float64),
+            ("b", (t["gt_p"] + t["pw_p"]) if root else None, np.float64),
+            ("tied", built["clusters"].tied_particle if root else None, np.uint8)):
+        own[key] = routes.scatter(whole, dtype)
+    own["held"], own["tied"] = own["held"].view(bool), own["tied"].view(bool)
+    places = routes.places()
+    local, cols = _rows_to_owners(comm, starts, places, v.get("fixed_particle"), dict(
+        fixed_boundary=v.get("fixed_boundary")))
+    own.update(fixed_local=local, fixed_boundary=cols["fixed_boundary"])
+    local, cols = _rows_to_owners(comm, starts, places, v.get("exchange_particle"), dict(
+        ex_g=v.get("exchange_g"), ex_t=v.get("exchange_t"), ex_b=v.get("exchange_boundary"),
+        ex_held_b=built["held_boundary"][v["exchange_particle"]] if root else None))
+    own.update(ex_local=local, **cols)
+    return own
+
+
+def _rows_to_owners(comm, starts, places, particle, columns):
+    """Rows given on rank 0 (``particle``: each row's packing index; ``columns``: name ->
+    (R,) array, None on the other ranks) sent through their particles' directories
+    (``places``: the directory's block's places in the order) to the particles' owners.
+    Returns this rank's rows, in their order on rank 0: (their particles' places in this
+    rank's block, {name: values})."""
     rank, size = comm.Get_rank(), comm.Get_size()
-    if rank != 0:
-        return comm.recv(source=0, tag=_SHARE_TAG)
-    v, t = built["v"], built["terms"]
+    spec = comm.bcast([(k, np.asarray(a).dtype.str) for k, a in sorted(columns.items())]
+                      if rank == 0 else None, root=0)
+    if rank == 0:
+        particle = np.asarray(particle, dtype=np.int64)
+        dest = np.searchsorted(starts, particle, side="right") - 1
+        by = np.argsort(dest, kind="stable")
+        send = dict(row=by.astype(np.int64), particle=particle[by],
+                    **{k: np.asarray(columns[k])[by] for k, _ in spec})
+    else:
+        dest = np.zeros(0, dtype=np.int64)
+        send = dict(row=np.zeros(0, np.int64), particle=np.zeros(0, np.int64),
+                    **{k: np.zeros(0, dtype=dt) for k, dt in spec})
+    send_n, recv_n = exchange_counts(comm, dest, size)
+    got = {k: alltoallv(comm, a, send_n, recv_n) for k, a in send.items()}
+    got["place"] = places[got.pop("particle") - starts[rank]]
+    owner = np.searchsorted(starts, got["place"], side="right") - 1
+    by = np.argsort(owner, kind="stable")
+    send_n, recv_n = exchange_counts(comm, owner, size)
+    got = {k: alltoallv(comm, a[by], send_n, recv_n) for k, a in got.items()}
+    in_order = np.argsort(got.pop("row"), kind="stable")
+    return (got.pop("place")[in_order] - starts[rank],
+            {k: a[in_order] for k, a in got.items()})
 
-    def cut(block):
-        return share_particles(
-            block, n, capacity=v["capacity"], held=t["held"], held_t=t["held_t"], g=t["g_p"],
-            b=t["gt_p"] + t["pw_p"], tied=built["clusters"].tied_particle,
-            fixed_particle=v["fixed_particle"], fixed_boundary=v["fixed_boundary"],
-            exchange_particle=v["exchange_particle"], exchange_row_g=v["exchange_g"],
-            exchange_row_t=v["exchange_t"], exchange_boundary=v["exchange_boundary"],
-            held_boundary=built["held_boundary"])
-
-    for r in range(1, size):
-        comm.send(cut(order[starts[r]:starts[r + 1]]), dest=r, tag=_SHARE_TAG)
-    return cut(mine)
-
-
-_SHARE_TAG = 26
 
 __all__ = ["RankBuild", "RankError", "agree", "build_on_ranks", "PackingError"]

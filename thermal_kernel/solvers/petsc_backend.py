@@ -54,7 +54,7 @@ import scipy.sparse as sp
 from .common import Recorder, SolverState, ThermalResult, instantaneous_source, step_plan
 from .explicit import explicit_start
 from .implicit import drive_implicit, implicit_start, scheme_args
-from .partition import block_starts, cut_contacts, owner_of_particle, particle_order
+from .partition import Routes, block_starts, cut_contacts, owner_of_particle, particle_order
 from .steady import steady_inputs, steady_result, untied_temperatures
 
 PRECONDITIONERS = ("gamg", "hypre")
@@ -78,15 +78,16 @@ def _share(net, order, new_index, lo, hi) -> dict:
     columns in the new order, a stored diagonal on every row) and the per-particle and
     boundary rows it owns."""
     mine = order[lo:hi]
-    return share_rows(net.adjacency[mine], net.degree_w_k[mine], mine, lo, new_index, net.n,
-                      capacity=net.capacity_j_k, held=net.held,
-                      held_t=net.held_temperature_k, g=net.exchange_g_w_k,
-                      b=net.constant_rhs_w, tied=net.clusters.tied_particle,
-                      fixed_particle=net.fixed_particle, fixed_boundary=net.fixed_boundary,
-                      exchange_particle=net.exchange_particle,
-                      exchange_row_g=net.exchange_row_g_w_k,
-                      exchange_row_t=net.exchange_row_temperature_k,
-                      exchange_boundary=net.exchange_boundary, held_boundary=net.held_boundary)
+    share = share_rows(net.adjacency[mine], net.degree_w_k[mine], mine, lo, new_index, net.n,
+                       capacity=net.capacity_j_k, held=net.held,
+                       held_t=net.held_temperature_k, g=net.exchange_g_w_k,
+                       b=net.constant_rhs_w, tied=net.clusters.tied_particle,
+                       fixed_particle=net.fixed_particle, fixed_boundary=net.fixed_boundary,
+                       exchange_particle=net.exchange_particle,
+                       exchange_row_g=net.exchange_row_g_w_k,
+                       exchange_row_t=net.exchange_row_temperature_k,
+                       exchange_boundary=net.exchange_boundary, held_boundary=net.held_boundary)
+    return dict(share, mine=mine)
 
 
 def share_rows(adj_rows, degree, mine, lo, new_index, n, *, capacity, held, held_t, g, b, tied,
@@ -168,10 +169,13 @@ class DistributedNetwork:
         t0 = time.perf_counter()
         if built is not None:        # each rank built its share (thermal_kernel/rank_build.py)
             self.net = built.net if self.rank == 0 else None
-            self.order, meta, own = built.order, built.meta, built.share
+            meta, own, self.mine, self.routes = built.meta, built.share, built.mine, \
+                built.routes
         else:
             self.net = net if self.rank == 0 else None
             meta, own = self._send_shares(net, position_m)
+            self.mine = own.pop("mine")
+            self.routes = Routes(self.mpi, self.mine, meta["starts"])
         self.n, self.starts, self.nb = meta["n"], meta["starts"], meta["nb"]
         self.has_source, self.cut = meta["has_source"], meta["cut"]
         self.n_active_contacts = meta["active_contacts"]
@@ -211,11 +215,13 @@ class DistributedNetwork:
         if not local:
             return
         if self.rank == 0:
-            for r in range(1, self.size):       # one block at a time
-                self.mpi.send(restricted(self.order[self.starts[r]:self.starts[r + 1]]),
-                              dest=r, tag=_SHARE_TAG)
-            self.local_source = restricted(self.order[:self.starts[1]])
+            for r in range(1, self.size):       # one block at a time: rank 0 has no order
+                block = self.mpi.recv(source=r, tag=_SHARE_TAG)
+                self.mpi.send(restricted(block), dest=r, tag=_SHARE_TAG)
+                del block
+            self.local_source = restricted(self.mine)
         else:
+            self.mpi.send(self.mine, dest=0, tag=_SHARE_TAG)
             self.local_source = self.mpi.recv(source=0, tag=_SHARE_TAG)
 
     def source_powers(self, t0, t1):
@@ -246,12 +252,13 @@ class DistributedNetwork:
     def _send_shares(self, net, position_m):
         """Rank 0 (holding the whole ``net``) sends each rank its share; (meta, own share)."""
         meta = None
+        order = None
         if self.rank == 0:
             n = net.n
-            self.order = particle_order(position_m, "morton") if position_m is not None \
+            order = particle_order(position_m, "morton") if position_m is not None \
                 else np.arange(n, dtype=np.int64)
             starts = block_starts(n, self.size)
-            owner = owner_of_particle(self.order, starts)
+            owner = owner_of_particle(order, starts)
             meta = dict(n=n, starts=starts, nb=net.problem.n_boundaries,
                         has_source=net.problem.source is not None,
                         cut=cut_contacts(net.problem.pair, net.problem.conductance_w_k, owner),
@@ -260,18 +267,18 @@ class DistributedNetwork:
         meta = self.mpi.bcast(meta, root=0)
         if self.rank == 0:
             new_index = np.empty(meta["n"], dtype=np.int64)  # packing index -> place in order
-            new_index[self.order] = np.arange(meta["n"], dtype=np.int64)
+            new_index[order] = np.arange(meta["n"], dtype=np.int64)
             starts = meta["starts"]
             for r in range(1, self.size):             # one share at a time: rank 0's peak is
-                share = _share(net, self.order, new_index,  # its own network + one share
+                share = _share(net, order, new_index,  # its own network + one share
                                int(starts[r]), int(starts[r + 1]))
                 # the receivers expect _share_keys(), in sorted order, one array a message
                 assert sorted(share) == sorted(_share_keys()), sorted(share)
                 for key in sorted(share):             # (< 2 GiB each)
                     self.mpi.send(share[key], dest=r, tag=_SHARE_TAG)
                 del share
-            own = _share(net, self.order, new_index, 0, int(starts[1]))
-            del new_index
+            own = _share(net, order, new_index, 0, int(starts[1]))
+            del new_index, order
         else:
             keys = sorted(_share_keys())
             own = {key: self.mpi.recv(source=0, tag=_SHARE_TAG) for key in keys}
@@ -329,26 +336,13 @@ class DistributedNetwork:
         return self.mpi.allreduce(partial)
 
     def gather(self, t_local: np.ndarray):
-        """The whole (N,) array in the packing's order on rank 0 (None elsewhere)."""
-        counts = np.diff(self.starts)
-        if self.rank == 0:
-            buf = np.empty(self.n)
-            self.mpi.Gatherv(np.ascontiguousarray(t_local, dtype=np.float64), (buf, counts),
-                             root=0)
-            out = np.empty(self.n)
-            out[self.order] = buf
-            return out
-        self.mpi.Gatherv(np.ascontiguousarray(t_local, dtype=np.float64), None, root=0)
-        return None
+        """The whole (N,) array in the packing's order on rank 0 (None elsewhere), through the
+        particles' directories (no rank holds the order)."""
+        return self.routes.gather(t_local)
 
     def scatter(self, whole) -> np.ndarray:
         """This rank's rows of an (N,) array given on rank 0 in the packing's order."""
-        counts = np.diff(self.starts)
-        out = np.empty(self.n_local)
-        send = (np.ascontiguousarray(np.asarray(whole, dtype=np.float64)[self.order]), counts) \
-            if self.rank == 0 else None
-        self.mpi.Scatterv(send, out, root=0)
-        return out
+        return self.routes.scatter(whole)
 
     def on_root(self, fn):
         return on_root(self.mpi, fn)
@@ -424,8 +418,9 @@ def on_root(mpi_comm, fn):
 
 
 def _share_keys():
-    return ("lo", "indptr", "indices", "data", "capacity", "held", "held_t", "g", "b", "tied",
-            "fixed_local", "fixed_boundary", "ex_local", "ex_g", "ex_t", "ex_b", "ex_held_b")
+    return ("mine", "lo", "indptr", "indices", "data", "capacity", "held", "held_t", "g", "b",
+            "tied", "fixed_local", "fixed_boundary", "ex_local", "ex_g", "ex_t", "ex_b",
+            "ex_held_b")
 
 
 def _record(dist, rec, k, t_local, energy_partial, src_energy, tk):
