@@ -196,10 +196,10 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
 
     # 4. clusters: components of this rank's own contacts, joined on rank 0 by the cut ones
     gid, cut_edges, n_comp = _local_components(comm, adjacency, columns, lo, hi)
-    gid_all = routes.gather(gid, np.int64)
+    total_comp = comm.allreduce(int(n_comp))
+    gid_all = routes.gather(gid, _index_dtype(total_comp))     # int32 while it holds them
     degree_all = routes.gather(degree)
     cut_all = comm.gather(cut_edges, root=0)
-    total_comp = comm.allreduce(int(n_comp))
     del gid, cut_edges
 
     # 5. rank 0: the boundary kinds, the clusters; each rank its per-particle rows
@@ -207,7 +207,7 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     nb_count, has_source = comm.bcast(agree(comm, (lambda: _root_problem(
         scene, particles, whole, choice, cut_all, gid_all, total_comp, built))
         if rank == 0 else (lambda: None)), root=0)
-    cut_all = gid_all = None
+    cut_all = gid_all = whole = None        # the law's inputs whole: the kinds have used them
     from .solvers.petsc_backend import share_block
     own = _send_particle_shares(comm, built, routes, starts)
     own.update(share_block(adjacency, degree, own["g"], lo, n, columns))
