@@ -299,3 +299,38 @@ def test_tiled_and_carved_packing_loads(tmp_path):
     _write(tmp_path / "short.h5", *args[:10], short, args[11])
     with pytest.raises(PackingError, match="particles/position: particle .* outside the domain"):
         read_packing(tmp_path / "short.h5")
+
+
+def test_coincident_centres_name_the_first_pair_in_x_y_z_order(tmp_path):
+    """Two spheres in one place are refused, naming the pair of the group that comes first in
+    x, then y, then z (its two lowest indices), checked against every pair compared directly.
+    The lattice ties every x (and y, z) with many others, as a tiled packing does: the search
+    must not take a tie in x alone, or in x and y, for a coincidence. What could fail: a pair
+    equal in two columns reported, the groups taken in another order, a pair of one group
+    named by its later indices."""
+    import dataclasses
+    base = simple_cubic_packing((4, 4, 4), spacing_m=2e-3, radius_m=0.9e-3)
+    empty = dict(pair=np.zeros((0, 2), np.int64), overlap=np.zeros(0), normal_force=np.zeros(0),
+                 branch=np.zeros((0, 3)), contact_radius=None, wall_particle=np.zeros(0, np.int64),
+                 wall_index=np.zeros(0, np.int32), wall_overlap=np.zeros(0),
+                 wall_normal_force=np.zeros(0))
+    rng = np.random.default_rng(7)
+    for trial in range(6):
+        position = base.position.copy()
+        # two or three coincident groups, each of a lattice site and moved spheres
+        for _ in range(int(rng.integers(2, 4))):
+            site, *moved = rng.choice(base.n_particles, size=int(rng.integers(2, 4)),
+                                      replace=False)
+            position[moved] = position[site]
+        p = dataclasses.replace(base, position=position, **empty)
+        path = tmp_path / f"coincident_{trial}.h5"
+        write_packing(path, p)
+        groups = {}
+        for i in range(p.n_particles):
+            groups.setdefault(tuple(position[i]), []).append(i)
+        first = min(k for k, v in groups.items() if len(v) > 1)
+        a, b = sorted(groups[first])[:2]
+        with pytest.raises(PackingError) as info:
+            read_packing(path)
+        assert f"particles/position: particles {a} and {b} have the same centre" in \
+            str(info.value), (trial, str(info.value), a, b)

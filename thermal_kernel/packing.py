@@ -417,10 +417,19 @@ def _check_contact_geometry(path, pair, ri, rj, dx, overlap, branch, extent, per
               f"vector from centre i to centre j (within {BRANCH_RTOL:g} of the radius)")
 
 
+def abs_max(a) -> float:
+    """max |a| (0 for an empty array) from the array's max and min: no temporary the size of
+    ``a`` (the reader's checks of 1e9 centres would make a 24 GB one)."""
+    a = np.asarray(a)
+    if a.size == 0:
+        return 0.0
+    return max(float(a.max()), -float(a.min()), 0.0)
+
+
 def contact_check_scales(position, lo, hi) -> tuple[float, float]:
     """The round-off scales of the contact checks (geometry, forces), from the whole
     packing's centres: the same for every part of its contacts (thermal_kernel/rank_build.py)."""
-    top = float(np.abs(position).max(initial=0.0))
+    top = abs_max(position)
     return top + float(np.abs(lo).max()) + float(np.abs(hi).max()), top
 
 
@@ -450,10 +459,12 @@ def _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_p
         _fail(path, "particles/phase", f"particle {i} has phase {int(phase[i])}; expected a "
                                        "phase id >= 0")
     extent = hi - lo
-    scale = np.abs(position).max(initial=0.0) + np.abs(lo).max() + np.abs(hi).max()
+    scale = abs_max(position) + np.abs(lo).max() + np.abs(hi).max()
     tol = GEOMETRY_RTOL * extent + 8 * np.finfo(float).eps * scale
-    outside = (position < lo - tol) | (position > hi + tol)
-    if outside.any():
+    # the columns' extremes first (no (N, 3) temporaries); the first centre outside only then
+    if position.shape[0] and (np.any(position.min(axis=0) < lo - tol)
+                              or np.any(position.max(axis=0) > hi + tol)):
+        outside = (position < lo - tol) | (position > hi + tol)
         i, axis = (int(v) for v in np.argwhere(outside)[0])
         _fail(path, "particles/position",
               f"particle {i} has its centre at {'xyz'[axis]} = {position[i, axis]:.6g} m, outside "
@@ -562,7 +573,7 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
     r_i + r_j - |branch| (the branch is already checked against the centres), a touching wall
     contact's is r - its centre's distance to the wall; a gap (overlap <= 0) carries no force;
     no two centres coincide."""
-    scale = np.abs(position).max(initial=0.0)
+    scale = abs_max(position)
     eps = 8 * np.finfo(float).eps * scale
     if pair.shape[0]:
         i, j = pair[:, 0], pair[:, 1]
@@ -598,21 +609,30 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
                   f"{wall_overlap[c]:.6g} m) with a normal force of "
                   f"{wall_normal_force[c]:.6g} N; expected 0 on a gap")
     # coincident centres: two spheres in one place (any overlap search would be O(N log N) on
-    # every load; equal centres are the impossible case that costs one sort)
-    if position.shape[0] > 1:
-        by_x = np.argsort(position[:, 0], kind="stable")
-        tied = np.flatnonzero(np.diff(position[by_x, 0]) == 0)      # equal x: the candidates
-        mask = np.zeros(position.shape[0], bool)
-        mask[by_x[tied]] = mask[by_x[tied + 1]] = True
-        cand = np.flatnonzero(mask)
-        order = cand[np.lexsort(position[cand].T[::-1])]
-        same = np.flatnonzero(np.all(np.diff(position[order], axis=0) == 0, axis=1))
+    # every load; equal centres are the impossible case that costs one sort). Sorted by x,
+    # y, z (ties in index order), a column at a time: a tiled packing ties every x (its tiles
+    # are copies shifted along y or z), and (N, 3) temporaries of 1e9 centres are 24 GB each
+    if position.shape[0] > 1 and _x_tied(position[:, 0]):
+        order = np.lexsort((position[:, 2], position[:, 1], position[:, 0]))
+        equal = np.ones(order.size - 1, dtype=bool)
+        for k in range(3):
+            column = position[:, k]
+            equal &= column[order[1:]] == column[order[:-1]]
+        same = np.flatnonzero(equal)
+        del equal
         if same.size:
             a, b = sorted((int(order[same[0]]), int(order[same[0] + 1])))
             _fail(path, "particles/position",
                   f"particles {a} and {b} have the same centre "
                   f"({', '.join(f'{v:.6g}' for v in position[a])}) m; expected distinct "
                   "spheres")
+
+
+def _x_tied(x) -> bool:
+    """Whether two centres share an x (the candidates of coincident centres), from the sorted
+    x alone: one copy of the column, not the index sort the search for the pair needs."""
+    xs = np.sort(x)
+    return bool(np.any(xs[1:] == xs[:-1]))
 
 
 def domain_volume(wall_kind, wall_normal, wall_radius, lo, hi):
