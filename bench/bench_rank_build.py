@@ -2,6 +2,7 @@
 (issue 25; the table "Memory of the build on the ranks" of docs/scaling.md).
 
     .venv/bin/python bench/bench_rank_build.py [--before COMMIT] [--json PATH]
+    .venv/bin/python bench/bench_rank_build.py --stages [--json PATH]
 
 Memory only: every rank's peak RSS (``ru_maxrss``, libraries included) over a whole `tdem run`
 on the ranks (``python -m thermal_kernel.mpi_run``, as ``tdem run --ranks`` starts it), which
@@ -14,6 +15,9 @@ tiled box made from the same relaxed cell (`tdem pack`, ~20 s when that cell exi
 cell is relaxed first), each between two held faces, haddad's law with every dumped row
 conducting (no [neighbours] criterion: when these rows were measured a scene with one still
 built whole on rank 0; it is built on the ranks now, not measured here).
+``--stages``: each rank's traced memory (tracemalloc) over each step of the build
+(rank_build.py's functions), the 1e6 box, explicit, on 2 and 3 ranks: what rank 0 holds
+beyond the others, step by step (bench/results/rank_build_stages.json).
 ``bench/bench_scaling.py --from-json --write docs/scaling.md`` puts the rows into the doc.
 """
 from __future__ import annotations
@@ -72,6 +76,38 @@ runpy.run_module("thermal_kernel.mpi_run", run_name="__main__", alter_sys=True)
 '''
 
 
+# --stages: each rank's traced numpy/Python memory (tracemalloc) over each step of the build
+# (thermal_kernel/rank_build.py's functions, wrapped), reported at exit
+STAGES = '''import atexit, json, os, runpy, sys, tracemalloc
+tracemalloc.start()
+import thermal_kernel.rank_build as rb
+steps = []
+def wrap(name):
+    f = getattr(rb, name)
+    def g(*a, **k):
+        start = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        out = f(*a, **k)
+        end, peak = tracemalloc.get_traced_memory()
+        steps.append(dict(step=name, start=start, peak=peak, end=end))
+        return out
+    setattr(rb, name, g)
+for name in STEPS:
+    wrap(name)
+rank = os.environ.get("OMPI_COMM_WORLD_RANK")
+atexit.register(lambda: os.write(2, ("STAGES " + rank + " " + json.dumps(steps) + "\\n").encode()))
+sys.argv = ["thermal_kernel.mpi_run"] + sys.argv[1:]
+runpy.run_module("thermal_kernel.mpi_run", run_name="__main__", alter_sys=True)
+'''
+# the build's steps in the order build_on_ranks calls them (names in rank_build.py)
+STEPS = ["_read_particles", "morton_blocks_on_ranks", "Routes", "_bulk_flags",
+         "_contacts_to_owners", "_capacities_on_root", "_conducting_contacts", "_rank_rows",
+         "_local_components", "_root_problem", "_send_particle_shares", "_held_rows",
+         "_root_network"]
+STAGE_CASES = [("1e6", "explicit", 2), ("1e6", "explicit", 3)]
+STAGES_JSON = ROOT / "bench/results/rank_build_stages.json"
+
+
 def packing_1e6() -> Path:
     """The 1e6 tiled box (bench/out/rank_build/box1e6/packing.h5), made once by tdem pack."""
     out = OUT / "box1e6"
@@ -91,17 +127,27 @@ def packing_1e6() -> Path:
     return out / "packing.h5"
 
 
-def run(code_root: Path, packing: Path, solver: str, ranks: int, tag: str) -> list[float]:
+def run(code_root: Path, packing: Path, solver: str, ranks: int, tag: str,
+        stages: bool = False):
+    """Every rank's peak RSS (GB, rank order); ``stages``: every rank's steps instead (the
+    traced memory at each step's start, peak and end, bytes)."""
     from thermal_kernel.solvers.mpi_launch import MPIRUN_LOCAL, mpi_env, mpi_python
     scene = OUT / f"{tag}.toml"
     scene.write_text(f'packing = "{packing}"\n{THERMAL}{SOLVER[solver]}')
-    wrapper = OUT / "rss_wrapper.py"
-    wrapper.write_text(RSS)
+    wrapper = OUT / ("stages_wrapper.py" if stages else "rss_wrapper.py")
+    wrapper.write_text(f"STEPS = {STEPS!r}\n" + STAGES if stages else RSS)
     env = dict(mpi_env(), PYTHONPATH=str(code_root))
     done = subprocess.run(
         ["mpirun", "-n", str(ranks), *MPIRUN_LOCAL, "-x", "PYTHONPATH", "-x", "OMP_NUM_THREADS",
          "-x", "NUMBA_NUM_THREADS", str(mpi_python()), str(wrapper), str(scene), "--out",
          str(OUT / tag), "--quiet"], env=env, capture_output=True, text=True, cwd=OUT)
+    if stages:
+        got = {int(rank): json.loads(text)
+               for rank, text in re.findall(r"STAGES (\d+) (.*)", done.stderr)}
+        if done.returncode or len(got) != ranks:
+            raise SystemExit(f"{tag}: mpirun exited with {done.returncode}: "
+                             f"{done.stderr[-2000:]}")
+        return [got[r] for r in range(ranks)]
     peaks = {int(rank): int(kb) * 1024 / 1e9
              for rank, kb in re.findall(r"RSS_PEAK (\d+) (\d+)", done.stderr)}
     if done.returncode or len(peaks) != ranks:
@@ -112,10 +158,16 @@ def run(code_root: Path, packing: Path, solver: str, ranks: int, tag: str) -> li
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--before", default=BEFORE)
-    ap.add_argument("--json", default=str(JSON))
+    ap.add_argument("--json", default=None)
+    ap.add_argument("--stages", action="store_true",
+                    help="each rank's traced memory step by step of the build (the checkout's "
+                         "code; writes bench/results/rank_build_stages.json)")
     a = ap.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
     packings = {"1e5": P1E5, "1e6": packing_1e6()}
+    if a.stages:
+        return stages(packings, Path(a.json or STAGES_JSON))
+    a.json = a.json or str(JSON)
     from thermal_kernel.packing import read_packing
     sizes = {}
     for label, path in packings.items():
@@ -144,6 +196,28 @@ def main():
                 date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()))
     Path(a.json).write_text(json.dumps(data, indent=1))
     print(f"wrote {a.json}")
+
+
+def stages(packings, path: Path):
+    """--stages: each rank's traced memory (tracemalloc: numpy's arrays and Python's objects,
+    not the libraries) at the start, peak and end of each step of the build, on the checkout's
+    code, into ``path``."""
+    from thermal_kernel.packing import read_packing
+    rows = []
+    load = [open("/proc/loadavg").read().split()[:3]]
+    for label, solver, ranks in STAGE_CASES:
+        p = read_packing(packings[label], contacts=False)
+        rows.append(dict(packing=str(packings[label].relative_to(ROOT)), n=p.n_particles,
+                         contacts=p.file_contacts, solver=solver, ranks=ranks,
+                         steps=run(ROOT, packings[label], solver, ranks,
+                                   f"stages_{label}_{solver}_{ranks}", stages=True)))
+        print(f"{label} {solver} {ranks} ranks: done", flush=True)
+    load.append(open("/proc/loadavg").read().split()[:3])
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True, cwd=ROOT).stdout.strip()
+    path.write_text(json.dumps(dict(rows=rows, commit=commit, load=load, date=time.strftime(
+        "%Y-%m-%d %H:%M UTC", time.gmtime())), indent=1))
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":

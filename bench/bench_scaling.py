@@ -380,6 +380,27 @@ LARGEST = LARGEST_RUNS[-1][0]
 
 
 BUILD = ROOT / "bench/results/rank_build_memory.json"
+# bench/bench_rank_build.py --stages: each rank's traced memory, step by step of the build
+BUILD_STAGES = ROOT / "bench/results/rank_build_stages.json"
+# what each step of rank_build.build_on_ranks does (the stages table's second column)
+STEP_WORDS = {
+    "_read_particles": "rank 0 reads and checks the particles whole (not the contacts)",
+    "morton_blocks_on_ranks": "each rank reads its block of the file's particles; the Morton "
+                              "order sorted on the ranks",
+    "Routes": "the ways between the blocks of the order and the file's order",
+    "_bulk_flags": "a [neighbours] scene's bulk flags (none here)",
+    "_contacts_to_owners": "each rank reads its slice of the contacts, checks them, sends "
+                           "each to its particles' owners",
+    "_capacities_on_root": "rank 0 evaluates the law's capacities and inputs on every particle",
+    "_conducting_contacts": "each rank evaluates the law on its contacts",
+    "_rank_rows": "each rank's rows of the matrix",
+    "_local_components": "each rank's components of its contacts",
+    "_root_problem": "rank 0: the boundary kinds on every particle, the per-particle terms, "
+                     "the clusters joined",
+    "_send_particle_shares": "each rank's per-particle and boundary rows from rank 0",
+    "_held_rows": "the held and untied particles' rows to rank 0",
+    "_root_network": "rank 0's Network: the ledger's, the checks' and the output's arrays",
+}
 # bench/bench_output_memory.py's rows: a long run's memory against its output times
 OUTPUT_MEMORY = ROOT / "bench/results/output_memory.json"
 # the section "Every scene of runs/ on 1, 2 and 3 ranks": make bench-ranks' command and its
@@ -454,6 +475,8 @@ def document(data) -> str:
         L += _doc_largest(largest)
     if build:
         L.append(build_memory_section(build))
+    if BUILD_STAGES.exists():
+        L += _doc_build_stages(json.loads(BUILD_STAGES.read_text()))
     if OUTPUT_MEMORY.exists():
         L += _doc_output_memory(json.loads(OUTPUT_MEMORY.read_text()))
     L += _doc_cuts(data)
@@ -481,9 +504,13 @@ def _doc_running() -> list[str]:
       "SCENE` (`thermal_kernel/solvers/mpi_launch.py`). The particles are ordered along a "
       "Morton curve of their centres and the order cut into equal blocks "
       "(`thermal_kernel/solvers/partition.py`); each rank builds its own rows "
-      "(`thermal_kernel/rank_build.py`): rank 0 reads the particles (not the contacts), "
-      "orders them and sends each rank its block; rank r reads the r-th block of the file's "
-      "particles and the r-th slice of its contact rows, checks the rows against their "
+      "(`thermal_kernel/rank_build.py`): rank r reads the r-th block of the file's "
+      "particles, the ranks sort the Morton order together (a sample sort of the blocks' "
+      "keys, the whole sort's order bit for bit: `tests/mpi_partition_check.py`, 1-4 ranks) "
+      "and rank r takes the r-th block of it; every value between the ranks' blocks and "
+      "rank 0 goes in the file's order through the particles' directories "
+      "(`partition.Routes`: no rank holds the order); rank r reads the r-th slice of the "
+      "file's contact rows, checks the rows against their "
       "spheres as the in-process reader does, and sends each contact to the ranks owning its "
       "two particles; a scene's `[neighbours]` criterion (e.g. the gap giving a target bulk "
       "coordination, chosen over every bulk contact) is chosen with collectives over the "
@@ -524,8 +551,9 @@ def _doc_agreement() -> list[str]:
       "within 1e-10, boundary flows and ledger alike, flags identical; the last column of the "
       "table below is the same comparison at bench scale (relative to max abs(T)).\n")
     w("**Still whole on rank 0** (what is left of issue 25): the packing's particles "
-      "(centres, radii, phases; read by rank 0 for the boundary kinds, which find their "
-      "particles by position, and for the Morton order, a sort of every centre), the "
+      "(centres, radii, phases; read and checked by rank 0 as the in-process reader does, "
+      "for the boundary kinds, which find their particles by position, and a "
+      "`[neighbours]` scene's bulk flags), the law's capacities, the "
       "network's per-particle arrays and boundary rows (its ledger, the flags, the checks), "
       "the source as the boundary kind makes it (its powers are each particle's own: each "
       "rank evaluates them on its block every step, nothing is scattered) and one output "
@@ -533,8 +561,11 @@ def _doc_agreement() -> list[str]:
       "them goes to disk when it is large: the table 'Memory of a long run's output' "
       "below): bytes per particle, not per contact. No rank holds the whole contact list or "
       "evaluates the law on every contact, and the other ranks hold only their blocks (the "
-      "table 'Memory of the build on the ranks' below). Next: the boundary kinds on blocks, "
-      "a parallel sort of the Morton keys and the ledger and checks on the ranks (rank 0's "
+      "table 'Memory of the build on the ranks' below; step by step: the table 'What rank 0 "
+      "holds, step by step of the build'). The Morton order is sorted on the ranks. Next: "
+      "the reader's checks and the boundary kinds on the directories' blocks (with "
+      "reductions for their sums and their 'no particle' refusals), the clusters joined "
+      "per component, and the ledger, checks and writer on partial sums (rank 0's "
       "per-particle part). "
       "A `[neighbours]` scene (`runs/dense_box_1e5.toml` among them) is built on the ranks "
       "like any other since the criterion is chosen with collectives; its bulk flags come "
@@ -654,6 +685,63 @@ def _doc_largest(largest) -> list[str]:
               f"{max(r['rss_ranks_gb'][1:], default=float('nan')):.2f} | {run['date']} | "
               f"{load} | `{cmd}` |")
     w("")
+    return L
+
+
+def _doc_build_stages(st) -> list[str]:
+    """Each rank's traced memory, step by step of the build (bench_rank_build.py --stages):
+    what rank 0 holds beyond the others, and where."""
+    rows = st["rows"]
+    by_r = {r["ranks"]: r for r in rows}
+    head = "| step | what it does | " + " | ".join(
+        f"{r['ranks']} ranks: rank 0 | {r['ranks']} ranks: other ranks" for r in rows) + " |"
+    L = ["### What rank 0 holds, step by step of the build\n",
+         f"Traced memory (tracemalloc: numpy's arrays and Python's objects, not the libraries "
+         f"or the allocator's slack) of each rank at the peak of each step of "
+         f"`rank_build.build_on_ranks`, in bytes per particle above the rank's traced memory "
+         f"before the first step ({st['date']}, the code of {st['commit']}; "
+         "`bench/bench_rank_build.py --stages`, not part of `make bench-scaling`; memory "
+         f"only). {rows[0]['packing']}: {rows[0]['n']} particles, {rows[0]['contacts']} "
+         "contacts, explicit, Haddad's law, two held faces. '-': a step rank 0 makes alone.\n",
+         head, "|---|---|" + "---|---|" * len(rows)]
+
+    def peaks(row):
+        out = []
+        for steps in row["steps"]:
+            base = steps[0]["start"] if steps else 0
+            out.append({s["step"]: (s["peak"] - base) / row["n"] for s in steps})
+        return out
+
+    per = {r["ranks"]: peaks(r) for r in rows}
+    for name in [s["step"] for s in rows[0]["steps"][0]]:
+        cells = []
+        for r in rows:
+            p = per[r["ranks"]]
+            other = [q[name] for q in p[1:] if name in q]
+            cells += [f"{p[0][name]:.0f}", f"{max(other):.0f}" if other else "-"]
+        L.append(f"| `{name}` | {STEP_WORDS.get(name, '')} | " + " | ".join(cells) + " |")
+    L.append("")
+    if 2 in by_r and 3 in by_r:
+        p2, p3 = per[2][0], per[3][0]
+        top2 = max(p2, key=p2.get)
+        whole = {k: 3 * p3[k] - 2 * p2[k] for k in p2 if k in p3}   # peak = w + d / R
+        late = [k for k in ("_root_problem", "_send_particle_shares", "_held_rows",
+                            "_root_network") if k in whole]
+        wl = max(late, key=whole.get) if late else None
+        first = rows[0]["steps"][0][0]["step"]
+        L.append(f"Read: on 2 and 3 ranks rank 0's highest step is `{top2}` ({p2[top2]:.0f} "
+                 f"and {p3[top2]:.0f} B per particle), where every rank holds its contacts. "
+                 "Written as peak = w + d / R from the two rows, rank 0's part not divided by "
+                 f"the ranks is w = {whole[top2]:.0f} B per particle there (the particles, the "
+                 f"law's inputs and capacities), w = {whole[first]:.0f} in `{first}` (the "
+                 "reader's checks of every particle)"
+                 + (f" and w = {whole[wl]:.0f} in `{wl}` (the boundary kinds, the clusters and "
+                    "the network's per-particle arrays)" if wl else "")
+                 + ": once the contacts are divided among enough ranks, rank 0's peak is the "
+                 "largest of these, in bytes per particle not divided by the ranks. The next "
+                 "step of issue 25 (the reader's checks and the boundary kinds on the "
+                 "directories' blocks, the ledger, checks and writer on partial sums) removes "
+                 "them.\n")
     return L
 
 
@@ -785,7 +873,8 @@ def _doc_projection(proj, build, bfit) -> list[str]:
               "fitted on the build's measured peaks: "
               f"{root_pp * 1e8 / 1e9:.0f} GB at 1e8, {root_pp * 1e9 / 1e9:.0f} GB at 1e9): 1e9 "
               "then needs rank 0 on a node of that much memory (fewer ranks on its node), or "
-              "the next step (the boundary kinds on blocks, a parallel sort, parallel output), "
+              "the next step (the reader's checks and the boundary kinds on blocks, the ledger, "
+              "checks and writer on partial sums), "
               "which divides that column by the ranks too.\n")
     return L
 

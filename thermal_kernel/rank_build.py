@@ -5,11 +5,12 @@ or evaluates the law on every contact, and only rank 0 holds the particles whole
 over an mpi4py communicator:
 
 1. rank 0 reads the packing without its contacts (``read_packing(path, contacts=False)``,
-   checked as always: the boundary kinds, the Morton order and the output need the particles
-   whole) and orders the particles along the Morton curve (:mod:`.solvers.partition`): rank r
-   owns a block of that order; it sends each rank its block and, for the r-th block of the
-   file's particles, their places in the order (each rank is the directory of a file block:
-   it reads those particles' centres, radii and phases itself);
+   checked as always: the boundary kinds and the output need the particles whole); rank r
+   reads the r-th block of the file's particles (it is their *directory*), the ranks sort
+   the Morton order together (:func:`~.solvers.partition.morton_blocks_on_ranks`, the whole
+   sort's order bit for bit) and rank r owns the r-th block of it; values go between the
+   owners, the directories and rank 0 (in the file's order) by
+   :class:`~.solvers.partition.Routes`: no rank holds the order;
 2. rank r reads the r-th slice of the file's contact rows (``read_contact_rows``), fetches
    their spheres from the directories and checks the rows against them
    (``check_contact_rows``, the reader's checks); a scene's ``[neighbours]`` criterion is
@@ -36,7 +37,8 @@ over an mpi4py communicator:
    the other rows (``adjacency_rows``): what its ledger, steady's floating clusters, the checks
    and the output read.
 
-What stays whole: on rank 0 the particles and the network's per-particle arrays (the
+What stays whole: on rank 0 the particles and the network's per-particle arrays, gathered
+in the file's order through the directories (the
 temperatures it gathers at an output time go, one time at a time, into the run's history,
 paged to disk when large: :func:`~.atomic.history_rows`). ``mpi_run --whole-build`` builds
 the network whole on rank 0 instead (for comparison).
@@ -230,7 +232,7 @@ def _index_dtype(n):
 
 def _read_particles(comm, packing_path):
     """Step 1: rank 0 reads the packing without its contacts (checked as always: the boundary
-    kinds, the Morton order and the output need the particles whole); every rank gets its
+    kinds and the output need the particles whole); every rank gets its
     head (counts, path, attributes, domain and the contact checks' scales). Returns the
     particles (None but on rank 0) and the head."""
     rank = comm.Get_rank()

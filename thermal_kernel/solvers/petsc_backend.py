@@ -8,7 +8,10 @@ same :class:`~thermal_kernel.solvers.ThermalResult`, so the output file, its fla
 are the in-process ones.
 
 Distribution. The particles are ordered along a Morton curve of their centres
-(:mod:`.partition`) and the order cut into one contiguous block per rank; a rank holds only its
+(:mod:`.partition`; sorted on the ranks by the per-rank build) and the order cut into one
+contiguous block per rank; values go between the blocks and rank 0 in the file's order through
+the particles' directories (:class:`~.partition.Routes`: no rank holds the order). A rank holds
+only its
 rows of A = L + diag(g) (L the graph Laplacian, g the exchange conductance), renumbered in that
 order, with the per-particle and boundary rows of its block (:func:`share_rows`). Each rank
 builds its share itself from its part of the packing (``built=``, thermal_kernel/rank_build.py:
