@@ -44,6 +44,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -131,6 +132,10 @@ def _run(args, rank, held):
         dist = backend.DistributedNetwork(net, built["packing"].position if rank == 0 else None)
     if rank == 0:
         assemble_seconds = time.perf_counter() - built["assemble_t0"]
+        # what the output reads of the packing (its path and size): the particles' arrays are
+        # freed for the run (a source keeps the centres it evaluates)
+        built["packing"] = SimpleNamespace(path=built["packing"].path,
+                                           n_particles=built["packing"].n_particles)
     T0 = built.get("T0")
     if rank == 0 and not args.quiet:
         _print_network(scene, net, dist, built["info"])
