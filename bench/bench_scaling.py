@@ -452,8 +452,8 @@ def build_memory_section(build) -> str:
     L.append(f"Fitted on the explicit rows (the build dominates their peak; a + w N + d N / R): "
              f"before, rank 0 needed w = {b['whole']:.0f} B per particle, not divided by the "
              f"ranks (the whole network), + d = {b['divided']:.0f} B per particle / R; after, "
-             f"rank 0 needs w = {a['whole']:.0f} B per particle (the particles, the Morton "
-             f"order, the network's per-particle arrays) + d = {a['divided']:.0f} / R, the "
+             f"rank 0 needs w = {a['whole']:.0f} B per particle (the particles, the law's "
+             f"capacities, the network's per-particle arrays) + d = {a['divided']:.0f} / R, the "
              f"other ranks w = {o['whole']:.0f} + d = {o['divided']:.0f} / R (their contacts, "
              "the law's inputs on them, their rows: they hold no array of every particle; "
              "two N and three R do not separate w from d well), about "
@@ -688,6 +688,26 @@ def _doc_largest(largest) -> list[str]:
     return L
 
 
+def stage_peaks(row) -> list[dict]:
+    """Each rank's peak per step of one --stages row: {step: bytes per particle above the
+    rank's traced memory before the first step}."""
+    out = []
+    for steps in row["steps"]:
+        base = steps[0]["start"] if steps else 0
+        out.append({s["step"]: (s["peak"] - base) / row["n"] for s in steps})
+    return out
+
+
+def stages_whole(st) -> dict:
+    """Rank 0's part of each step not divided by the ranks, bytes per particle: peak = w + d / R
+    solved from the 2- and 3-rank rows of bench_rank_build.py --stages ({} without both)."""
+    by_r = {r["ranks"]: stage_peaks(r)[0] for r in st["rows"]}
+    if 2 not in by_r or 3 not in by_r:
+        return {}
+    p2, p3 = by_r[2], by_r[3]
+    return {k: 3 * p3[k] - 2 * p2[k] for k in p2 if k in p3}
+
+
 def _doc_build_stages(st) -> list[str]:
     """Each rank's traced memory, step by step of the build (bench_rank_build.py --stages):
     what rank 0 holds beyond the others, and where."""
@@ -705,14 +725,7 @@ def _doc_build_stages(st) -> list[str]:
          "contacts, explicit, Haddad's law, two held faces. '-': a step rank 0 makes alone.\n",
          head, "|---|---|" + "---|---|" * len(rows)]
 
-    def peaks(row):
-        out = []
-        for steps in row["steps"]:
-            base = steps[0]["start"] if steps else 0
-            out.append({s["step"]: (s["peak"] - base) / row["n"] for s in steps})
-        return out
-
-    per = {r["ranks"]: peaks(r) for r in rows}
+    per = {r["ranks"]: stage_peaks(r) for r in rows}
     for name in [s["step"] for s in rows[0]["steps"][0]]:
         cells = []
         for r in rows:
@@ -724,7 +737,7 @@ def _doc_build_stages(st) -> list[str]:
     if 2 in by_r and 3 in by_r:
         p2, p3 = per[2][0], per[3][0]
         top2 = max(p2, key=p2.get)
-        whole = {k: 3 * p3[k] - 2 * p2[k] for k in p2 if k in p3}   # peak = w + d / R
+        whole = stages_whole(st)
         late = [k for k in ("_root_problem", "_send_particle_shares", "_held_rows",
                             "_root_network") if k in whole]
         wl = max(late, key=whole.get) if late else None
@@ -847,7 +860,13 @@ def _doc_projection(proj, build, bfit) -> list[str]:
     """What 1e8 and 1e9 particles need, and how to read it."""
     L = []
     w = L.append
-    root_pp = bfit["after"]["whole"] if build else float("nan")
+    # rank 0's bytes per particle not divided by the ranks: the larger of the RSS fit and the
+    # traced step-by-step part (bench_rank_build.py --stages), the stricter reading
+    fit_pp = bfit["after"]["whole"] if build else float("nan")
+    whole = stages_whole(json.loads(BUILD_STAGES.read_text())) if BUILD_STAGES.exists() else {}
+    step_pp = max(whole.values()) if whole else float("nan")
+    step = max(whole, key=whole.get) if whole else ""
+    root_pp = float(np.nanmax([fit_pp, step_pp])) if build else float("nan")
     w("| N | solver | nodes (64 cores) | solver memory, all ranks | + on rank 0: the whole "
       "network (whole build) | + on rank 0: the per-particle arrays (per-rank build) | time |")
     w("|---|---|---|---|---|---|---|")
@@ -869,8 +888,9 @@ def _doc_projection(proj, build, bfit) -> list[str]:
               f"{s9['whole_gb_rank']:.0f} GB at 1e9): a few 1e8 particles on a 256 GB node, "
               "not 1e9. Built on the ranks (every packing file's run, a `[neighbours]` "
               "criterion included), rank 0 holds per-particle arrays only (the last-but-one "
-              "column, "
-              "fitted on the build's measured peaks: "
+              f"column: {root_pp:.0f} B per particle, the larger of the fit on the build's "
+              f"measured peaks, {fit_pp:.0f}, and rank 0's traced part in `{step}`, "
+              f"{step_pp:.0f}, the table 'What rank 0 holds, step by step': "
               f"{root_pp * 1e8 / 1e9:.0f} GB at 1e8, {root_pp * 1e9 / 1e9:.0f} GB at 1e9): 1e9 "
               "then needs rank 0 on a node of that much memory (fewer ranks on its node), or "
               "the next step (the reader's checks and the boundary kinds on blocks, the ledger, "
