@@ -363,8 +363,12 @@ def cluster_report(n_comp: int, label: np.ndarray, reservoir) -> ClusterReport:
     untied = np.flatnonzero(~tied)
     floating = untied[sizes[untied] >= 2]
     rattler_comp = untied[sizes[untied] == 1]
-    rattlers = np.flatnonzero(np.isin(label, rattler_comp)) if rattler_comp.size else \
-        np.zeros(0, np.int64)
+    if rattler_comp.size:       # a flag per component, read through the labels (isin sorts)
+        is_rattler = np.zeros(n_comp, dtype=bool)
+        is_rattler[rattler_comp] = True
+        rattlers = np.flatnonzero(is_rattler[label])
+    else:
+        rattlers = np.zeros(0, np.int64)
     tied.flags.writeable = False
     return ClusterReport(n_components=int(n_comp), label=label, floating_clusters=floating,
                          floating_sizes=sizes[floating], rattlers=rattlers, tied=tied)
@@ -379,9 +383,12 @@ def particle_terms(v: dict) -> dict:
     held_t = np.full(n, np.nan)
     held_t[v["fixed_particle"]] = v["fixed_temperature"]
     ep, eg = v["exchange_particle"], v["exchange_g"]
-    g_p = np.bincount(ep, weights=eg, minlength=n).astype(np.float64)
-    gt_p = np.bincount(ep, weights=eg * v["exchange_t"], minlength=n).astype(np.float64)
-    pw_p = np.bincount(v["power_particle"], weights=v["power"], minlength=n).astype(np.float64)
+    # (bincount with weights gives float64: no copy)
+    g_p = np.bincount(ep, weights=eg, minlength=n).astype(np.float64, copy=False)
+    gt_p = np.bincount(ep, weights=eg * v["exchange_t"], minlength=n).astype(np.float64,
+                                                                            copy=False)
+    pw_p = np.bincount(v["power_particle"], weights=v["power"], minlength=n).astype(
+        np.float64, copy=False)
     return dict(held=held, held_t=held_t, g_p=g_p, gt_p=gt_p, pw_p=pw_p)
 
 

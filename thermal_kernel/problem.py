@@ -199,7 +199,7 @@ def _check_rows(scene: Scene, packing: Packing, rows) -> None:
     listed wins" applies to shared edges, not to a whole wall), and a flux whose particles are
     all held (its power would go straight into the held temperature, heating nothing)."""
     held = np.zeros(packing.n_particles, bool)
-    held_by = np.full(packing.n_particles, -1)
+    held_by = np.full(packing.n_particles, -1, dtype=np.int32)
     for p, b in zip(rows.fixed_p, rows.fixed_b):
         index = int(b[0]) if b.size else -1
         if p.size and held[p].all():

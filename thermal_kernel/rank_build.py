@@ -197,12 +197,13 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     del active, ids, new_l
 
     # 4. clusters: components of this rank's own contacts, joined on rank 0 by the cut ones
-    gid, cut_edges, n_comp = _local_components(comm, adjacency, columns, lo, hi)
+    gid, cut_edges, n_comp, comp_first = _local_components(comm, adjacency, columns, lo, hi,
+                                                           mine)
     total_comp = comm.allreduce(int(n_comp))
     gid_all = routes.gather(gid, _index_dtype(total_comp))     # int32 while it holds them
     degree_all = routes.gather(degree)
-    cut_all = comm.gather(cut_edges, root=0)
-    del gid, cut_edges
+    cut_all = comm.gather((cut_edges, comp_first), root=0)     # per component, rank order
+    del gid, cut_edges, comp_first
 
     # 5. rank 0: the boundary kinds, the clusters; each rank its per-particle rows
     built = {}
@@ -414,10 +415,11 @@ def _rank_rows(comm, active, ids, new_l, lo, hi, n):
     return adjacency, columns, degree, totals
 
 
-def _local_components(comm, adjacency, columns, lo, hi):
+def _local_components(comm, adjacency, columns, lo, hi, mine):
     """Step 4: the connected components of this rank's own contacts (both ends in ``lo:hi``),
     numbered after the lower ranks' (exscan). Returns each particle's component, the cut
-    contacts as (component, other particle's packing index) and the number of components."""
+    contacts as (component, other particle's packing index), the number of components and
+    each component's lowest packing index (``mine``: this rank's particles)."""
     inner = (columns >= lo) & (columns < hi)
     arow = np.repeat(np.arange(hi - lo), np.diff(adjacency.indptr))
     n_comp, lab = connected_components(
@@ -426,7 +428,10 @@ def _local_components(comm, adjacency, columns, lo, hi):
     offset = comm.exscan(int(n_comp)) or 0
     gid = lab.astype(np.int64) + offset
     cut_edges = np.stack([gid[arow[~inner]], adjacency.indices[~inner].astype(np.int64)], axis=1)
-    return gid, cut_edges, n_comp
+    by = np.argsort(lab, kind="stable")     # every label 0 .. n_comp - 1 holds a particle
+    starts = np.flatnonzero(np.concatenate([[True], lab[by][1:] != lab[by][:-1]]))
+    first = (np.minimum.reduceat(mine[by], starts) if lab.size else np.zeros(0, np.int64))
+    return gid, cut_edges, n_comp, first.astype(np.int64)
 
 
 def _root_problem(scene, particles, whole, choice, cut_all, gid_all, total_comp, built):
@@ -451,18 +456,19 @@ def _root_problem(scene, particles, whole, choice, cut_all, gid_all, total_comp,
 def _join_components(cut_all, gid_all, total_comp, n):
     """Rank 0: the ranks' components joined through the cut contacts, numbered by their first
     particle as connected_components numbers the whole network's (the in-process clusters).
-    Returns their number and each particle's label (int32)."""
-    edges = np.concatenate(cut_all)
+    ``cut_all``: each rank's cut contacts and its components' lowest packing indices. Works
+    per component (one array of N: the labels). Returns their number and each particle's
+    label (int32)."""
+    edges = np.concatenate([c[0] for c in cut_all])
+    first_of = np.concatenate([c[1] for c in cut_all])     # by component id (rank order)
     graph = sp.coo_matrix((np.ones(edges.shape[0]), (edges[:, 0], gid_all[edges[:, 1]])),
                           shape=(total_comp, total_comp))
-    _, joined = connected_components(graph, directed=False)
-    label_raw = joined[gid_all]
-    k = int(label_raw.max()) + 1 if n else 0
+    k, joined = connected_components(graph, directed=False)
     first_p = np.full(k, n, dtype=np.int64)
-    np.minimum.at(first_p, label_raw, np.arange(n))
-    renumber = np.empty(k, dtype=np.int64)
-    renumber[np.argsort(first_p, kind="stable")] = np.arange(k)
-    return k, renumber[label_raw].astype(np.int32)
+    np.minimum.at(first_p, joined, first_of)
+    renumber = np.empty(k, dtype=np.int32)
+    renumber[np.argsort(first_p, kind="stable")] = np.arange(k, dtype=np.int32)
+    return (k, renumber[joined][gid_all]) if n else (0, np.zeros(0, np.int32))
 
 
 def _held_rows(comm, built, routes, mine, adjacency):
