@@ -78,13 +78,19 @@ runpy.run_module("thermal_kernel.mpi_run", run_name="__main__", alter_sys=True)
 
 # --stages: each rank's traced numpy/Python memory (tracemalloc) over each step of the build
 # (thermal_kernel/rank_build.py's functions, wrapped), reported at exit
-STAGES = '''import atexit, json, os, runpy, sys, tracemalloc
-tracemalloc.start()
+STAGES = '''import atexit, json, os, runpy, sys, time, tracemalloc
+if TRACE:
+    tracemalloc.start()
 import thermal_kernel.rank_build as rb
 steps = []
 def wrap(name):
     f = getattr(rb, name)
     def g(*a, **k):
+        if not TRACE:           # the wall seconds, without tracemalloc's cost
+            t0 = time.perf_counter()
+            out = f(*a, **k)
+            steps.append(dict(step=name, seconds=time.perf_counter() - t0))
+            return out
         start = tracemalloc.get_traced_memory()[0]
         tracemalloc.reset_peak()
         out = f(*a, **k)
@@ -99,11 +105,14 @@ atexit.register(lambda: os.write(2, ("STAGES " + rank + " " + json.dumps(steps) 
 sys.argv = ["thermal_kernel.mpi_run"] + sys.argv[1:]
 runpy.run_module("thermal_kernel.mpi_run", run_name="__main__", alter_sys=True)
 '''
-# the build's steps in the order build_on_ranks calls them (names in rank_build.py)
+# the build's steps in the order build_on_ranks calls them (names in rank_build.py); those in
+# ROOT_ALONE are rank 0's work while the other ranks wait (their wall time is serial)
 STEPS = ["_read_particles", "morton_blocks_on_ranks", "Routes", "_bulk_flags",
          "_contacts_to_owners", "_capacities_on_root", "_conducting_contacts", "_rank_rows",
          "_local_components", "_root_problem", "_send_particle_shares", "_held_rows",
          "_root_network"]
+ROOT_ALONE = ("_read_particles", "_bulk_flags", "_capacities_on_root", "_root_problem",
+              "_root_network")
 STAGE_CASES = [("1e6", "explicit", 2), ("1e6", "explicit", 3)]
 STAGES_JSON = ROOT / "bench/results/rank_build_stages.json"
 
@@ -128,14 +137,15 @@ def packing_1e6() -> Path:
 
 
 def run(code_root: Path, packing: Path, solver: str, ranks: int, tag: str,
-        stages: bool = False):
+        stages: bool = False, trace: bool = True):
     """Every rank's peak RSS (GB, rank order); ``stages``: every rank's steps instead (the
-    traced memory at each step's start, peak and end, bytes)."""
+    traced memory at each step's start, peak and end, bytes; ``trace`` False: each step's
+    wall seconds, untraced)."""
     from thermal_kernel.solvers.mpi_launch import MPIRUN_LOCAL, mpi_env, mpi_python
     scene = OUT / f"{tag}.toml"
     scene.write_text(f'packing = "{packing}"\n{THERMAL}{SOLVER[solver]}')
     wrapper = OUT / ("stages_wrapper.py" if stages else "rss_wrapper.py")
-    wrapper.write_text(f"STEPS = {STEPS!r}\n" + STAGES if stages else RSS)
+    wrapper.write_text(f"STEPS = {STEPS!r}\nTRACE = {trace!r}\n" + STAGES if stages else RSS)
     env = dict(mpi_env(), PYTHONPATH=str(code_root))
     done = subprocess.run(
         ["mpirun", "-n", str(ranks), *MPIRUN_LOCAL, "-x", "PYTHONPATH", "-x", "OMP_NUM_THREADS",
@@ -200,17 +210,25 @@ def main():
 
 def stages(packings, path: Path):
     """--stages: each rank's traced memory (tracemalloc: numpy's arrays and Python's objects,
-    not the libraries) at the start, peak and end of each step of the build, on the checkout's
-    code, into ``path``."""
+    not the libraries) at the start, peak and end of each step of the build, and each step's
+    wall seconds in a second, untraced run (best of three), on the checkout's code, into
+    ``path``."""
     from thermal_kernel.packing import read_packing
     rows = []
     load = [open("/proc/loadavg").read().split()[:3]]
     for label, solver, ranks in STAGE_CASES:
         p = read_packing(packings[label], contacts=False)
+        tag = f"stages_{label}_{solver}_{ranks}"
+        steps = run(ROOT, packings[label], solver, ranks, tag, stages=True)
+        for _ in range(3):      # the wall seconds: best of three untraced runs, per step
+            timed = run(ROOT, packings[label], solver, ranks, tag, stages=True, trace=False)
+            for mine, other in zip(steps, timed):
+                for s, t in zip(mine, other):
+                    assert s["step"] == t["step"], (s, t)
+                    s["seconds"] = min(s.get("seconds", float("inf")), t["seconds"])
         rows.append(dict(packing=str(packings[label].relative_to(ROOT)), n=p.n_particles,
-                         contacts=p.file_contacts, solver=solver, ranks=ranks,
-                         steps=run(ROOT, packings[label], solver, ranks,
-                                   f"stages_{label}_{solver}_{ranks}", stages=True)))
+                         contacts=p.file_contacts, solver=solver, ranks=ranks, steps=steps,
+                         root_alone=list(ROOT_ALONE)))
         print(f"{label} {solver} {ranks} ranks: done", flush=True)
     load.append(open("/proc/loadavg").read().split()[:3])
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,

@@ -713,8 +713,11 @@ def _doc_build_stages(st) -> list[str]:
     what rank 0 holds beyond the others, and where."""
     rows = st["rows"]
     by_r = {r["ranks"]: r for r in rows}
+    timed = all("seconds" in s for r in rows for s in r["steps"][0])
     head = "| step | what it does | " + " | ".join(
         f"{r['ranks']} ranks: rank 0 | {r['ranks']} ranks: other ranks" for r in rows) + " |"
+    if timed:
+        head += "".join(f" {r['ranks']} ranks: rank 0's wall s |" for r in rows)
     L = ["### What rank 0 holds, step by step of the build\n",
          f"Traced memory (tracemalloc: numpy's arrays and Python's objects, not the libraries "
          f"or the allocator's slack) of each rank at the peak of each step of "
@@ -722,8 +725,11 @@ def _doc_build_stages(st) -> list[str]:
          f"before the first step ({st['date']}, the code of {st['commit']}; "
          "`bench/bench_rank_build.py --stages`, not part of `make bench-scaling`; memory "
          f"only). {rows[0]['packing']}: {rows[0]['n']} particles, {rows[0]['contacts']} "
-         "contacts, explicit, Haddad's law, two held faces. '-': a step rank 0 makes alone.\n",
-         head, "|---|---|" + "---|---|" * len(rows)]
+         "contacts, explicit, Haddad's law, two held faces. '-': a step rank 0 makes alone."
+         + (" Wall seconds: rank 0's, per step, the best of three runs without tracemalloc "
+            f"(load {' / '.join(' '.join(x) for x in st['load'])}); the ranks share this "
+            "machine's 2 cores." if timed else "") + "\n",
+         head, "|---|---|" + "---|---|" * len(rows) + ("---|" * len(rows) if timed else "")]
 
     per = {r["ranks"]: stage_peaks(r) for r in rows}
     for name in [s["step"] for s in rows[0]["steps"][0]]:
@@ -732,6 +738,9 @@ def _doc_build_stages(st) -> list[str]:
             p = per[r["ranks"]]
             other = [q[name] for q in p[1:] if name in q]
             cells += [f"{p[0][name]:.0f}", f"{max(other):.0f}" if other else "-"]
+        if timed:
+            cells += [f"{next(s['seconds'] for s in r['steps'][0] if s['step'] == name):.3g}"
+                      for r in rows]
         L.append(f"| `{name}` | {STEP_WORDS.get(name, '')} | " + " | ".join(cells) + " |")
     L.append("")
     if 2 in by_r and 3 in by_r:
@@ -755,6 +764,17 @@ def _doc_build_stages(st) -> list[str]:
                  "step of issue 25 (the reader's checks and the boundary kinds on the "
                  "directories' blocks, the ledger, checks and writer on partial sums) removes "
                  "them.\n")
+    if timed and rows[0].get("root_alone"):
+        r = rows[0]
+        alone = [s for s in r["steps"][0] if s["step"] in r["root_alone"]]
+        total = sum(s["seconds"] for s in alone)
+        L.append("Time: the steps rank 0 makes while the other ranks wait ("
+                 + ", ".join(f"`{s['step']}`" for s in alone)
+                 + f") took {total:.2f} s on {r['ranks']} ranks, {total / r['n'] * 1e9:.2f} "
+                 "ns per particle, not divided by the ranks: at 1e9 particles about "
+                 f"{total / r['n'] * 1e9 / 60:.0f} min of the build on rank 0 alone (linear "
+                 "in N; the sort of the coincident-centre check adds a log N), before the "
+                 "first step of the solve.\n")
     return L
 
 
