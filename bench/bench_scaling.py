@@ -770,7 +770,7 @@ def _doc_build_stages(st) -> list[str]:
         total = sum(s["seconds"] for s in alone)
         L.append("Time: the steps rank 0 makes while the other ranks wait ("
                  + ", ".join(f"`{s['step']}`" for s in alone)
-                 + f") took {total:.2f} s on {r['ranks']} ranks, {total / r['n'] * 1e9:.2f} "
+                 + f") took {total:.2f} s on {r['ranks']} ranks, {total / r['n'] * 1e9:.0f} "
                  "ns per particle, not divided by the ranks: at 1e9 particles about "
                  f"{total / r['n'] * 1e9 / 60:.0f} min of the build on rank 0 alone (linear "
                  "in N; the sort of the coincident-centre check adds a log N), before the "
