@@ -29,8 +29,14 @@ def mechanical_properties(scene: Scene, packing: Packing) -> tuple[float, float]
 
 
 def particle_materials(scene: Scene, packing: Packing):
-    """Per-particle conductivity, density, heat capacity from the phases."""
+    """Per-particle conductivity, density, heat capacity from the phases, read-only: a packing
+    of one phase gets views of its material's three numbers (no arrays of N: 24 bytes per
+    particle fewer, the same values)."""
     phases = np.unique(packing.phase)
+    if phases.size == 1:
+        m = scene.material(phases[0])
+        return tuple(np.broadcast_to(np.float64(v), (packing.n_particles,))
+                     for v in (m.conductivity, m.density, m.heat_capacity))
     k = np.empty(packing.n_particles)
     rho = np.empty(packing.n_particles)
     cp = np.empty(packing.n_particles)
@@ -38,6 +44,8 @@ def particle_materials(scene: Scene, packing: Packing):
         m = scene.material(phase)
         sel = packing.phase == phase
         k[sel], rho[sel], cp[sel] = m.conductivity, m.density, m.heat_capacity
+    for a in (k, rho, cp):
+        a.flags.writeable = False
     return k, rho, cp
 
 
