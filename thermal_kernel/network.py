@@ -444,19 +444,23 @@ def network_of(problem: ThermalProblem, v: dict, terms: dict, adjacency, degree,
     for :func:`assemble` (whole) and the PETSc backend's rank 0 (``degree``, ``n_active``, the
     clusters, the largest coordination ``coord_max`` and the mean conducting H ``h_mean``
     gathered from the ranks; ``adjacency`` only the rows ``adjacency_rows``)."""
-    n, m = v["n"], v["m"]
+    m = v["m"]
     held, held_t, g_p = terms["held"], terms["held_t"], terms["g_p"]
     gt_p, pw_p = terms["gt_p"], terms["pw_p"]
     c = v["capacity"]
-    denom = degree + g_p
-    ok = (~held) & (denom > 0)
+    # (in place: two arrays of N at most, not five)
+    ratio = degree + g_p
+    ok = ratio > 0
+    ok &= ~held
     if ok.any():
-        ratio = np.full(n, np.inf)
-        ratio[ok] = c[ok] / denom[ok]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            np.divide(c, ratio, out=ratio)
+        ratio[~ok] = np.inf
         p_min = int(np.argmin(ratio))
         dt_max = float(ratio[p_min])
     else:
         p_min, dt_max = -1, float("inf")
+    del ratio, ok
     # Paper 002 eq. 15-16 in network form: every particle like the mean particle, every contact
     # like the mean contact, the largest coordination number.
     if n_active:
