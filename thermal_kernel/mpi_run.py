@@ -121,7 +121,8 @@ def _run(args, rank, held):
     if per_rank:            # each rank reads and builds its own rows (rank_build.py)
         rb = build_on_ranks(scene, packing_path, comm, conductance_factor=args.conductance_factor)
         if rank == 0:
-            built.update(packing=rb.particles, info=rb.info, net=rb.net)
+            built.update(packing=rb.particles, info=rb.info, net=rb.net,
+                         packing_hash=rb.packing_sha256)
     resumed_at = backend.on_root(
         comm, lambda: _prepare_on_root(args, scene, packing_path, per_rank, built, t0))
     net = built.get("net")
@@ -201,7 +202,7 @@ def _prepare_on_root(args, scene, packing_path, per_rank, built, t0):
         _check_step_count(scene, solver.safety * net.dt_max_s if np.isnan(solver.dt)
                           else solver.dt, "solver.end_time" if np.isnan(solver.dt)
                           else "solver.dt")
-    packing_hash = packing_sha256(packing)
+    packing_hash = built.get("packing_hash") or packing_sha256(packing)  # the ranks': made
     resumed = check_resume(scene, args.checkpoint_every, args.resume, packing.n_particles,
                            packing_hash, packing_path)
     built.update(scene_json=scene_json, packing_hash=packing_hash, assemble_t0=t0,

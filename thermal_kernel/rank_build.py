@@ -47,11 +47,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .checkpoint import packing_sha256
 from .neighbours import bulk_particles, choose_neighbours_on_ranks, dump_gap_tolerance_of
 from .network import cluster_report, network_of, particle_terms, validate
 from .packing import (CONTACT_BLOCK_ROWS, Packing, PackingError, _check_pairs,
@@ -80,6 +82,7 @@ class RankBuild:
     particles: object = None
     net: object = None
     info: dict | None = None
+    packing_sha256: str = ""
 
 
 def agree(comm, fn):
@@ -169,7 +172,9 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
 
     # 1. rank 0: the particles whole; each rank its block of the file's particles, the Morton
     # order sorted on the ranks, its block of it
-    particles, head = _read_particles(comm, packing_path)
+    particles, head, packing_hash = _read_particles(comm, packing_path)
+    root_in = dict(particles=particles)     # rank 0: dropped once the boundary kinds ran
+    del particles
     n, m, path = head["n"], head["m"], head["path"]
     starts = block_starts(n, size)          # the ranks' blocks of the Morton order
     fblock = starts                         # the directories' blocks of the file's particles
@@ -178,7 +183,7 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     mine = morton_blocks_on_ranks(comm, fb["position"], starts)
     routes = Routes(comm, mine, starts)     # owners <-> directories <-> rank 0 (file order)
     own_new = routes.places()               # the file block's places in the order
-    n_bulk, own_bulk = _bulk_flags(comm, scene.neighbours, particles, fblock)
+    n_bulk, own_bulk = _bulk_flags(comm, scene.neighbours, root_in["particles"], fblock)
 
     # 2. this rank's slice of the contact rows, checked, chosen, sent to their particles' owners
     got, nb_block, choice = _contacts_to_owners(scene, comm, head, starts, fblock, fb, own_new,
@@ -187,7 +192,7 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
 
     # 3. rank 0: the law's capacities and inputs on the whole particles (its boundary kinds',
     # its output's), then the law on each rank's contacts and this rank's rows of A
-    whole = _capacities_on_root(scene, comm, particles, nb_block, fblock)
+    root_in.update(_capacities_on_root(scene, comm, root_in["particles"], nb_block, fblock))
     directory = dict(radius=fb["radius"], phase=fb["phase"], nb=nb_block, new=own_new)
     del fb, nb_block, own_new
     ids, new_l, active = _conducting_contacts(scene, comm, head, got, directory, fblock,
@@ -208,9 +213,9 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     # 5. rank 0: the boundary kinds, the clusters; each rank its per-particle rows
     built = {}
     nb_count, has_source = comm.bcast(agree(comm, (lambda: _root_problem(
-        scene, particles, whole, choice, cut_all, gid_all, total_comp, built))
-        if rank == 0 else (lambda: None)), root=0)
-    cut_all = gid_all = whole = None        # the law's inputs whole: the kinds have used them
+        scene, root_in, choice, cut_all, gid_all, total_comp, built)) if rank == 0
+        else (lambda: None)), root=0)
+    cut_all = gid_all = None
     from .solvers.petsc_backend import share_block
     own = _send_particle_shares(comm, built, routes, starts)
     own.update(share_block(adjacency, degree, own["g"], lo, n, columns))
@@ -222,8 +227,9 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     if rank != 0:
         return RankBuild(share=own, meta=meta, mine=mine, routes=routes)
     net = _root_network(built, pieces, n, m, degree_all, totals)
-    return RankBuild(share=own, meta=meta, mine=mine, routes=routes, particles=particles,
-                     net=net, info=built["info"])
+    return RankBuild(share=own, meta=meta, mine=mine, routes=routes, particles=SimpleNamespace(
+        path=head["path"], n_particles=n), net=net, info=built["info"],
+        packing_sha256=packing_hash)
 
 
 def _index_dtype(n):
@@ -235,17 +241,19 @@ def _read_particles(comm, packing_path):
     """Step 1: rank 0 reads the packing without its contacts (checked as always: the boundary
     kinds and the output need the particles whole); every rank gets its
     head (counts, path, attributes, domain and the contact checks' scales). Returns the
-    particles (None but on rank 0) and the head."""
+    particles and the packing's sha256 (the checkpoints' and the output's; made here, so the
+    particles can go once the boundary kinds ran), None and "" but on rank 0, and the head."""
     rank = comm.Get_rank()
     particles = agree(comm, lambda: read_packing(packing_path, contacts=False)
                       if rank == 0 else None)
-    head = None
+    head, packing_hash = None, ""
     if rank == 0:
         p = particles
         head = dict(n=p.n_particles, m=int(p.file_contacts), path=p.path, attrs=p.attrs,
                     lo=p.domain_lo, hi=p.domain_hi, periodic=p.periodic,
                     scales=contact_check_scales(p.position, p.domain_lo, p.domain_hi))
-    return particles, comm.bcast(head, root=0)
+        packing_hash = packing_sha256(p)
+    return particles, comm.bcast(head, root=0), packing_hash
 
 
 def _bulk_flags(comm, crit, particles, fblock):
@@ -434,16 +442,22 @@ def _local_components(comm, adjacency, columns, lo, hi, mine):
     return gid, cut_edges, n_comp, first.astype(np.int64)
 
 
-def _root_problem(scene, particles, whole, choice, cut_all, gid_all, total_comp, built):
+def _root_problem(scene, root_in, choice, cut_all, gid_all, total_comp, built):
     """Step 5, rank 0: the boundary kinds (the one registry) on the whole particles, the
     per-particle terms, the clusters (the ranks' components joined by the cut contacts), into
-    ``built``. Returns the number of boundaries and whether there is a source (every rank
+    ``built``. ``root_in`` (the particles, the law's outputs on them) is emptied once the
+    kinds ran: the particles' arrays go before the terms are made (a source keeps the centres
+    it evaluates). Returns the number of boundaries and whether there is a source (every rank
     needs them)."""
-    problem, info = boundary_problem(scene, particles, whole["law"], whole["params"],
-                                     whole["pinput"], whole["capacity"], np.zeros(0), choice)
+    particles = root_in.pop("particles")
+    n = particles.n_particles
+    problem, info = boundary_problem(scene, particles, root_in["law"], root_in["params"],
+                                     root_in["pinput"], root_in["capacity"], np.zeros(0),
+                                     choice)
+    del particles
+    root_in.clear()
     v = validate(problem)
     terms = particle_terms(v)
-    n = particles.n_particles
     k, label = _join_components(cut_all, gid_all, total_comp, n)
     clusters = cluster_report(k, label, terms["held"] | (terms["g_p"] > 0))
     held_boundary = np.full(n, -1, np.int32)
