@@ -381,7 +381,7 @@ def _atoms(atoms_path, a, density):
 def _pairs(atoms_path, pairs_path, p, ids, index, position, radius, periodic, lo_box, period):
     """The touching pairs (i < j, one row each; delta checked against the positions): i, j,
     delta, |F|, branch, the largest delta - geometry difference, duplicate and gap rows."""
-    from thermal_kernel.packing import OVERLAP_RTOL
+    from thermal_kernel.packing import OVERLAP_RTOL, abs_max
     n = len(radius)
     cols = _columns(p, pairs_path, PAIR_COLUMNS, PAIR_HINT)
     _integers(pairs_path, "id1/id2 (columns 1-2)", np.concatenate([cols["id1"], cols["id2"]]),
@@ -423,7 +423,7 @@ def _pairs(atoms_path, pairs_path, p, ids, index, position, radius, periodic, lo
     # the overlap LIGGGHTS states must be the one of the dumped spheres (the default 6-digit
     # dump format costs ~1e-5 of a radius; the reader's tolerance is OVERLAP_RTOL of it)
     r_min = np.minimum(radius[i], radius[j])
-    tol = OVERLAP_RTOL * r_min + 1e-12 * (np.abs(position).max() + r_min)
+    tol = OVERLAP_RTOL * r_min + 1e-12 * (abs_max(position) + r_min)
     off = np.abs(geo - delta) > tol
     if off.any():
         c = int(np.flatnonzero(off)[0])
@@ -482,8 +482,9 @@ def _wall_positions(walls_path, a, w, wall_spec, ids, position, radius, periodic
                     w_wall, w_over, inferred):
     """Each wall's point and inward normal: given, else where its contacts put it, else at the
     spheres' extreme; contacts off their wall refused."""
-    from thermal_kernel.packing import OVERLAP_RTOL
+    from thermal_kernel.packing import OVERLAP_RTOL, abs_max
     wall_point, wall_normal = [], []
+    top = abs_max(position)                 # max |x|, once (the walls' tolerances)
     for k, (name, axis, side, coord) in enumerate(wall_spec):
         sign = 1.0 if side == "min" else -1.0       # the normal points into the domain
         normal = np.zeros(3)
@@ -496,7 +497,7 @@ def _wall_positions(walls_path, a, w, wall_spec, ids, position, radius, periodic
             q = w_part[rows]
             implied = position[q, axis] - sign * (radius[q] - w_over[rows])
             median = float(np.median(implied))
-            tol = OVERLAP_RTOL * radius[q] + 1e-12 * (np.abs(position).max() + radius[q])
+            tol = OVERLAP_RTOL * radius[q] + 1e-12 * (top + radius[q])
             if coord is not None and abs(median - coord) > float(np.median(tol)):
                 raise UserError(
                     f"--walls: {name}={coord:g} contradicts {walls_path}: its "

@@ -62,7 +62,7 @@ from .packing import (CONTACT_BLOCK_ROWS, Packing, PackingError, _check_pairs,
 from .problem import boundary_problem, evaluate_law
 from .scene import SceneError
 from .solvers.partition import (Routes, alltoallv, block_starts, exchange_counts,
-                                 morton_blocks_on_ranks)
+                                 gather_blocks, morton_blocks_on_ranks, scatter_blocks)
 
 class RankError(RuntimeError):
     """Another rank's part of the build failed: its one-line message (each rank raises)."""
@@ -129,15 +129,6 @@ def _sum_at_directories(comm, ids, values, fblock):
     vals = alltoallv(comm, np.asarray(values, dtype=np.int64), send_n, recv_n)
     return np.bincount(got, weights=vals, minlength=int(fblock[rank + 1] - fblock[rank])
                        ).astype(np.int64)
-
-
-def _scatter_blocks(comm, whole, starts, dtype=np.int64):
-    """This rank's block ``starts[r]:starts[r + 1]`` of an (N,) array given on rank 0."""
-    rank = comm.Get_rank()
-    out = np.empty(int(starts[rank + 1] - starts[rank]), dtype=dtype)
-    send = (np.ascontiguousarray(whole, dtype=dtype), np.diff(starts)) if rank == 0 else None
-    comm.Scatterv(send, out, root=0)
-    return out
 
 
 def _exchange_contacts(comm, fields: dict, oi, oj, size):
@@ -265,7 +256,7 @@ def _bulk_flags(comm, crit, particles, fblock):
     rank = comm.Get_rank()
     bulk = (bulk_particles(particles, crit.bulk_margin_diameters) if rank == 0 else None)
     n_bulk = comm.bcast(int(bulk.sum()) if rank == 0 else None, root=0)
-    return n_bulk, _scatter_blocks(comm, bulk, fblock, np.uint8)
+    return n_bulk, scatter_blocks(comm, bulk, fblock, np.uint8)
 
 
 def _contacts_to_owners(scene, comm, head, starts, fblock, fb, own_new, n_bulk, own_bulk):
@@ -349,7 +340,7 @@ def _capacities_on_root(scene, comm, particles, nb_block, fblock):
     its boundary kinds and output read), with the neighbour counts gathered from the
     directories. Returns them (a dict on rank 0, empty on the others)."""
     whole = {}
-    nb_whole = _gather_file_order(comm, nb_block, fblock)
+    nb_whole = gather_blocks(comm, nb_block, fblock)
 
     def capacities():
         law, params, pinput, _, capacity = evaluate_law(scene, particles, None, nb_whole)
@@ -512,16 +503,6 @@ def _root_network(built, pieces, n, m, degree_all, totals):
                       built["clusters"], totals["coord_max"],
                       totals["h_sum"] / n_active if n_active else math.nan,
                       adjacency_rows=np.flatnonzero(built["keep"]))
-
-
-def _gather_file_order(comm, local, fblock):
-    """The directories' blocks gathered on rank 0, whole, in the file's order."""
-    if comm.Get_rank() != 0:
-        comm.Gatherv(np.ascontiguousarray(local), None, root=0)
-        return None
-    buf = np.empty(int(fblock[-1]), dtype=local.dtype)
-    comm.Gatherv(np.ascontiguousarray(local), (buf, np.diff(fblock)), root=0)
-    return buf
 
 
 def _send_particle_shares(comm, built, routes, starts):

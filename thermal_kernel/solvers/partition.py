@@ -85,6 +85,27 @@ def alltoallv(comm, send, send_n, recv_n):
     return recv
 
 
+def gather_blocks(comm, block, starts):
+    """Every rank's block ``starts[r]:starts[r + 1]`` gathered on rank 0 as one (N,) array
+    (None elsewhere)."""
+    block = np.ascontiguousarray(block)
+    if comm.Get_rank() != 0:
+        comm.Gatherv(block, None, root=0)
+        return None
+    out = np.empty(int(starts[-1]), dtype=block.dtype)
+    comm.Gatherv(block, (out, np.diff(starts)), root=0)
+    return out
+
+
+def scatter_blocks(comm, whole, starts, dtype=np.float64) -> np.ndarray:
+    """This rank's block ``starts[r]:starts[r + 1]`` of an (N,) array given on rank 0."""
+    rank = comm.Get_rank()
+    out = np.empty(int(starts[rank + 1] - starts[rank]), dtype=dtype)
+    send = (np.ascontiguousarray(whole, dtype=dtype), np.diff(starts)) if rank == 0 else None
+    comm.Scatterv(send, out, root=0)
+    return out
+
+
 def _before(keys, index, key, i) -> int:
     """How many of the pairs (``keys``, ``index``), sorted by key then index, precede
     (``key``, ``i``)."""
@@ -179,19 +200,10 @@ class Routes:
     def gather(self, local, dtype=np.float64):
         """The (N,) array of every rank's block gathered on rank 0 in the file's order (None
         elsewhere)."""
-        block = np.ascontiguousarray(self.to_directories(np.asarray(local, dtype=dtype)))
-        if self.comm.Get_rank() != 0:
-            self.comm.Gatherv(block, None, root=0)
-            return None
-        out = np.empty(int(self.starts[-1]), dtype=dtype)
-        self.comm.Gatherv(block, (out, np.diff(self.starts)), root=0)
-        return out
+        return gather_blocks(self.comm, self.to_directories(np.asarray(local, dtype=dtype)),
+                             self.starts)
 
     def scatter(self, whole, dtype=np.float64) -> np.ndarray:
         """This rank's block (in the order) of an (N,) array given on rank 0 in the file's
         order."""
-        block = np.empty(self.n_directory, dtype=dtype)
-        send = (np.ascontiguousarray(whole, dtype=dtype), np.diff(self.starts)) \
-            if self.comm.Get_rank() == 0 else None
-        self.comm.Scatterv(send, block, root=0)
-        return self.from_directories(block)
+        return self.from_directories(scatter_blocks(self.comm, whole, self.starts, dtype))
