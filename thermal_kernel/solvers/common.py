@@ -125,31 +125,51 @@ def start_state(net: Network, T0, t_start, method: str):
     """(T, t, step, boundary_energy, source_energy, T_ref, dt or None) from an array or a
     SolverState. From an array, held particles are set to their temperature and the energy this
     takes, C_p (T_held - T0_p), is credited to their boundary at t_start."""
-    nb = net.problem.n_boundaries
+    T, t, step, energy, src, ref, dt = start_parts(T0, t_start, net.n)
+    if ref is not None:                 # a state: as it was
+        return T, t, step, energy, src, ref, dt
+    ref = T.copy()
+    energy = hold_start(T, net.fixed_particle, net.fixed_boundary,
+                        net.capacity_j_k[net.fixed_particle],
+                        net.held_temperature_k[net.fixed_particle], net.problem.n_boundaries)
+    return T, t, step, energy, src, ref, dt
+
+
+def start_parts(T0, t_start, n: int):
+    """:func:`start_state` before the held particles are set: (T, t, step, boundary_energy,
+    source_energy, T_ref, dt) from a SolverState as it was; from an array or a number, T (a new
+    (n,) array, checked), t_start (0 if None), step 0, and None for the energy, T_ref and dt
+    (:func:`hold_start` books the hold; T_ref is T before it). In-process and on the PETSc
+    backend's rank 0 (whose ranks hold the particles' rows)."""
     if isinstance(T0, SolverState):
         if t_start is not None and t_start != T0.time_s:
             raise ValueError(f"t_start = {t_start} given with a state at t = {T0.time_s}")
         T = np.array(T0.temperature_k, dtype=np.float64)
-        if T.shape != (net.n,):
-            raise ValueError(f"state: temperature has shape {T.shape}, expected ({net.n},)")
+        if T.shape != (n,):
+            raise ValueError(f"state: temperature has shape {T.shape}, expected ({n},)")
         return (T, float(T0.time_s), int(T0.step),
                 np.array(T0.boundary_energy_j, dtype=np.float64), float(T0.source_energy_j),
                 np.asarray(T0.reference_temperature_k, dtype=np.float64), T0.dt_s)
     T = np.array(T0, dtype=np.float64)
     if T.ndim == 0:
-        T = np.full(net.n, float(T))
-    if T.shape != (net.n,):
-        raise ValueError(f"T0: shape {T.shape}, expected ({net.n},)")
+        T = np.full(n, float(T))
+    if T.shape != (n,):
+        raise ValueError(f"T0: shape {T.shape}, expected ({n},)")
     if not np.all(np.isfinite(T)):
         raise ValueError("T0: non-finite initial temperatures")
-    ref = T.copy()
+    return T, float(0.0 if t_start is None else t_start), 0, None, 0.0, None, None
+
+
+def hold_start(T, fixed, fixed_boundary, capacity_fixed, held_t_fixed, nb: int) -> np.ndarray:
+    """Sets the held rows ``fixed`` of ``T`` (in place) to their temperature ``held_t_fixed``
+    and returns (nb,) the energy this takes, C_p (T_held - T0_p) by boundary (the ledger's start):
+    the whole network in-process, a rank's own rows on the PETSc backend."""
     energy = np.zeros(nb)
-    fp = net.fixed_particle
-    if fp.size:
-        jump = net.capacity_j_k[fp] * (net.held_temperature_k[fp] - T[fp])
-        energy += np.bincount(net.fixed_boundary, weights=jump, minlength=nb)
-        T[fp] = net.held_temperature_k[fp]
-    return T, float(0.0 if t_start is None else t_start), 0, energy, 0.0, ref, None
+    if fixed.size:
+        jump = capacity_fixed * (held_t_fixed - T[fixed])
+        energy += np.bincount(fixed_boundary, weights=jump, minlength=nb)
+        T[fixed] = held_t_fixed
+    return energy
 
 
 class Recorder:
@@ -168,14 +188,21 @@ class Recorder:
         self.ref = ref
         self.on_output = on_output
 
-    def record(self, k, T, energy, source_energy, source_w=None):
+    def record(self, k, T, energy, source_energy, source_w=None, *, flow_w=None,
+               stored_j=None):
+        """Output time ``k``: the temperatures ``T``, the ledger's totals, and the boundaries'
+        heat flows and the stored energy computed here from the network at ``T`` (the source's
+        powers ``source_w`` at that instant), or given (``flow_w`` (B,) W, ``stored_j`` J: the
+        PETSc backend's ranks sum them over their rows)."""
         if self.keep:
             self.T[k] = T
         # a diverging run (allow_unstable) is reported in one line by run_scene; no
         # RuntimeWarning of numpy on the way there
         with np.errstate(invalid="ignore", over="ignore"):
-            self.flow[k] = self.net.boundary_heat_flow(T, source_w)
-            self.stored[k] = float(np.dot(self.net.capacity_j_k, T - self.ref))
+            self.flow[k] = (self.net.boundary_heat_flow(T, source_w) if flow_w is None
+                            else flow_w)
+            self.stored[k] = (float(np.dot(self.net.capacity_j_k, T - self.ref))
+                              if stored_j is None else float(stored_j))
         self.energy[k] = energy
         self.source[k] = source_energy
         if self.on_output is not None:

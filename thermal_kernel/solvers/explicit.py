@@ -224,10 +224,16 @@ def check_dt(net, dt, allow_unstable: bool):
 
 def explicit_start(net, T0, times, t_start, dt, safety, allow_unstable):
     """(T, t, step, boundary energy, source energy, T_ref, times, dt, flags) of an explicit run
-    from ``T0`` (array or state): :func:`start_state`, the output times checked, and dt (given,
-    the state's, or ``safety`` x the bound) checked against the bound. In-process and on the
-    PETSc backend's rank 0."""
+    from ``T0`` (array or state): :func:`start_state`, then :func:`explicit_schedule`."""
     T, t, step0, energy, src_energy, ref, state_dt = start_state(net, T0, t_start, "explicit")
+    times, dt, flags = explicit_schedule(net, t, state_dt, times, dt, safety, allow_unstable)
+    return T, t, step0, energy, src_energy, ref, times, dt, flags
+
+
+def explicit_schedule(net, t, state_dt, times, dt, safety, allow_unstable):
+    """(times, dt, flags) of an explicit run from ``t``: the output times checked, and dt
+    (given, the state's ``state_dt``, or ``safety`` x the bound) checked against the bound.
+    In-process and on the PETSc backend's rank 0."""
     times = check_times(times, t)
     if dt is None:
         dt = state_dt if state_dt is not None else safety * net.dt_max_s
@@ -235,8 +241,7 @@ def explicit_start(net, T0, times, t_start, dt, safety, allow_unstable):
             raise ValueError(f"safety = {safety}: must be in (0, 1] (above 1 only with "
                              "allow_unstable)")
     dt = float(dt)
-    flags = list(net.flags) + list(check_dt(net, dt, allow_unstable))
-    return T, t, step0, energy, src_energy, ref, times, dt, flags
+    return times, dt, list(net.flags) + list(check_dt(net, dt, allow_unstable))
 
 
 # ----------------------------------------------------------------------------- driver

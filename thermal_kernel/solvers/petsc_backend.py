@@ -54,9 +54,10 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from .common import Recorder, SolverState, ThermalResult, instantaneous_source, step_plan
-from .explicit import explicit_start
-from .implicit import drive_implicit, implicit_start, scheme_args
+from .common import (Recorder, SolverState, ThermalResult, check_times, hold_start,
+                     start_parts, step_plan)
+from .explicit import explicit_schedule
+from .implicit import drive_implicit, scheme_args
 from .partition import Routes, block_starts, cut_contacts, owner_of_particle, particle_order
 from .steady import steady_inputs, steady_result, untied_temperatures
 
@@ -338,6 +339,34 @@ class DistributedNetwork:
     def total(self, partial: np.ndarray) -> np.ndarray:
         return self.mpi.allreduce(partial)
 
+    def start_rows(self, T_whole, ref_whole):
+        """This rank's rows of a transient run's start, collective: ``T_whole`` (rank 0, from
+        :func:`~.common.start_parts`) scattered; from a state its ledger's reference
+        ``ref_whole`` too (None: an array's start, whose held rows this rank sets, booking the
+        energy that takes, :func:`~.common.hold_start`, and whose reference is T before it).
+        Returns (T, T_ref, this rank's part of the ledger (B,)): rank 0 holds no copy of
+        either."""
+        tl = self.scatter(T_whole)
+        if self.mpi.bcast(ref_whole is not None if self.rank == 0 else None, root=0):
+            return tl, self.scatter(ref_whole), np.zeros(self.nb)
+        ref_local = tl.copy()
+        fl = self.fixed_local
+        energy = hold_start(tl, fl, self.fixed_boundary, self.capacity[fl], self.held_t[fl],
+                            self.nb)
+        return tl, ref_local, energy
+
+    def output_terms(self, t_local, ref_local, t) -> np.ndarray:
+        """(B + 1,) this rank's part of what is recorded at an output time ``t`` besides the
+        temperatures: the boundaries' heat flows at ``t_local`` (the terms of
+        Network.boundary_heat_flow on its rows, the source's power at that instant included;
+        rank 0 adds the constant power) and the stored energy sum C (T - T_ref) over its
+        rows. Collective (the mat-vec, a source's scatter)."""
+        flow = self.partial_flows(t_local, self.matvec(t_local))
+        sw = self.source_powers(t, t)
+        if sw is not None:
+            self.source_ledger(flow, sw, 1.0)
+        return np.append(flow, float(np.dot(self.capacity, t_local - ref_local)))
+
     def gather(self, t_local: np.ndarray):
         """The whole (N,) array in the packing's order on rank 0 (None elsewhere), through the
         particles' directories (no rank holds the order)."""
@@ -426,11 +455,17 @@ def _share_keys():
             "ex_held_b")
 
 
-def _record(dist, rec, k, t_local, energy_partial, src_energy, tk):
-    energy = dist.total(energy_partial)
+def _record(dist, rec, k, t_local, ref_local, energy_partial, src_energy, tk, const_b):
+    """Output time ``k`` (``tk`` s): the ledger, the flows and the stored energy summed over
+    the ranks' rows (one reduction; rank 0 adds the constant power ``const_b``), the
+    temperatures gathered; rank 0 records them in ``rec``. Collective."""
+    nb = dist.nb
+    sums = dist.total(np.concatenate([energy_partial,
+                                      dist.output_terms(t_local, ref_local, tk)]))
     T = dist.gather(t_local)
     if dist.rank == 0:
-        rec.record(k, T, energy, src_energy, instantaneous_source(dist.net.problem, tk))
+        rec.record(k, T, sums[:nb], src_energy, flow_w=sums[nb:2 * nb] + const_b,
+                   stored_j=sums[2 * nb])
 
 
 def _land():
@@ -448,23 +483,23 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
     start = {}
 
     def prelude():
-        (T, t, step0, energy0, src, ref, times_c, dt_,
-         flags) = explicit_start(dist.net, T0, times, t_start, dt, safety, allow_unstable)
+        T, t, step0, energy0, src, ref, state_dt = start_parts(T0, t_start, dist.net.n)
+        times_c, dt_, flags = explicit_schedule(dist.net, t, state_dt, times, dt, safety,
+                                                allow_unstable)
         start.update(T=T, ref=ref, energy0=energy0)
         return dict(t=t, step0=step0, src=src, dt=dt_, flags=flags, times=times_c)
 
     p = dist.on_root(prelude)
     times, dt, t = p["times"], p["dt"], p["t"]
     net = dist.net
-    energy = start["energy0"].copy() if dist.rank == 0 else np.zeros(dist.nb)
-    const_b = np.asarray(net.constant_boundary_flow_w, dtype=np.float64) if dist.rank == 0 \
-        else np.zeros(dist.nb)
-    rec = Recorder(net, times, start["ref"], on_output is None, on_output) \
-        if dist.rank == 0 else None
+    tl, ref_l, energy = dist.start_rows(start.pop("T", None), start.pop("ref", None))
+    if start.get("energy0") is not None:          # rank 0: a state's ledger
+        energy += start["energy0"]
+    const_b = _constant_flows(dist)
+    rec = Recorder(net, times, None, on_output is None, on_output) if dist.rank == 0 else None
     src = [p["src"]]
     plan = step_plan(times, t, dt)
     n_total = sum(n for n, _ in plan)
-    tl = dist.scatter(start.get("T"))
     inv_c_free = np.where(dist.free, 1.0 / dist.capacity, 0.0)   # held rows: no change
     step_seconds, done = 0.0, 0
     dist.comm.barrier()
@@ -492,16 +527,16 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
                 progress(done, n_total, t1)
         step_seconds += time.perf_counter() - c0
         t_prev = tk
-        _record(dist, rec, k, tl, energy, src[0], tk)
+        _record(dist, rec, k, tl, ref_l, energy, src[0], tk, const_b)
     wall = time.perf_counter() - wall0
-    end = _end_of_run(dist, tl, energy, p["flags"])
+    end = _end_of_run(dist, tl, ref_l, energy, p["flags"])
     if end is None:
         return None
-    T_end, energy_total, flags = end
+    T_end, ref, energy_total, flags = end
     prob = net.problem
     state = SolverState(temperature_k=T_end, time_s=float(times[-1]), step=p["step0"] + done,
                         boundary_energy_j=energy_total, source_energy_j=src[0],
-                        reference_temperature_k=start["ref"], dt_s=dt, method="explicit")
+                        reference_temperature_k=ref, dt_s=dt, method="explicit")
     cups = net.n_active_contacts * done / step_seconds if step_seconds > 0 else float("nan")
     return ThermalResult(
         method="explicit", times=times, temperature_k=rec.T, boundary_heat_flow_w=rec.flow,
@@ -515,16 +550,26 @@ def run_explicit(dist: DistributedNetwork, T0, times, *, t_start=None, dt=None, 
         state=state)
 
 
-def _end_of_run(dist, tl, energy, flags):
+def _constant_flows(dist) -> np.ndarray:
+    """(B,) what rank 0 adds to the ranks' summed flows and ledger: the constant power of each
+    boundary (Network.constant_boundary_flow_w; zeros on the other ranks)."""
+    if dist.rank != 0:
+        return np.zeros(dist.nb)
+    return np.asarray(dist.net.constant_boundary_flow_w, dtype=np.float64)
+
+
+def _end_of_run(dist, tl, ref_local, energy, flags):
     """The end of a time-stepping run on the ranks (explicit and implicit), collective: whether
-    every rank's temperatures are finite, the boundaries' energies summed and the temperatures
-    gathered. On rank 0 (T_end, energy_total, flags + non_finite if any was not), else None."""
+    every rank's temperatures are finite, the boundaries' energies summed, the temperatures and
+    the ledger's reference gathered (the run's state). On rank 0 (T_end, T_ref, energy_total,
+    flags + non_finite if any was not), else None."""
     finite = dist.mpi.allreduce(bool(np.all(np.isfinite(tl))), op=_land())
     energy_total = dist.total(energy)
     T_end = dist.gather(tl)
+    ref = dist.gather(ref_local)
     if dist.rank != 0:
         return None
-    return T_end, energy_total, list(flags) + ([] if finite else ["non_finite"])
+    return T_end, ref, energy_total, list(flags) + ([] if finite else ["non_finite"])
 
 
 # ----------------------------------------------------------------------------- implicit
@@ -557,18 +602,19 @@ class DistributedOperator:
         dist, start = self.dist, {}
 
         def prelude():
-            net = dist.net
-            T, t, step0, energy0, src, ref, times_c = implicit_start(net, T0, t_start, times)
+            T, t, step0, energy0, src, ref, _ = start_parts(T0, t_start, dist.net.n)
             start.update(T=T, ref=ref, energy0=energy0)
-            return dict(t=t, step0=step0, src=src, flags=list(net.flags), times=times_c)
+            return dict(t=t, step0=step0, src=src, flags=list(dist.net.flags),
+                        times=check_times(times, t))
 
         p = dist.on_root(prelude)
-        self.T, self.ref = start.get("T"), start.get("ref")
-        self.energy0 = start["energy0"].copy() if self.is_root else np.zeros(dist.nb)
-        self.const_b = (np.asarray(self.net.constant_boundary_flow_w, dtype=np.float64)
-                        if self.is_root else np.zeros(dist.nb))
+        self.t_local, self.ref_local, self.energy0 = dist.start_rows(start.pop("T", None),
+                                                                     start.pop("ref", None))
+        if start.get("energy0") is not None:      # rank 0: a state's ledger
+            self.energy0 += start["energy0"]
+        self.const_b = _constant_flows(dist)
         if self.is_root:
-            self.recorder = Recorder(self.net, p["times"], self.ref, self.on_output is None,
+            self.recorder = Recorder(self.net, p["times"], None, self.on_output is None,
                                      self.on_output)
         return p["times"], p["t"], p["step0"], p["src"], p["flags"]
 
@@ -576,7 +622,8 @@ class DistributedOperator:
         pass
 
     def unknowns(self):
-        return self.dist.scatter(self.T), self.energy0
+        t_local, self.t_local = self.t_local, None
+        return t_local, self.energy0
 
     def factor(self, h, th):
         dist = self.dist
@@ -611,13 +658,20 @@ class DistributedOperator:
             self.dist.source_ledger(energy, sw, h)
 
     def record(self, k, tl, energy, src_energy, tk):
-        _record(self.dist, self.recorder, k, tl, energy, src_energy, tk)
+        _record(self.dist, self.recorder, k, tl, self.ref_local, energy, src_energy, tk,
+                self.const_b)
 
     def barrier(self):
         self.dist.comm.barrier()
 
     def finish(self, tl, energy, flags):
-        return _end_of_run(self.dist, tl, energy, flags)
+        """(T at the end, the ledger, flags) on rank 0 (None elsewhere); ``ref`` becomes the
+        ledger's whole reference there (the run's state)."""
+        end = _end_of_run(self.dist, tl, self.ref_local, energy, flags)
+        if end is None:
+            return None
+        T_end, self.ref, energy_total, flags = end
+        return T_end, energy_total, flags
 
     def solver_info(self, solvers):
         return dict(linear_solver=f"petsc-cg-{self.pc}", cg_iterations=self.iterations,
