@@ -82,9 +82,10 @@ STAGES = '''import atexit, json, os, runpy, sys, time, tracemalloc
 if TRACE:
     tracemalloc.start()
 import thermal_kernel.rank_build as rb
+import thermal_kernel.solvers.petsc_backend as pb
 steps = []
-def wrap(name):
-    f = getattr(rb, name)
+def wrap(name, module=rb):
+    f = getattr(module, name)
     def g(*a, **k):
         if not TRACE:           # the wall seconds, without tracemalloc's cost
             t0 = time.perf_counter()
@@ -97,9 +98,11 @@ def wrap(name):
         end, peak = tracemalloc.get_traced_memory()
         steps.append(dict(step=name, start=start, peak=peak, end=end))
         return out
-    setattr(rb, name, g)
+    setattr(module, name, g)
 for name in STEPS:
     wrap(name)
+for name in RUN_STEPS:        # the run after the build (mpi_run calls it through the module)
+    wrap(name, pb)
 rank = os.environ.get("OMPI_COMM_WORLD_RANK")
 atexit.register(lambda: os.write(2, ("STAGES " + rank + " " + json.dumps(steps) + "\\n").encode()))
 sys.argv = ["thermal_kernel.mpi_run"] + sys.argv[1:]
@@ -111,6 +114,9 @@ STEPS = ["_read_particles", "morton_blocks_on_ranks", "Routes", "_bulk_flags",
          "_contacts_to_owners", "_capacities_on_root", "_conducting_contacts", "_rank_rows",
          "_local_components", "_root_problem", "_send_particle_shares", "_held_rows",
          "_root_network"]
+# after the build: the run itself (petsc_backend's solver functions), what each rank holds
+# for it and at its peak (the explicit cases of STAGE_CASES)
+RUN_STEPS = ["run_explicit"]
 ROOT_ALONE = ("_read_particles", "_bulk_flags", "_capacities_on_root", "_root_problem",
               "_root_network")
 STAGE_CASES = [("1e6", "explicit", 2), ("1e6", "explicit", 3)]
@@ -145,7 +151,8 @@ def run(code_root: Path, packing: Path, solver: str, ranks: int, tag: str,
     scene = OUT / f"{tag}.toml"
     scene.write_text(f'packing = "{packing}"\n{THERMAL}{SOLVER[solver]}')
     wrapper = OUT / ("stages_wrapper.py" if stages else "rss_wrapper.py")
-    wrapper.write_text(f"STEPS = {STEPS!r}\nTRACE = {trace!r}\n" + STAGES if stages else RSS)
+    wrapper.write_text(f"STEPS = {STEPS!r}\nRUN_STEPS = {RUN_STEPS!r}\nTRACE = {trace!r}\n"
+                       + STAGES if stages else RSS)
     env = dict(mpi_env(), PYTHONPATH=str(code_root))
     done = subprocess.run(
         ["mpirun", "-n", str(ranks), *MPIRUN_LOCAL, "-x", "PYTHONPATH", "-x", "OMP_NUM_THREADS",

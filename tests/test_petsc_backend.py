@@ -112,6 +112,7 @@ def _run(scene, out, ranks=None):
 def _read(path):
     with h5py.File(path, "r") as f:
         return {"T": f["temperature"][:], "T0": f["initial_temperature"][:],
+                "capacity": f["capacity"][:],
                 "flow": f["boundary_heat_flow"][:], "energy": f["boundary_energy"][:],
                 "source": f["source_energy"][:], "attrs": dict(f.attrs)}
 
@@ -129,6 +130,11 @@ def _assert_same(a, b, rtol):
                 "n_floating_clusters", "n_rattlers", "packing_sha256", "scene", "law_params"):
         assert a["attrs"][key] == b["attrs"][key], key
     assert b["attrs"]["backend"] == "petsc"
+    # the capacities gathered from the ranks, and the maximum principle's bounds from the
+    # extremes and rates of the network (exact operations: the same numbers)
+    np.testing.assert_array_equal(a["capacity"], b["capacity"])
+    np.testing.assert_array_equal(a["attrs"]["max_principle_bounds_k"],
+                                  b["attrs"]["max_principle_bounds_k"])
 
 
 @pytest.fixture(scope="module")

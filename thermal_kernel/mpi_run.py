@@ -108,6 +108,7 @@ def _run(args, rank, held):
     ExitStack) keeps rank 0's lock on the output until it returns."""
     from petsc4py import PETSc
 
+    from .network import summary_of
     from .rank_build import build_on_ranks
     from .solvers import petsc_backend as backend
 
@@ -131,6 +132,14 @@ def _run(args, rank, held):
         del rb
     else:
         dist = backend.DistributedNetwork(net, built["packing"].position if rank == 0 else None)
+    if rank == 0 and scene.solver.method != "steady":
+        # a transient run on the ranks reads no per-particle array of rank 0's network: the
+        # ranks record the flows and the stored energy, the checks have their inputs
+        # (built["principle"]), the output gathers the capacities; a source every rank
+        # evaluates on its block is not kept whole either
+        built["net"] = dist.net = summary_of(built["net"],
+                                             keep_source=dist.local_source is None)
+    net = built.get("net")
     if rank == 0:
         assemble_seconds = time.perf_counter() - built["assemble_t0"]
         # what the output reads of the packing (its path and size): the particles' arrays are
@@ -141,6 +150,8 @@ def _run(args, rank, held):
     if rank == 0 and not args.quiet:
         _print_network(scene, net, dist, built["info"])
     result, ckpt = _solve(args, scene, dist, T0, built, comm, resumed_at)
+    # the capacities the output holds, from the ranks' rows (rank 0's network is not read)
+    built["capacity"] = dist.gather(dist.capacity)
     if rank != 0:
         return
     _finish_on_root(args, scene, result, ckpt, dist, built, T0, assemble_seconds, t_start)
@@ -187,6 +198,7 @@ def _prepare_on_root(args, scene, packing_path, per_rank, built, t0):
     from .packing import read_packing
     from .problem import build_problem
     from .run import _check_step_count, check_resume
+    from .solvers import principle_inputs
 
     solver = scene.solver
     scene_json = scene_to_json(scene)
@@ -205,6 +217,8 @@ def _prepare_on_root(args, scene, packing_path, per_rank, built, t0):
     packing_hash = built.get("packing_hash") or packing_sha256(packing)  # the ranks': made
     resumed = check_resume(scene, args.checkpoint_every, args.resume, packing.n_particles,
                            packing_hash, packing_path)
+    # what the maximum principle's bounds need of the network, made while rank 0 holds it
+    built.update(principle=principle_inputs(net))
     built.update(scene_json=scene_json, packing_hash=packing_hash, assemble_t0=t0,
                  resumed=resumed, T0=np.full(packing.n_particles, scene.initial_temperature)
                  if args.initial_temperature is None else np.load(args.initial_temperature))
@@ -294,7 +308,8 @@ def _finish_on_root(args, scene, result, ckpt, dist, built, T0, assemble_seconds
         packing_hash, assemble_seconds, run_args_json, extra_attrs={
             "backend": "petsc", "ranks": int(dist.size), "cut_contacts": int(dist.cut),
             "linear_solver": str(result.info.get("linear_solver", "none")),
-            "run_seconds": float(time.perf_counter() - t_start)})
+            "run_seconds": float(time.perf_counter() - t_start)},
+        principle=built["principle"], capacity_j_k=built["capacity"])
     if ckpt is not None and ckpt.exists():
         ckpt.unlink()            # the output is complete: the checkpoint has served
     if args.state_out and result.state is not None:     # run_in_memory's result.state

@@ -112,11 +112,16 @@ class ClusterReport:
         return int(self.rattlers.size)
 
     def summary(self) -> str:
-        sizes = ", ".join(str(s) for s in self.floating_sizes[:10])
-        more = " ..." if self.floating_sizes.size > 10 else ""
-        return (f"{self.n_components} clusters; {self.n_floating} floating (not tied to a "
-                f"temperature or exchange boundary; sizes {sizes or '-'}{more}); "
-                f"{self.n_rattlers} rattlers (no conducting contact)")
+        return _clusters_line(self.n_components, self.floating_sizes, self.n_rattlers)
+
+
+def _clusters_line(n_components, floating_sizes, n_rattlers) -> str:
+    """The clusters' one-line summary (ClusterReport and ClusterCounts)."""
+    sizes = ", ".join(str(s) for s in floating_sizes[:10])
+    more = " ..." if floating_sizes.size > 10 else ""
+    return (f"{n_components} clusters; {floating_sizes.size} floating (not tied to a "
+            f"temperature or exchange boundary; sizes {sizes or '-'}{more}); "
+            f"{n_rattlers} rattlers (no conducting contact)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -248,6 +253,69 @@ class Network:
     @cached_property
     def has_constant_rhs(self) -> bool:
         return bool(np.any(self.constant_rhs_w != 0))
+
+
+@dataclass(frozen=True)
+class ClusterCounts:
+    """A :class:`ClusterReport`'s counts without its arrays of particles (NetworkSummary)."""
+    n_components: int
+    floating_sizes: np.ndarray      # (floating clusters,)
+    n_rattlers: int
+
+    @property
+    def n_floating(self) -> int:
+        return int(self.floating_sizes.size)
+
+    def summary(self) -> str:
+        return _clusters_line(self.n_components, self.floating_sizes, self.n_rattlers)
+
+
+@dataclass(frozen=True)
+class ProblemSummary:
+    """A :class:`ThermalProblem`'s boundaries and source, without its arrays (NetworkSummary).
+    ``source`` is None when the PETSc backend's ranks each evaluate it on their own block."""
+    boundary_names: tuple[str, ...]
+    source_boundary: int
+    source: Callable | None
+
+    @property
+    def n_boundaries(self) -> int:
+        return len(self.boundary_names)
+
+
+@dataclass(frozen=True, eq=False)
+class NetworkSummary:
+    """What a transient run reads of its network on the PETSc backend's rank 0 once every rank
+    holds its rows (thermal_kernel/mpi_run.py): its counts, the explicit bounds, the flags, the
+    clusters' counts, the boundaries' names and constant powers, the source. No array of
+    every particle (the ranks' rows hold them; the physics checks' inputs are
+    :class:`~thermal_kernel.solvers.PrincipleInputs`, made before). :func:`summary_of`."""
+    problem: ProblemSummary
+    n: int
+    n_active_contacts: int
+    n_zero_contacts: int
+    flags: tuple[str, ...]
+    dt_max_s: float
+    dt_max_particle: int
+    dt_paper_s: float
+    clusters: ClusterCounts
+    constant_boundary_flow_w: np.ndarray    # (B,) W
+
+
+def summary_of(net: Network, keep_source: bool = True) -> NetworkSummary:
+    """The :class:`NetworkSummary` of ``net`` (``keep_source`` False: without its source)."""
+    p, c = net.problem, net.clusters
+    return NetworkSummary(
+        problem=ProblemSummary(boundary_names=p.boundary_names,
+                               source_boundary=p.source_boundary,
+                               source=p.source if keep_source else None),
+        n=net.n, n_active_contacts=net.n_active_contacts, n_zero_contacts=net.n_zero_contacts,
+        flags=net.flags, dt_max_s=net.dt_max_s, dt_max_particle=net.dt_max_particle,
+        dt_paper_s=net.dt_paper_s,
+        clusters=ClusterCounts(n_components=c.n_components,
+                               floating_sizes=np.array(c.floating_sizes),
+                               n_rattlers=c.n_rattlers),
+        constant_boundary_flow_w=np.array(net.constant_boundary_flow_w, dtype=np.float64))
 
 
 def _as(name, a, dtype, shape):

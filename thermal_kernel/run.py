@@ -315,22 +315,26 @@ def _check_step_count(scene, dt, what):
                          "max_steps)")
 
 
-def checked(net, T0, result) -> tuple[ThermalResult, PhysicsCheck]:
+def checked(net, T0, result, principle=None) -> tuple[ThermalResult, PhysicsCheck]:
     """Every run's physics checks (thermal_kernel.solvers.check_physics) on a run from ``T0``,
     their flags added to the result's: (result with the flags, check). One home for the file
-    path, the in-memory path and the PETSc backend's rank 0."""
-    check = check_physics(net, T0, result)
+    path, the in-memory path and the PETSc backend's rank 0 (``principle``: the network's
+    PrincipleInputs, made there when the ranks' build ended)."""
+    check = check_physics(net, T0, result, inputs=principle)
     flags = tuple(result.flags) + tuple(f for f in check.flags if f not in result.flags)
     return dataclasses.replace(result, flags=flags), check
 
 
 def write_run_output(scene, result, net, T0, packing, info, scene_json, packing_hash,
-                     assemble_seconds, run_args_json, extra_attrs=None):
+                     assemble_seconds, run_args_json, extra_attrs=None, principle=None,
+                     capacity_j_k=None):
     """Every run's physics checks (thermal_kernel.solvers.check_physics) added to the result's
     flags, and thermal.h5 written with the run's attributes: the one home of both for the
     in-process run and the PETSc backend's rank 0 (thermal_kernel/mpi_run.py, which adds its
-    own attributes in extra_attrs). Returns (output path, result with the flags, check)."""
-    result, check = checked(net, T0, result)
+    own attributes in extra_attrs, and gives the network's PrincipleInputs ``principle`` and
+    the capacities ``capacity_j_k`` gathered from the ranks). Returns (output path, result
+    with the flags, check)."""
+    result, check = checked(net, T0, result, principle)
     attrs = {
         "law": scene.law, "method": result.method, "dt": float(result.dt),
         "dt_max": float(result.dt_max), "dt_paper": float(result.dt_paper),
@@ -373,7 +377,8 @@ def write_run_output(scene, result, net, T0, packing, info, scene_json, packing_
                         boundary_heat_flow_w=result.boundary_heat_flow_w,
                         boundary_energy_j=boundary_energy,
                         source_energy_j=source_energy,
-                        capacity_j_k=net.capacity_j_k, initial_temperature_k=T0,
+                        capacity_j_k=net.capacity_j_k if capacity_j_k is None
+                        else capacity_j_k, initial_temperature_k=T0,
                         boundary_names=result.boundary_names, attrs=attrs)
     return out, result, check
 

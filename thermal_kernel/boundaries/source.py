@@ -375,14 +375,13 @@ class MovingSource:
             return np.zeros(self.position.shape[0])
         return np.where(self.inside(t0), self.b.value * self.volume, 0.0)
 
-    def max_rise_k(self, capacity_j_k, free, t):
-        """(up, down) K: the most the source alone can raise / lower a free particle's
-        temperature by time ``t`` (from 0): max_p q V_p / (phi C_p) times the time it is on
-        (the bound :func:`~thermal_kernel.solvers.check_physics` widens the maximum principle
-        by)."""
-        on = max(0.0, min(float(t), self.b.stop_time) - self.b.start_time)
+    def max_rise_rate(self, capacity_j_k, free):
+        """(up K/s, down K/s, start s, stop s): the fastest the source alone can raise / lower a
+        free particle's temperature, max_p q V_p / (phi C_p), and when it is on; by time t it
+        adds at most rate x (the time it is on by then) (the bound
+        :func:`~thermal_kernel.solvers.check_physics` widens the maximum principle by). The
+        rate over some particles only (a rank's block) is their part of the maximum."""
         c = np.asarray(capacity_j_k, dtype=float)[free]
-        if c.size == 0 or on == 0.0:
-            return 0.0, 0.0
-        rate = float(np.max(abs(self.b.value) * self.volume[free] / c))
-        return (rate * on, 0.0) if self.b.value > 0 else (0.0, rate * on)
+        rate = float(np.max(abs(self.b.value) * self.volume[free] / c)) if c.size else 0.0
+        up, down = (rate, 0.0) if self.b.value > 0 else (0.0, rate)
+        return up, down, float(self.b.start_time), float(self.b.stop_time)

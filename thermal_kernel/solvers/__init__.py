@@ -13,6 +13,7 @@ from .common import (  # noqa: F401  what callers and docstrings take from the p
     MAX_PRINCIPLE_RTOL,
     TEMPERATURE_MAX_K,
     PhysicsCheck,
+    PrincipleInputs,
     Recorder,
     SolverState,
     ThermalResult,
@@ -21,11 +22,13 @@ from .common import (  # noqa: F401  what callers and docstrings take from the p
     check_physics,
     interval_steps,
     max_principle_bounds,
+    principle_inputs,
 )
 from .explicit import run_explicit, explicit_step_reference  # noqa: E402
 from .implicit import run_implicit  # noqa: E402
 from .steady import solve_steady  # noqa: E402
 
 __all__ = ["run_explicit", "run_implicit", "solve_steady", "explicit_step_reference",
-           "check_physics", "max_principle_bounds", "PhysicsCheck", "TEMPERATURE_MAX_K",
+           "check_physics", "max_principle_bounds", "principle_inputs", "PrincipleInputs",
+           "PhysicsCheck", "TEMPERATURE_MAX_K",
            "ThermalResult", "SolverState", "UnstableTimeStepError"]

@@ -258,43 +258,79 @@ class PhysicsCheck:
     ledger_relative: float       # worst |ledger residual| / energy moved
 
 
+@dataclass(frozen=True)
+class PrincipleInputs:
+    """What the maximum principle's bounds (:func:`bounds_at`) need of a network, besides the
+    start: the range of its prescribed temperatures (held particles, exchange walls; +inf /
+    -inf when it has none), the fastest a prescribed power raises / lowers a free particle
+    (max_p P_p^+ / C_p, max_p P_p^- / C_p, K/s), its source's fastest rise and fall and when
+    the source is on (:meth:`~thermal_kernel.boundaries.source.MovingSource.max_rise_rate`;
+    None without a source, ``source_unbounded`` for a source that gives no such rate), and
+    whether it is the plain principle (no source, no prescribed power). Made from the whole
+    network (:func:`principle_inputs`): when a run is checked, or on the PETSc backend's
+    rank 0 when its build ends (its transient run then keeps no per-particle array)."""
+    prescribed_lo_k: float
+    prescribed_hi_k: float
+    power_up_k_s: float
+    power_down_k_s: float
+    plain: bool
+    source_rate: tuple | None = None      # (up K/s, down K/s, start s, stop s)
+    source_unbounded: bool = False
+
+
+def principle_inputs(net: Network) -> PrincipleInputs:
+    """:class:`PrincipleInputs` of a whole network."""
+    prob = net.problem
+    vals = [net.held_temperature_k[net.fixed_particle],
+            np.asarray(net.exchange_row_temperature_k, dtype=np.float64)]
+    allv = np.concatenate(vals)
+    free = net.free
+    c = net.capacity_j_k[free]
+    pw = np.asarray(net.power_w, dtype=np.float64)[free]
+    rate = getattr(prob.source, "max_rise_rate", None)
+    return PrincipleInputs(
+        prescribed_lo_k=float(allv.min(initial=math.inf)),
+        prescribed_hi_k=float(allv.max(initial=-math.inf)),
+        power_up_k_s=float(np.max(np.clip(pw, 0, None) / c, initial=0.0)),
+        power_down_k_s=float(np.max(np.clip(-pw, 0, None) / c, initial=0.0)),
+        plain=prob.source is None and not np.any(np.asarray(net.power_w) != 0),
+        source_rate=None if rate is None else rate(net.capacity_j_k, free),
+        source_unbounded=prob.source is not None and rate is None)
+
+
 def max_principle_bounds(net: Network, T0, times) -> tuple[np.ndarray, np.ndarray]:
-    """(lo, hi) (K,) arrays: the bounds every temperature at ``times`` (from t = 0) must lie in.
+    """(lo, hi) (K,) arrays: the bounds every temperature at ``times`` (from t = 0) must lie in
+    (:func:`bounds_at` of the whole network's :func:`principle_inputs`)."""
+    T0 = np.broadcast_to(np.asarray(T0, dtype=np.float64), (net.n,))
+    return bounds_at(principle_inputs(net), float(T0.min()), float(T0.max()), times)
+
+
+def bounds_at(inputs: PrincipleInputs, t0_lo_k: float, t0_hi_k: float, times):
+    """(lo, hi) (K,) arrays: the bounds every temperature at ``times`` (from t = 0) must lie in,
+    for a start between ``t0_lo_k`` and ``t0_hi_k``.
 
     [lo0, hi0] is the range of the initial, held and exchange-wall temperatures; a prescribed
     power P_p (fluxes) and the source S_p(t) widen it by what they can add at most:
     hi(t) = hi0 + t max_p P_p^+ / C_p + (the source's largest rise by t), lo(t) alike with the
     negative parts (comparison principle: hi0 + r t, r >= max_p P_p / C_p, is a supersolution
     of C dT/dt = -(L + G) T + G Tw + P; the explicit update with dt <= dt_max and backward
-    Euler keep it too). A source that cannot bound its rise (no ``max_rise_k``) leaves the
-    bounds infinite."""
-    prob = net.problem
-    T0 = np.broadcast_to(np.asarray(T0, dtype=np.float64), (net.n,))
-    vals = [T0]
-    if net.fixed_particle.size:
-        vals.append(net.held_temperature_k[net.fixed_particle])
-    if net.exchange_particle.size:
-        vals.append(np.asarray(net.exchange_row_temperature_k, dtype=np.float64))
-    allv = np.concatenate(vals)
-    lo0, hi0 = float(allv.min()), float(allv.max())
+    Euler keep it too). A source that cannot bound its rise leaves the bounds infinite."""
+    lo0 = min(t0_lo_k, inputs.prescribed_lo_k)
+    hi0 = max(t0_hi_k, inputs.prescribed_hi_k)
     times = np.asarray(times, dtype=np.float64)
-    free = net.free
-    c = net.capacity_j_k[free]
-    pw = np.asarray(net.power_w, dtype=np.float64)[free]
-    up = float(np.max(np.clip(pw, 0, None) / c, initial=0.0))
-    down = float(np.max(np.clip(-pw, 0, None) / c, initial=0.0))
+    up, down = inputs.power_up_k_s, inputs.power_down_k_s
     with np.errstate(invalid="ignore", over="ignore"):
         hi = hi0 + np.where(up > 0, up * times, 0.0)
         lo = lo0 - np.where(down > 0, down * times, 0.0)
-    if prob.source is not None:
-        rise = getattr(prob.source, "max_rise_k", None)
+    if inputs.source_unbounded:
+        lo[:], hi[:] = -math.inf, math.inf
+    elif inputs.source_rate is not None:
+        r_up, r_down, start, stop = inputs.source_rate
         for k, t in enumerate(times):
-            if rise is None:
-                lo[k], hi[k] = -math.inf, math.inf
-                continue
-            r_up, r_down = rise(net.capacity_j_k, free, float(t))
-            hi[k] += r_up
-            lo[k] -= r_down
+            on = max(0.0, min(float(t), stop) - start)
+            if on > 0.0:
+                hi[k] += r_up * on
+                lo[k] -= r_down * on
     return lo, hi
 
 
@@ -318,7 +354,8 @@ def _ledger_relative(result: ThermalResult) -> float:
 
 
 def check_physics(net: Network, T0, result: ThermalResult, rtol: float = MAX_PRINCIPLE_RTOL,
-                  ledger_rtol: float = LEDGER_RTOL) -> PhysicsCheck:
+                  ledger_rtol: float = LEDGER_RTOL,
+                  inputs: PrincipleInputs | None = None) -> PhysicsCheck:
     """The maximum principle, the physical range and the energy ledger of ``result`` (a run
     from ``T0`` at t = 0).
 
@@ -328,15 +365,20 @@ def check_physics(net: Network, T0, result: ThermalResult, rtol: float = MAX_PRI
     Physical range: no temperature below 0 K, none above :data:`TEMPERATURE_MAX_K` (flags
     whatever the bounds). Ledger: transient runs, max |ledger residual| <= ``ledger_rtol`` x
     the largest energy moved (stored change, boundary and source energies); a steady solve,
-    its heat balance (sum of boundary flows) <= ``ledger_rtol`` x the flows."""
+    its heat balance (sum of boundary flows) <= ``ledger_rtol`` x the flows. ``inputs``: the
+    network's :class:`PrincipleInputs` when made elsewhere (the PETSc backend's ranks); else
+    :func:`principle_inputs` of ``net``."""
     flags, messages = [], []
     T = np.asarray(result.temperature_k, dtype=np.float64)
     lo = hi = math.nan
     overshoot = 0.0
+    if inputs is None:
+        inputs = principle_inputs(net)
     # the plain principle (no power, no source): what max_principle_checked has always meant
-    checked = net.problem.source is None and not np.any(np.asarray(net.power_w) != 0)
+    checked = inputs.plain
     if T.size:
-        los, his = max_principle_bounds(net, T0, result.times)
+        t0 = np.asarray(T0, dtype=np.float64)
+        los, his = bounds_at(inputs, float(t0.min()), float(t0.max()), result.times)
         lo, hi = float(los[-1]), float(his[-1])
         widened = bool(np.any(np.isfinite(los) | np.isfinite(his)))
         # per output row (no (K, N) temporaries: a big run's temperatures are gigabytes)

@@ -35,17 +35,23 @@ increment is 0.
 
 The energy ledger: each rank sums the heat through the held particles and exchange rows it owns,
 every step (the fluxes the step used, as in-process); the sums meet at the output times only.
-Rank 0 gathers the temperatures at each output time and records them with the in-process
-:class:`~thermal_kernel.solvers.Recorder` (or hands them to ``on_output``: ``tdem run`` keeps
-them in :func:`~thermal_kernel.atomic.history_rows`, on disk when large). A source's power
-is each particle's own: each rank evaluates the source restricted to its block every step
-(:meth:`DistributedNetwork.source_powers`; one number a step is summed over the ranks, the
-heat it put in), nothing is scattered from rank 0.
+A transient run's start is set on the ranks' rows (:meth:`DistributedNetwork.start_rows`: the
+held rows and the energy their hold takes); at each output time the ranks also sum the
+boundaries' heat flows and the stored energy over their rows
+(:meth:`DistributedNetwork.output_terms`, one reduction with the ledger), and rank 0 gathers
+the temperatures and records all of it with the in-process
+:class:`~thermal_kernel.solvers.Recorder` (or hands the temperatures to ``on_output``: ``tdem
+run`` keeps them in :func:`~thermal_kernel.atomic.history_rows`, on disk when large). A
+source's power is each particle's own: each rank evaluates the source restricted to its block
+every step (:meth:`DistributedNetwork.source_powers`; one number a step is summed over the
+ranks, the heat it put in), nothing is scattered from rank 0.
 
 Still whole on rank 0 (docs/scaling.md): the network's per-particle arrays and boundary rows
-(with the per-rank build; the whole network with ``net``), the source as the boundary kind
-made it (its instantaneous power at the output times, for the flows), and one output time's
-temperatures while they are recorded.
+while the ranks' shares are made (with the per-rank build; the whole network with ``net``);
+a transient run then reads only the network's
+:class:`~thermal_kernel.network.NetworkSummary` there (``thermal_kernel.mpi_run``), a steady
+solve the whole network (its floating clusters and flows, from the gathered temperatures);
+and one output time's temperatures while they are recorded.
 """
 from __future__ import annotations
 
