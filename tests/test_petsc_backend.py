@@ -226,6 +226,25 @@ def test_the_morton_order_sorted_on_the_ranks_is_the_whole_sort():
         assert f"partition OK {ranks}" in done.stdout, (ranks, done.stdout[-3000:])
 
 
+def test_the_steady_solve_on_the_ranks_fills_floating_clusters_as_in_process():
+    """The steady solve on 1-3 ranks with rank 0 holding only the network's summary and its
+    untied particles (tests/mpi_steady_check.py, under mpirun): floating clusters and rattlers
+    spread over the ranks' blocks, with a zero-net power, a net power and a powered rattler,
+    give the in-process temperatures (the untied ones within 1e-12 of the span), the same
+    no-steady-state list and flags, the flows and the stored energy. What could fail: the
+    untied particles' powers gathered in another order, the stored energy counting them twice
+    or not at all, a flow through an untied particle."""
+    import subprocess
+
+    from thermal_kernel.solvers.mpi_launch import MPIRUN_LOCAL, mpi_env, mpi_python
+    check = Path(__file__).resolve().parent / "mpi_steady_check.py"
+    for ranks in (1, 2, 3):
+        done = subprocess.run(["mpirun", "-n", str(ranks), *MPIRUN_LOCAL, str(mpi_python()),
+                               str(check)], env=mpi_env(), capture_output=True, text=True)
+        assert done.returncode == 0, (ranks, done.stdout[-3000:], done.stderr[-3000:])
+        assert f"steady OK {ranks}" in done.stdout, (ranks, done.stdout[-3000:])
+
+
 @pytest.mark.parametrize("ranks", [2, 3])
 def test_each_rank_builds_its_own_rows_as_the_whole_build_does(tmp_path, ranks):
     """thermal_kernel/rank_build.py against the whole build on rank 0 (tests/

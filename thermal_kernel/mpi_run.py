@@ -132,13 +132,15 @@ def _run(args, rank, held):
         del rb
     else:
         dist = backend.DistributedNetwork(net, built["packing"].position if rank == 0 else None)
-    if rank == 0 and scene.solver.method != "steady":
-        # a transient run on the ranks reads no per-particle array of rank 0's network: the
-        # ranks record the flows and the stored energy, the checks have their inputs
-        # (built["principle"]), the output gathers the capacities; a source every rank
+    if rank == 0:
+        # the run reads no per-particle array of rank 0's network: the ranks sum the flows
+        # and the stored energy over their rows, the checks have their inputs
+        # (built["principle"]), the output gathers the capacities, a steady solve's floating
+        # clusters and rattlers come from the untied particles' rows; a source every rank
         # evaluates on its block is not kept whole either
-        built["net"] = dist.net = summary_of(built["net"],
-                                             keep_source=dist.local_source is None)
+        built["net"] = dist.net = summary_of(
+            built["net"], keep_source=dist.local_source is None,
+            untied=scene.solver.method == "steady")
     net = built.get("net")
     if rank == 0:
         assemble_seconds = time.perf_counter() - built["assemble_t0"]

@@ -247,12 +247,46 @@ class Network:
         return np.flatnonzero(~self.held)
 
     @cached_property
+    def prescribed_mean_k(self) -> float:
+        """The mean of the prescribed temperatures (held particles, exchange rows with g > 0;
+        0 without any): the steady solve's reference T_ref, which it solves the deviation
+        from."""
+        prescribed = np.concatenate([self.held_temperature_k[self.fixed_particle],
+                                     self.exchange_row_temperature_k[
+                                         self.exchange_row_g_w_k > 0]])
+        return float(prescribed.mean()) if prescribed.size else 0.0
+
+    @cached_property
     def has_exchange(self) -> bool:
         return bool(np.any(self.exchange_g_w_k > 0))
 
     @cached_property
     def has_constant_rhs(self) -> bool:
         return bool(np.any(self.constant_rhs_w != 0))
+
+
+@dataclass(frozen=True, eq=False)
+class UntiedParticles:
+    """The particles of the components no reservoir ties (floating clusters and rattlers),
+    what a steady solve gives them (:func:`~thermal_kernel.solvers.steady.fill_untied`)
+    without the rest of the network: their packing indices (sorted), components, capacities
+    and the graph Laplacian's rows and columns of them (a contact of theirs joins only their
+    own component). :func:`untied_of`."""
+    particle: np.ndarray            # (U,) int64, sorted
+    label: np.ndarray               # (U,) their components (ClusterReport.label)
+    capacity_j_k: np.ndarray        # (U,)
+    laplacian: sp.csr_matrix        # (U, U)
+    n_components: int               # of the whole network (the labels' range)
+
+
+def untied_of(net: Network) -> UntiedParticles:
+    """The :class:`UntiedParticles` of ``net`` (the network whole, or the PETSc backend's
+    rank 0's, which holds the untied particles' rows)."""
+    sel = np.flatnonzero(~net.clusters.tied_particle)
+    lap = net.laplacian[sel][:, sel].tocsr() if sel.size else sp.csr_matrix((0, 0))
+    return UntiedParticles(particle=sel, label=np.asarray(net.clusters.label)[sel],
+                           capacity_j_k=np.asarray(net.capacity_j_k)[sel], laplacian=lap,
+                           n_components=net.clusters.n_components)
 
 
 @dataclass(frozen=True)
@@ -300,10 +334,14 @@ class NetworkSummary:
     dt_paper_s: float
     clusters: ClusterCounts
     constant_boundary_flow_w: np.ndarray    # (B,) W
+    prescribed_mean_k: float                # Network.prescribed_mean_k
+    untied: UntiedParticles | None = None   # a steady solve's (None for a transient run)
 
 
-def summary_of(net: Network, keep_source: bool = True) -> NetworkSummary:
-    """The :class:`NetworkSummary` of ``net`` (``keep_source`` False: without its source)."""
+def summary_of(net: Network, keep_source: bool = True,
+               untied: bool = False) -> NetworkSummary:
+    """The :class:`NetworkSummary` of ``net`` (``keep_source`` False: without its source;
+    ``untied``: with its :class:`UntiedParticles`, which a steady solve fills)."""
     p, c = net.problem, net.clusters
     return NetworkSummary(
         problem=ProblemSummary(boundary_names=p.boundary_names,
@@ -315,7 +353,8 @@ def summary_of(net: Network, keep_source: bool = True) -> NetworkSummary:
         clusters=ClusterCounts(n_components=c.n_components,
                                floating_sizes=np.array(c.floating_sizes),
                                n_rattlers=c.n_rattlers),
-        constant_boundary_flow_w=np.array(net.constant_boundary_flow_w, dtype=np.float64))
+        constant_boundary_flow_w=np.array(net.constant_boundary_flow_w, dtype=np.float64),
+        prescribed_mean_k=net.prescribed_mean_k, untied=untied_of(net) if untied else None)
 
 
 def _as(name, a, dtype, shape):

@@ -31,7 +31,7 @@ increment is 0.
   columns eliminated as in-process); increments solved by CG preconditioned by GAMG (default)
   or hypre BoomerAMG, the residual measured unpreconditioned so ``tol`` is the true residual.
 * steady: the same CG on the tied free particles (identity elsewhere); floating clusters and
-  rattlers as in :mod:`.steady` (rank 0, from the gathered temperatures).
+  rattlers as in :mod:`.steady` (rank 0, from the untied particles' rows and powers).
 
 The energy ledger: each rank sums the heat through the held particles and exchange rows it owns,
 every step (the fluxes the step used, as in-process); the sums meet at the output times only.
@@ -48,24 +48,27 @@ ranks, the heat it put in), nothing is scattered from rank 0.
 
 Still whole on rank 0 (docs/scaling.md): the network's per-particle arrays and boundary rows
 while the ranks' shares are made (with the per-rank build; the whole network with ``net``);
-a transient run then reads only the network's
-:class:`~thermal_kernel.network.NetworkSummary` there (``thermal_kernel.mpi_run``), a steady
-solve the whole network (its floating clusters and flows, from the gathered temperatures);
-and one output time's temperatures while they are recorded.
+the run then reads only the network's :class:`~thermal_kernel.network.NetworkSummary` there
+(``thermal_kernel.mpi_run``; a steady solve fills its floating clusters and rattlers from the
+summary's untied particles and their gathered powers); and one output time's temperatures
+while they are recorded.
 """
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
 import scipy.sparse as sp
+
+from ..network import NetworkSummary, untied_of
 
 from .common import (Recorder, SolverState, ThermalResult, check_times, hold_start,
                      start_parts, step_plan)
 from .explicit import explicit_schedule
 from .implicit import drive_implicit, scheme_args
 from .partition import Routes, block_starts, cut_contacts, owner_of_particle, particle_order
-from .steady import steady_inputs, steady_result, untied_temperatures
+from .steady import fill_untied, steady_result, steady_start
 
 PRECONDITIONERS = ("gamg", "hypre")
 # hypre BoomerAMG's defaults (Falgout coarsening, classical interpolation) built a hierarchy that
@@ -702,21 +705,26 @@ def solve_steady(dist: DistributedNetwork, T0=None, *, tol=1e-12, pc="gamg",
                  source_interval=None, maxiter=5000) -> ThermalResult | None:
     """The in-process :func:`~.steady.solve_steady` on the ranks: (L + G) T = b for the free
     particles of tied clusters by CG + ``pc`` (relative residual ``tol``), the deviation from
-    T_ref solved for as in-process; floating clusters and rattlers on rank 0 as in-process.
-    ``T0`` matters on rank 0 only. Result on rank 0 (None elsewhere). Collective."""
+    T_ref solved for as in-process; the boundaries' flows and the stored energy summed over the
+    ranks' rows; floating clusters and rattlers on rank 0 as in-process, from the network's
+    untied particles (``dist.net.untied`` of a NetworkSummary, or the whole network) and their
+    powers, gathered. ``T0`` matters on rank 0 only. Result on rank 0 (None elsewhere).
+    Collective."""
     pc = dist.preconditioner(pc)
     dist.comm.barrier()
     wall0 = time.perf_counter()
     start = {}
 
     def prelude():
-        t_ref, t0, b, sw, flags = steady_inputs(dist.net, T0, source_interval)
-        start.update(b=b, sw=sw, T0=t0)
-        return dict(t_ref=t_ref, flags=flags)
+        t_ref, t0, flags = steady_start(dist.net, T0, source_interval, dist.has_source)
+        start.update(T0=t0)
+        return dict(t_ref=t_ref, flags=flags, has_T0=t0 is not None)
 
     p = dist.on_root(prelude)
     t_ref = p["t_ref"]
-    b_local = dist.scatter(start.get("b"))
+    sw = (dist.source_powers(*source_interval) if dist.has_source and
+          source_interval is not None else None)       # this rank's rows
+    b_local = dist.b if sw is None else dist.b + sw
     unknown = ~dist.held & dist.tied                     # this rank's rows
     t_d = np.where(dist.held, dist.held_t - t_ref, 0.0)
     # rhs_u = b_u - (L t_d)_u - T_ref g_u; on a free row (A t_d) = (L t_d) (t_d = 0 there)
@@ -728,21 +736,37 @@ def solve_steady(dist: DistributedNetwork, T0=None, *, tol=1e-12, pc="gamg",
         x = dist.solve(ksp, rhs, iterations)
     else:
         x = np.zeros(dist.n_local)
-    x_all = dist.gather(np.where(unknown, t_ref + x, np.nan))
+    # the untied rows stay 0 here: no flow passes them (a held particle's neighbours are tied,
+    # an untied particle's exchange rows have g = 0); rank 0 sets them below
+    t_local = np.where(dist.held, dist.held_t, np.where(unknown, t_ref + x, 0.0))
+    flow = dist.partial_flows(t_local, dist.matvec(t_local))
+    if sw is not None:
+        dist.source_ledger(flow, sw, 1.0)
+    t0_local = dist.scatter(start.get("T0")) if p["has_T0"] else None
+    tied = dist.tied
+    stored = (float(np.dot(dist.capacity[tied], t_local[tied] - t0_local[tied]))
+              if t0_local is not None else math.nan)
+    sums = dist.total(np.append(flow, stored))
+    source_total = dist.source_total(sw) if sw is not None else None
+    untied_b = dist.mpi.gather((dist.mine[~tied], b_local[~tied]), root=0)
+    T = dist.gather(t_local)
     if dist.rank != 0:
         return None
     net = dist.net
-    flags = list(p["flags"])
-    T0 = start["T0"]
-    b, sw = start["b"], start["sw"]
-    held_t = net.held_temperature_k
-    solved = ~net.held & net.clusters.tied_particle
-    T = np.where(net.held, held_t, 0.0)
-    T[solved] = x_all[solved]
-    no_steady = untied_temperatures(net, T, T0, b, t_ref, flags)
-    return steady_result(net, T, T0, sw, flags, time.perf_counter() - wall0, no_steady,
-                         linear_solver=f"petsc-cg-{pc}", tol=tol, unknowns=n_unknowns,
-                         t_ref=t_ref, cg_iterations=iterations, **dist.info())
+    flags, T0 = list(p["flags"]), start["T0"]
+    u = net.untied if isinstance(net, NetworkSummary) else untied_of(net)
+    got = np.concatenate([q[0] for q in untied_b])
+    b_untied = np.empty(u.particle.size)
+    b_untied[np.searchsorted(u.particle, got)] = np.concatenate([q[1] for q in untied_b])
+    no_steady = fill_untied(u, T, T0, b_untied, t_ref, flags)
+    if T0 is not None:      # the untied particles' part of sum C (T - T0)
+        sel = u.particle
+        sums[-1] += float(np.dot(u.capacity_j_k, T[sel] - T0[sel]))
+    return steady_result(net, T, T0, None, flags, time.perf_counter() - wall0, no_steady,
+                         flow_w=sums[:-1] + _constant_flows(dist), stored_j=sums[-1],
+                         source_total_w=source_total, linear_solver=f"petsc-cg-{pc}",
+                         tol=tol, unknowns=n_unknowns, t_ref=t_ref, cg_iterations=iterations,
+                         **dist.info())
 
 
 __all__ = ["DistributedNetwork", "on_root", "run_explicit", "run_implicit", "solve_steady",

@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
+from ..network import UntiedParticles, untied_of
 from .common import ThermalResult, as_network, blas_threads
 from .implicit import SpdSolver
 
@@ -68,22 +69,28 @@ def _solve_steady(problem, T0, *, method, tol, source_interval, maxiter) -> Ther
                          t_ref=t_ref, cg_iterations=solver.iterations)
 
 
-def steady_result(net, T, T0, sw, flags, wall_seconds, no_steady, **info) -> ThermalResult:
+def steady_result(net, T, T0, sw, flags, wall_seconds, no_steady, *, flow_w=None,
+                  stored_j=None, source_total_w=None, **info) -> ThermalResult:
     """The steady solve's ThermalResult (the in-process solve and the PETSc backend's rank 0):
     the boundaries' heat flows of T, the heat balance (zero at steady state up to the solver's
-    tolerance), the clusters; ``info`` holds the solver's own entries."""
+    tolerance), the clusters; ``info`` holds the solver's own entries. The flows, the stored
+    energy sum C (T - T0) and the source's total power are computed here from the network and
+    the source's powers ``sw``, or given (``flow_w``, ``stored_j``, ``source_total_w``: the
+    PETSc backend's ranks sum them over their rows)."""
     prob = net.problem
-    flow = net.boundary_heat_flow(T, sw)
-    total_in = float(flow.sum()) + (float(sw.sum()) if sw is not None and
+    flow = net.boundary_heat_flow(T, sw) if flow_w is None else np.asarray(flow_w, float)
+    if source_total_w is None and sw is not None:
+        source_total_w = float(sw.sum())
+    total_in = float(flow.sum()) + (source_total_w if source_total_w is not None and
                                     prob.source_boundary < 0 else 0.0)
     scale = float(np.abs(flow).sum()) or 1.0
     nb = prob.n_boundaries
+    if stored_j is None:
+        stored_j = np.dot(net.capacity_j_k, T - T0) if T0 is not None else np.nan
     return ThermalResult(
         method="steady", times=np.array([np.inf]), temperature_k=T[None, :],
         boundary_heat_flow_w=flow[None, :], boundary_energy_j=np.full((1, nb), np.nan),
-        source_energy_j=np.full(1, np.nan),
-        stored_energy_j=np.array([np.dot(net.capacity_j_k, T - T0) if T0 is not None
-                                  else np.nan]),
+        source_energy_j=np.full(1, np.nan), stored_energy_j=np.array([stored_j]),
         boundary_names=prob.boundary_names, source_boundary=prob.source_boundary,
         dt=np.inf, dt_max=net.dt_max_s, dt_paper=net.dt_paper_s, steps=0,
         wall_seconds=wall_seconds, contact_updates_per_second=float("nan"), flags=tuple(flags),
@@ -96,73 +103,79 @@ def steady_result(net, T, T0, sw, flags, wall_seconds, no_steady, **info) -> The
 
 
 def untied_temperatures(net, T, T0, b, t_ref, flags) -> list:
-    """Floating clusters and rattlers (no path to a held temperature): each keeps the
-    capacity-weighted mean of T0 (t_ref without T0, flagged floating_without_T0), plus the
-    zero-net part of a power b injected into it (singular but compatible: the first member
-    pinned, the cluster's mean restored); a net power has no steady state and is flagged. Sets
-    their entries of T in place (the in-process solve and the PETSc backend's rank 0); returns
-    [(cluster, net power W)] of those without a steady state."""
-    n = net.n
-    label = net.clusters.label
-    in_untied = ~net.clusters.tied_particle
+    """:func:`fill_untied` of a whole network: sets the untied particles' entries of T in
+    place; returns [(cluster, net power W)] of those without a steady state."""
+    u = untied_of(net)
+    return fill_untied(u, T, T0, b[u.particle], t_ref, flags)
+
+
+def fill_untied(u: UntiedParticles, T, T0, b_untied, t_ref, flags) -> list:
+    """Floating clusters and rattlers (no path to a held temperature; ``u``, their power
+    ``b_untied`` (U,) W): each keeps the capacity-weighted mean of T0 (t_ref without T0,
+    flagged floating_without_T0), plus the zero-net part of a power b injected into it
+    (singular but compatible: the first member pinned, the cluster's mean restored); a net
+    power has no steady state and is flagged. Sets their entries of T (whole) in place (the
+    in-process solve and the PETSc backend's rank 0, which holds only ``u`` of the network);
+    returns [(cluster, net power W)] of those without a steady state."""
     no_steady = []
-    if not np.any(in_untied):
+    sel = u.particle
+    if not sel.size:
         return no_steady
-    base = T0 if T0 is not None else np.full(n, t_ref)
+    base = T0[sel] if T0 is not None else np.full(sel.size, t_ref)
     if T0 is None:
         flags.append("floating_without_T0")
-    c = net.capacity_j_k
-    sel = np.flatnonzero(in_untied)
-    lab = label[sel]
-    csum = np.bincount(lab, weights=c[sel], minlength=net.clusters.n_components)
-    ctsum = np.bincount(lab, weights=c[sel] * base[sel], minlength=net.clusters.n_components)
+    c, lab = u.capacity_j_k, u.label
+    csum = np.bincount(lab, weights=c, minlength=u.n_components)
+    ctsum = np.bincount(lab, weights=c * base, minlength=u.n_components)
     T[sel] = ctsum[lab] / csum[lab]
-    lap = net.laplacian
-    for comp in np.unique(lab[b[sel] != 0]):
-        members = sel[lab == comp]
-        members = members[~net.held[members]]
-        net_power = float(b[members].sum())
-        if abs(net_power) > 1e-9 * float(np.abs(b[members]).sum()):
+    for comp in np.unique(lab[b_untied != 0]):
+        at = np.flatnonzero(lab == comp)        # untied: no member is held
+        members = sel[at]
+        net_power = float(b_untied[at].sum())
+        if abs(net_power) > 1e-9 * float(np.abs(b_untied[at]).sum()):
             no_steady.append((int(comp), net_power))
             continue
         if members.size < 2:
             continue
-        sub = lap[members][:, members].tocsr()
+        sub = u.laplacian[at][:, at].tocsr()
         x = np.zeros(members.size)
-        x[1:] = spsolve(sub[1:, 1:].tocsc(), b[members][1:])
-        x -= np.dot(c[members], x) / c[members].sum()
+        x[1:] = spsolve(sub[1:, 1:].tocsc(), b_untied[at][1:])
+        x -= np.dot(c[at], x) / c[at].sum()
         T[members] += x
     if no_steady:
         flags.append("no_steady_state_in_floating_cluster")
     return no_steady
 
 
-def steady_inputs(net, T0, source_interval):
-    """What a steady solve starts from (the in-process solve and the PETSc backend's rank 0):
-    the reference temperature t_ref (the mean of the prescribed ones, which the solve shifts
-    by), T0 checked ((n,) finite, or a scalar broadcast; None stays None), the right-hand side
-    b (the boundary kinds' constant part, plus the source's mean power over source_interval;
-    a source without one is ignored and flagged) and the source's powers sw. Returns
-    (t_ref, T0, b, sw, flags), flags starting from the network's."""
+def steady_start(net, T0, source_interval, has_source: bool):
+    """What a steady solve starts from besides its right-hand side (the in-process solve and
+    the PETSc backend's rank 0): the reference temperature t_ref (the mean of the prescribed
+    ones, which the solve shifts by), T0 checked ((n,) finite, or a scalar broadcast; None
+    stays None) and the flags, starting from the network's (a source without a
+    ``source_interval`` is ignored and flagged). Returns (t_ref, T0, flags)."""
     n = net.n
     flags = list(net.flags)
-    held_t = net.held_temperature_k
-    prescribed = np.concatenate([held_t[net.fixed_particle],
-                                 net.exchange_row_temperature_k[net.exchange_row_g_w_k > 0]])
-    t_ref = float(prescribed.mean()) if prescribed.size else 0.0
+    t_ref = net.prescribed_mean_k
     if T0 is not None:
         T0 = np.array(T0, dtype=np.float64)
         if T0.ndim == 0:
             T0 = np.full(n, float(T0))
         if T0.shape != (n,) or not np.all(np.isfinite(T0)):
             raise ValueError(f"T0: expected ({n},) finite temperatures, got shape {T0.shape}")
+    if has_source and source_interval is None:
+        flags.append("source_ignored")
+    return t_ref, T0, flags
+
+
+def steady_inputs(net, T0, source_interval):
+    """:func:`steady_start`, and the right-hand side b (the boundary kinds' constant part,
+    plus the source's mean power over source_interval) and the source's powers sw. Returns
+    (t_ref, T0, b, sw, flags)."""
+    source = net.problem.source
+    t_ref, T0, flags = steady_start(net, T0, source_interval, source is not None)
     b = net.constant_rhs_w.copy()
     sw = None
-    source = net.problem.source
-    if source is not None:
-        if source_interval is None:
-            flags.append("source_ignored")
-        else:
-            sw = np.asarray(source(*source_interval), dtype=np.float64)
-            b += sw
+    if source is not None and source_interval is not None:
+        sw = np.asarray(source(*source_interval), dtype=np.float64)
+        b += sw
     return t_ref, T0, b, sw, flags
