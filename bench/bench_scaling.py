@@ -400,8 +400,9 @@ STEP_WORDS = {
     "_send_particle_shares": "each rank's per-particle and boundary rows from rank 0",
     "run_explicit": "the run after the build: the explicit steps, the output times' sums, "
                     "the temperatures gathered on rank 0",
-    "_held_rows": "the held and untied particles' rows to rank 0",
-    "_root_network": "rank 0's Network: the ledger's, the checks' and the output's arrays",
+    "_untied_rows": "the untied particles' rows to rank 0 (a steady solve fills them there)",
+    "_explicit_bound": "the explicit bound, each rank's over its rows, the least on rank 0",
+    "_root_summary": "rank 0's NetworkSummary from its parts (no array of every particle)",
 }
 # bench/bench_output_memory.py's rows: a long run's memory against its output times
 OUTPUT_MEMORY = ROOT / "bench/results/output_memory.json"
@@ -761,8 +762,8 @@ def _doc_build_stages(st) -> list[str]:
         p2, p3 = per[2][0], per[3][0]
         top2 = max(p2, key=p2.get)
         whole = stages_whole(st)
-        late = [k for k in ("_root_problem", "_send_particle_shares", "_held_rows",
-                            "_root_network") if k in whole]
+        late = [k for k in ("_root_problem", "_send_particle_shares", "_untied_rows",
+                            "_root_summary", "run_explicit") if k in whole]
         wl = max(late, key=whole.get) if late else None
         first = rows[0]["steps"][0][0]["step"]
         L.append(f"Read: on 2 and 3 ranks rank 0's highest step is `{top2}` ({p2[top2]:.0f} "
@@ -771,13 +772,12 @@ def _doc_build_stages(st) -> list[str]:
                  f"the ranks is w = {whole[top2]:.0f} B per particle there (the particles, the "
                  f"law's inputs and capacities), w = {whole[first]:.0f} in `{first}` (the "
                  "reader's checks of every particle)"
-                 + (f" and w = {whole[wl]:.0f} in `{wl}` (the boundary kinds, the clusters and "
-                    "the network's per-particle arrays)" if wl else "")
+                 + (f" and w = {whole[wl]:.0f} in `{wl}`, the largest of the later steps "
+                    f"({STEP_WORDS.get(wl, '')})" if wl else "")
                  + ": once the contacts are divided among enough ranks, rank 0's peak is the "
                  "largest of these, in bytes per particle not divided by the ranks. The next "
                  "step of issue 25 (the reader's checks and the boundary kinds on the "
-                 "directories' blocks, the ledger, checks and writer on partial sums) removes "
-                 "them.\n")
+                 "directories' blocks) takes the particles off rank 0.\n")
     if timed and rows[0].get("root_alone"):
         r = rows[0]
         alone = [s for s in r["steps"][0] if s["step"] in r["root_alone"]]

@@ -60,4 +60,5 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from mpi_abort import run
+    sys.exit(run(main))

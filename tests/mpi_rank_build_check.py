@@ -5,9 +5,10 @@ the same ranks:
 - each rank's block of the Morton order (sorted on the ranks, rank 0 sorting every centre) and
   its share -- its rows of A = L + diag(g) (CSR: indptr, indices, data), capacities,
   held flags and temperatures, g, b, tied flags, its held and exchange rows -- bit for bit;
-- rank 0's Network: degrees, cluster labels and counts, the explicit bound and its particle,
-  the conducting and zero-H contacts, the flags, the held and untied particles' adjacency rows
-  (bit for bit), dt_paper (its mean H summed in another order: 1e-14);
+- rank 0's NetworkSummary against the whole network's: the explicit bound and its particle,
+  the conducting and zero-H contacts, the flags, the clusters' counts, the constant powers,
+  the steady reference, the maximum principle's inputs, the untied particles with their
+  Laplacian (bit for bit), dt_paper (its mean H summed in another order: 1e-14);
 - a scene's ``[neighbours]`` criterion (thermal_kernel/neighbours.py): the choice made on the
   ranks with collectives -- the gap, the rows kept, the bulk Z's -- equal to the whole build's
   bit for bit (then the rows above, built from the kept rows and their neighbour counts);
@@ -25,7 +26,7 @@ import scipy.sparse as sp
 petsc4py.init([sys.argv[0]])
 from petsc4py import PETSc  # noqa: E402
 
-from thermal_kernel.network import assemble  # noqa: E402
+from thermal_kernel.network import assemble, summary_of  # noqa: E402
 from thermal_kernel.packing import read_packing  # noqa: E402
 from thermal_kernel.problem import build_problem  # noqa: E402
 from thermal_kernel.rank_build import build_on_ranks  # noqa: E402
@@ -70,7 +71,6 @@ def main(scene_path):
     assert (ref.lo, ref.n_local, ref.cut, ref.n_active_contacts) == \
         (mine.lo, mine.n_local, mine.cut, mine.n_active_contacts), rank
     if rank == 0:
-        a, b = whole, rb.net
         # the [neighbours] choice: every number of it, to the bit (None: no criterion)
         mine_choice = rb.info["neighbours"]
         assert (info["neighbours"] is None) == (mine_choice is None) == (
@@ -86,26 +86,26 @@ def main(scene_path):
             keep = mine_choice.keep
             same(info["neighbours"].keep[:keep.size], keep, "neighbours.keep (rank 0's rows)")
             assert 0 < s1["n_kept"] < s1["n_dumped"], s1      # the criterion does cut rows
-        for key in ("degree_w_k", "held", "held_temperature_k", "capacity_j_k",
-                    "exchange_g_w_k", "constant_rhs_w", "fixed_particle", "exchange_particle",
-                    "conducting", "held_boundary", "constant_boundary_flow_w"):
-            same(getattr(a, key), getattr(b, key), key)
-        for key in ("label", "floating_clusters", "floating_sizes", "rattlers", "tied"):
-            same(getattr(a.clusters, key), getattr(b.clusters, key), f"clusters.{key}")
-        assert a.clusters.n_components == b.clusters.n_components
-        assert (a.dt_max_s, a.dt_max_particle, a.n_active_contacts, a.n_zero_contacts,
-                a.flags) == (b.dt_max_s, b.dt_max_particle, b.n_active_contacts,
-                             b.n_zero_contacts, b.flags)
+        # rank 0's NetworkSummary against the whole network's (summary_of): every number
+        # bit for bit but dt_paper (its mean H summed in another order: 1e-14)
+        a, b = summary_of(whole), rb.net
+        assert (a.n, a.dt_max_s, a.dt_max_particle, a.n_active_contacts, a.n_zero_contacts,
+                a.flags, a.prescribed_mean_k, a.principle) == (
+            b.n, b.dt_max_s, b.dt_max_particle, b.n_active_contacts, b.n_zero_contacts,
+            b.flags, b.prescribed_mean_k, b.principle), (a, b)
         assert abs(a.dt_paper_s - b.dt_paper_s) <= 1e-14 * a.dt_paper_s
-        rows = b.adjacency_rows
-        assert np.all(np.isin(a.fixed_particle, rows))
-        assert np.all(np.isin(np.flatnonzero(~a.clusters.tied_particle), rows))
-        for key in ("indptr", "indices", "data"):
-            same(getattr(a.adjacency[rows], key), getattr(b.adjacency[rows], key),
-                 f"adjacency rows .{key}")
-        t = np.linspace(300.0, 500.0, a.n)
-        same(a.boundary_heat_flow(t), b.boundary_heat_flow(t), "boundary_heat_flow")
-        assert b.adjacency.nnz < a.adjacency.nnz or rows.size == a.n  # the others' rows not held
+        assert (a.problem.boundary_names, a.problem.source_boundary,
+                a.problem.source is None) == (b.problem.boundary_names,
+                                              b.problem.source_boundary, b.problem.source is None)
+        assert (a.clusters.n_components, a.clusters.n_rattlers) == (
+            b.clusters.n_components, b.clusters.n_rattlers)
+        same(a.clusters.floating_sizes, b.clusters.floating_sizes, "clusters.floating_sizes")
+        same(a.constant_boundary_flow_w, b.constant_boundary_flow_w, "constant flows")
+        for key in ("particle", "label", "capacity_j_k"):
+            same(getattr(a.untied, key), getattr(b.untied, key), f"untied.{key}")
+        same(a.untied.laplacian.toarray(), b.untied.laplacian.toarray(), "untied.laplacian")
+        assert a.untied.n_components == b.untied.n_components
+        assert a.untied.particle.size == int((~whole.clusters.tied_particle).sum())
     r1 = backend.solve_steady(ref, np.full(ref.n, 300.0) if rank == 0 else None)
     r2 = backend.solve_steady(mine, np.full(ref.n, 300.0) if rank == 0 else None)
     if rank == 0:
@@ -120,4 +120,5 @@ def main(scene_path):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    from mpi_abort import run
+    run(main, sys.argv[1])

@@ -61,7 +61,7 @@ def main():
     dist = backend.DistributedNetwork(net if rank == 0 else None,
                                       centres if rank == 0 else None)
     if rank == 0:
-        dist.net = summary_of(net, untied=True)     # what rank 0 holds in mpi_run
+        dist.net = summary_of(net)     # what rank 0 holds in mpi_run
     got = backend.solve_steady(dist, T0 if rank == 0 else None)
     if rank != 0:
         return
@@ -86,4 +86,5 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from mpi_abort import run
+    sys.exit(run(main))

@@ -108,7 +108,7 @@ def _run(args, rank, held):
     ExitStack) keeps rank 0's lock on the output until it returns."""
     from petsc4py import PETSc
 
-    from .network import summary_of
+    from .network import NetworkSummary, summary_of, without_source
     from .rank_build import build_on_ranks
     from .solvers import petsc_backend as backend
 
@@ -133,14 +133,18 @@ def _run(args, rank, held):
     else:
         dist = backend.DistributedNetwork(net, built["packing"].position if rank == 0 else None)
     if rank == 0:
-        # the run reads no per-particle array of rank 0's network: the ranks sum the flows
-        # and the stored energy over their rows, the checks have their inputs
-        # (built["principle"]), the output gathers the capacities, a steady solve's floating
-        # clusters and rattlers come from the untied particles' rows; a source every rank
-        # evaluates on its block is not kept whole either
-        built["net"] = dist.net = summary_of(
-            built["net"], keep_source=dist.local_source is None,
-            untied=scene.solver.method == "steady")
+        # the run reads no per-particle array of rank 0's network but its summary (made by the
+        # per-rank build; of the whole network with --whole-build): the ranks sum the flows
+        # and the stored energy over their rows, the checks have their inputs, the output
+        # gathers the capacities, a steady solve's floating clusters and rattlers come from
+        # the untied particles' rows; a source every rank evaluates on its block is not kept
+        # whole either
+        summary = (built["net"] if isinstance(built["net"], NetworkSummary)
+                   else summary_of(built["net"]))
+        if dist.local_source is not None:
+            summary = without_source(summary)
+        built.update(net=summary, principle=summary.principle)
+        dist.net = summary
     net = built.get("net")
     if rank == 0:
         assemble_seconds = time.perf_counter() - built["assemble_t0"]
@@ -200,7 +204,6 @@ def _prepare_on_root(args, scene, packing_path, per_rank, built, t0):
     from .packing import read_packing
     from .problem import build_problem
     from .run import _check_step_count, check_resume
-    from .solvers import principle_inputs
 
     solver = scene.solver
     scene_json = scene_to_json(scene)
@@ -219,8 +222,6 @@ def _prepare_on_root(args, scene, packing_path, per_rank, built, t0):
     packing_hash = built.get("packing_hash") or packing_sha256(packing)  # the ranks': made
     resumed = check_resume(scene, args.checkpoint_every, args.resume, packing.n_particles,
                            packing_hash, packing_path)
-    # what the maximum principle's bounds need of the network, made while rank 0 holds it
-    built.update(principle=principle_inputs(net))
     built.update(scene_json=scene_json, packing_hash=packing_hash, assemble_t0=t0,
                  resumed=resumed, T0=np.full(packing.n_particles, scene.initial_temperature)
                  if args.initial_temperature is None else np.load(args.initial_temperature))

@@ -13,6 +13,8 @@ held at their temperature. See docs/solvers.md.
 """
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -156,11 +158,6 @@ class Network:
     dt_max_particle: int            # the particle that sets it (-1 if none)
     dt_paper_s: float               # paper 002 eq. 15-16 in network form, for comparison
     flags: tuple[str, ...] = field(default=())
-    # None: ``adjacency`` holds every row. Else the particles whose rows it holds, the others'
-    # rows being empty: the PETSc backend's rank 0 (thermal_kernel/rank_build.py), whose ranks
-    # hold the contacts; it keeps the rows its own work reads (the held particles for
-    # boundary_heat_flow, the untied clusters for the steady solve's floating clusters).
-    adjacency_rows: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -199,15 +196,9 @@ class Network:
     def constant_boundary_flow_w(self) -> np.ndarray:
         """(B,) the constant power of each power boundary, with the power that lands on held
         particles moved (negatively) to the Dirichlet boundary that absorbs it."""
-        out = np.array(self.power_by_boundary_w, dtype=np.float64)
         p = self.problem
-        pp = np.asarray(p.power_particle, np.int64)
-        on_held = self.held[pp]
-        if on_held.any():
-            out -= np.bincount(self.held_boundary[pp[on_held]],
-                               weights=np.asarray(p.power_w, np.float64)[on_held],
-                               minlength=out.size)
-        return out
+        return constant_flows(self.power_by_boundary_w, p.power_particle, p.power_w, self.held,
+                              self.held_boundary)
 
     @cached_property
     def _fixed_rows(self) -> sp.csr_matrix:
@@ -248,13 +239,9 @@ class Network:
 
     @cached_property
     def prescribed_mean_k(self) -> float:
-        """The mean of the prescribed temperatures (held particles, exchange rows with g > 0;
-        0 without any): the steady solve's reference T_ref, which it solves the deviation
-        from."""
-        prescribed = np.concatenate([self.held_temperature_k[self.fixed_particle],
-                                     self.exchange_row_temperature_k[
-                                         self.exchange_row_g_w_k > 0]])
-        return float(prescribed.mean()) if prescribed.size else 0.0
+        """The steady solve's reference T_ref (:func:`prescribed_mean`)."""
+        return prescribed_mean(self.held_temperature_k[self.fixed_particle],
+                               self.exchange_row_temperature_k, self.exchange_row_g_w_k)
 
     @cached_property
     def has_exchange(self) -> bool:
@@ -335,18 +322,18 @@ class NetworkSummary:
     clusters: ClusterCounts
     constant_boundary_flow_w: np.ndarray    # (B,) W
     prescribed_mean_k: float                # Network.prescribed_mean_k
-    untied: UntiedParticles | None = None   # a steady solve's (None for a transient run)
+    untied: UntiedParticles                 # what a steady solve fills on rank 0
+    principle: PrincipleInputs              # what the maximum principle's bounds need
 
 
-def summary_of(net: Network, keep_source: bool = True,
-               untied: bool = False) -> NetworkSummary:
-    """The :class:`NetworkSummary` of ``net`` (``keep_source`` False: without its source;
-    ``untied``: with its :class:`UntiedParticles`, which a steady solve fills)."""
+def summary_of(net: Network) -> NetworkSummary:
+    """The :class:`NetworkSummary` of a whole network (the PETSc backend's ``--whole-build``;
+    the per-rank build makes rank 0's from its parts, thermal_kernel/rank_build.py)."""
     p, c = net.problem, net.clusters
     return NetworkSummary(
         problem=ProblemSummary(boundary_names=p.boundary_names,
                                source_boundary=p.source_boundary,
-                               source=p.source if keep_source else None),
+                               source=p.source),
         n=net.n, n_active_contacts=net.n_active_contacts, n_zero_contacts=net.n_zero_contacts,
         flags=net.flags, dt_max_s=net.dt_max_s, dt_max_particle=net.dt_max_particle,
         dt_paper_s=net.dt_paper_s,
@@ -354,7 +341,93 @@ def summary_of(net: Network, keep_source: bool = True,
                                floating_sizes=np.array(c.floating_sizes),
                                n_rattlers=c.n_rattlers),
         constant_boundary_flow_w=np.array(net.constant_boundary_flow_w, dtype=np.float64),
-        prescribed_mean_k=net.prescribed_mean_k, untied=untied_of(net) if untied else None)
+        prescribed_mean_k=net.prescribed_mean_k, untied=untied_of(net),
+        principle=principle_inputs(net))
+
+
+def without_source(summary: NetworkSummary) -> NetworkSummary:
+    """``summary`` without its source (the PETSc backend's ranks each evaluate theirs)."""
+    return dataclasses.replace(summary, problem=dataclasses.replace(summary.problem,
+                                                                    source=None))
+
+
+def constant_flows(power_by_boundary_w, power_particle, power_w, held,
+                   held_boundary) -> np.ndarray:
+    """(B,) the constant power of each power boundary (``power_by_boundary_w``), with the power
+    of the rows (``power_particle``, ``power_w``) that land on held particles (``held``,
+    ``held_boundary``: indexed by particle) moved (negatively) to the Dirichlet boundary that
+    absorbs it: Network.constant_boundary_flow_w, and the PETSc backend's rank 0."""
+    out = np.array(power_by_boundary_w, dtype=np.float64)
+    pp = np.asarray(power_particle, np.int64)
+    on_held = held[pp]
+    if on_held.any():
+        out -= np.bincount(held_boundary[pp[on_held]],
+                           weights=np.asarray(power_w, np.float64)[on_held],
+                           minlength=out.size)
+    return out
+
+
+def prescribed_mean(fixed_temperature_k, exchange_temperature_k, exchange_g_w_k) -> float:
+    """The mean of the prescribed temperatures (the held rows', the exchange rows' with
+    g > 0; 0 without any): the steady solve's reference T_ref, which it solves the deviation
+    from."""
+    prescribed = np.concatenate([np.asarray(fixed_temperature_k, dtype=np.float64),
+                                 np.asarray(exchange_temperature_k, dtype=np.float64)[
+                                     np.asarray(exchange_g_w_k) > 0]])
+    return float(prescribed.mean()) if prescribed.size else 0.0
+
+
+@dataclass(frozen=True)
+class PrincipleInputs:
+    """What the maximum principle's bounds (:func:`~thermal_kernel.solvers.common.bounds_at`)
+    need of a network, besides the start: the range of its prescribed temperatures (held
+    particles, exchange walls; +inf / -inf when it has none), the fastest a prescribed power
+    raises / lowers a free particle (max_p P_p^+ / C_p, max_p P_p^- / C_p, K/s), its source's
+    fastest rise and fall and when the source is on
+    (:meth:`~thermal_kernel.boundaries.source.MovingSource.max_rise_rate`; None without a
+    source, ``source_unbounded`` for a source that gives no such rate), and whether it is the
+    plain principle (no source, no prescribed power). :func:`principle_of`."""
+    prescribed_lo_k: float
+    prescribed_hi_k: float
+    power_up_k_s: float
+    power_down_k_s: float
+    plain: bool
+    source_rate: tuple | None = None      # (up K/s, down K/s, start s, stop s)
+    source_unbounded: bool = False
+
+
+def principle_of(prescribed_k, power_free_w, capacity_free_j_k, *, has_power: bool,
+                 has_source: bool, source_rate=None) -> PrincipleInputs:
+    """:class:`PrincipleInputs` from the prescribed temperatures (K), the constant power and
+    the capacity of free particles (any subset holding every free particle with a power: the
+    others add nothing to a maximum that starts at 0), whether any particle (held ones too)
+    has a constant power, and the source's rate (None: no source, or one that gives none): the
+    whole network's (solvers.common.principle_inputs) or the PETSc backend's rank 0's (its
+    rows)."""
+    pw = np.asarray(power_free_w, dtype=np.float64)
+    c = np.asarray(capacity_free_j_k, dtype=np.float64)
+    prescribed = np.asarray(prescribed_k, dtype=np.float64)
+    return PrincipleInputs(
+        prescribed_lo_k=float(prescribed.min(initial=math.inf)),
+        prescribed_hi_k=float(prescribed.max(initial=-math.inf)),
+        power_up_k_s=float(np.max(np.clip(pw, 0, None) / c, initial=0.0)),
+        power_down_k_s=float(np.max(np.clip(-pw, 0, None) / c, initial=0.0)),
+        plain=not has_source and not has_power,
+        source_rate=source_rate, source_unbounded=has_source and source_rate is None)
+
+
+def principle_inputs(net: Network) -> PrincipleInputs:
+    """:class:`PrincipleInputs` of a whole network (:func:`principle_of` on its arrays)."""
+    prob = net.problem
+    free = net.free
+    rate = getattr(prob.source, "max_rise_rate", None)
+    return principle_of(
+        np.concatenate([net.held_temperature_k[net.fixed_particle],
+                        np.asarray(net.exchange_row_temperature_k, dtype=np.float64)]),
+        np.asarray(net.power_w, dtype=np.float64)[free], net.capacity_j_k[free],
+        has_power=bool(np.any(np.asarray(net.power_w) != 0)),
+        has_source=prob.source is not None,
+        source_rate=None if rate is None else rate(net.capacity_j_k, free))
 
 
 def _as(name, a, dtype, shape):
@@ -545,12 +618,23 @@ def assemble(problem: ThermalProblem) -> Network:
                       h_mean)
 
 
+def network_flags(n_zero_contacts: int, clusters) -> tuple[str, ...]:
+    """A network's flags: contacts of H = 0 dropped, floating clusters, rattlers (``clusters``:
+    a ClusterReport or ClusterCounts)."""
+    flags = []
+    if n_zero_contacts:
+        flags.append("zero_conductance_contacts_dropped")
+    if clusters.n_floating:
+        flags.append("floating_clusters")
+    if clusters.n_rattlers:
+        flags.append("rattlers")
+    return tuple(flags)
+
+
 def network_of(problem: ThermalProblem, v: dict, terms: dict, adjacency, degree, n_active,
-               clusters, coord_max, h_mean, adjacency_rows=None) -> Network:
-    """The :class:`Network` from its parts: the explicit bounds and the flags computed here,
-    for :func:`assemble` (whole) and the PETSc backend's rank 0 (``degree``, ``n_active``, the
-    clusters, the largest coordination ``coord_max`` and the mean conducting H ``h_mean``
-    gathered from the ranks; ``adjacency`` only the rows ``adjacency_rows``)."""
+               clusters, coord_max, h_mean) -> Network:
+    """The :class:`Network` from its parts (:func:`assemble`): the explicit bounds and the
+    flags computed here (:func:`network_flags`)."""
     m = v["m"]
     held, held_t, g_p = terms["held"], terms["held_t"], terms["g_p"]
     gt_p, pw_p = terms["gt_p"], terms["pw_p"]
@@ -574,13 +658,7 @@ def network_of(problem: ThermalProblem, v: dict, terms: dict, adjacency, degree,
         dt_paper = float(np.mean(c) / (coord_max * h_mean))
     else:
         dt_paper = float("inf")
-    flags = []
-    if m - n_active:
-        flags.append("zero_conductance_contacts_dropped")
-    if clusters.n_floating:
-        flags.append("floating_clusters")
-    if clusters.n_rattlers:
-        flags.append("rattlers")
+    flags = network_flags(m - n_active, clusters)
     for a in (adjacency.data, adjacency.indices, adjacency.indptr, degree, held, held_t, g_p,
               gt_p, pw_p, clusters.label):   # our own arrays only, never the caller's
         a.flags.writeable = False
@@ -595,4 +673,4 @@ def network_of(problem: ThermalProblem, v: dict, terms: dict, adjacency, degree,
                                                    minlength=len(problem.boundary_names)),
                    exchange_g_w_k=g_p, exchange_gt_w=gt_p, power_w=pw_p, clusters=clusters,
                    dt_max_s=dt_max, dt_max_particle=p_min, dt_paper_s=dt_paper,
-                   flags=tuple(flags), adjacency_rows=adjacency_rows)
+                   flags=flags)

@@ -31,17 +31,22 @@ over an mpi4py communicator:
    (:func:`~.problem.boundary_problem`, the one registry) on the whole particles, and sends
    each rank the per-particle and boundary rows of its block;
 5. the clusters: each rank labels the components of its own rows' contacts, rank 0 joins them
-   through the cut contacts (the same numbering as in-process); the degrees, the counts for
-   the explicit bounds and the rows of the held and untied particles go to rank 0, which makes
-   the in-process :class:`~.network.Network` from them (:func:`~.network.network_of`) without
-   the other rows (``adjacency_rows``): what its ledger, steady's floating clusters, the checks
-   and the output read.
+   through the cut contacts (the same numbering as in-process); while rank 0 holds the
+   per-particle arrays the kinds made, it keeps what its summary needs of them
+   (:func:`_summary_parts`: the constant powers, the steady reference, the maximum
+   principle's inputs, the clusters' counts, the untied particles), then drops them; the
+   untied particles' rows come to rank 0 (:func:`_untied_rows`), the explicit bound is each
+   rank's over its rows, the least on rank 0 (:func:`_explicit_bound`), and rank 0 makes its
+   :class:`~.network.NetworkSummary` (:func:`_root_summary`: network.summary_of's of the whole
+   network, bit for bit but dt_paper, ``tests/mpi_rank_build_check.py``): what the run, its
+   checks and the output read of the network.
 
-What stays whole: on rank 0 the particles and the network's per-particle arrays, gathered
-in the file's order through the directories (the
-temperatures it gathers at an output time go, one time at a time, into the run's history,
-paged to disk when large: :func:`~.atomic.history_rows`). ``mpi_run --whole-build`` builds
-the network whole on rank 0 instead (for comparison).
+What stays whole: on rank 0 the particles (read and checked, for the boundary kinds) and,
+while the kinds run and each rank's per-particle rows are sent, the problem's per-particle
+arrays; during the run, the start and the temperatures it gathers at an output time (they go,
+one time at a time, into the run's history, paged to disk when large:
+:func:`~.atomic.history_rows`). ``mpi_run --whole-build`` builds the network whole on rank 0
+instead (for comparison).
 """
 from __future__ import annotations
 
@@ -55,7 +60,9 @@ from scipy.sparse.csgraph import connected_components
 
 from .checkpoint import packing_sha256
 from .neighbours import bulk_particles, choose_neighbours_on_ranks, dump_gap_tolerance_of
-from .network import cluster_report, network_of, particle_terms, validate
+from .network import (ClusterCounts, NetworkSummary, ProblemSummary, UntiedParticles,
+                      cluster_report, constant_flows, network_flags, particle_terms,
+                      prescribed_mean, principle_of, validate)
 from .packing import (CONTACT_BLOCK_ROWS, Packing, PackingError, _check_pairs,
                       check_contact_rows, contact_check_scales, read_contact_rows,
                       read_packing, read_particle_rows)
@@ -73,8 +80,8 @@ class RankBuild:
     """One rank's result: ``share`` and ``meta`` for
     :class:`~.solvers.petsc_backend.DistributedNetwork` (``built=``), this rank's block of the
     Morton order (``mine``, packing indices) and the routes between the blocks and the file's
-    order; on rank 0 the packing without contacts, the Network (without the other ranks'
-    rows) and the problem's info; None on the others."""
+    order; on rank 0 the packing's path and size, the network's
+    :class:`~.network.NetworkSummary` and the problem's info; None on the others."""
     share: dict
     meta: dict
     mine: np.ndarray
@@ -197,11 +204,11 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
                                                            mine)
     total_comp = comm.allreduce(int(n_comp))
     gid_all = routes.gather(gid, _index_dtype(total_comp))     # int32 while it holds them
-    degree_all = routes.gather(degree)
     cut_all = comm.gather((cut_edges, comp_first), root=0)     # per component, rank order
     del gid, cut_edges, comp_first
 
-    # 5. rank 0: the boundary kinds, the clusters; each rank its per-particle rows
+    # 5. rank 0: the boundary kinds, the clusters, what its summary needs of them; each rank
+    # its per-particle rows, from which the explicit bound is found
     built = {}
     nb_count, has_source = comm.bcast(agree(comm, (lambda: _root_problem(
         scene, root_in, choice, cut_all, gid_all, total_comp, built)) if rank == 0
@@ -209,15 +216,18 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     cut_all = gid_all = None
     from .solvers.petsc_backend import share_block
     own = _send_particle_shares(comm, built, routes, starts)
+    for key in ("v", "terms", "clusters", "held_boundary", "problem"):
+        built.pop(key, None)            # rank 0: no array of every particle from here on
     own.update(share_block(adjacency, degree, own["g"], lo, n, columns))
     del columns
-    pieces = _held_rows(comm, built, routes, mine, adjacency)
+    pieces = _untied_rows(comm, own, mine, adjacency, degree)
     del adjacency
+    bound = _explicit_bound(comm, own, degree, mine)
     meta = dict(n=n, starts=starts, nb=nb_count, has_source=has_source, cut=totals["cut"],
                 active_contacts=totals["n_active"])
     if rank != 0:
         return RankBuild(share=own, meta=meta, mine=mine, routes=routes)
-    net = _root_network(built, pieces, n, m, degree_all, totals)
+    net = _root_summary(built, pieces, bound, n, m, totals)
     return RankBuild(share=own, meta=meta, mine=mine, routes=routes, particles=SimpleNamespace(
         path=head["path"], n_particles=n), net=net, info=built["info"],
         packing_sha256=packing_hash)
@@ -454,8 +464,40 @@ def _root_problem(scene, root_in, choice, cut_all, gid_all, total_comp, built):
     held_boundary = np.full(n, -1, np.int32)
     held_boundary[v["fixed_particle"]] = v["fixed_boundary"]
     built.update(problem=problem, info=info, v=v, terms=terms, clusters=clusters,
-                 held_boundary=held_boundary, keep=terms["held"] | ~clusters.tied_particle)
+                 held_boundary=held_boundary,
+                 parts=_summary_parts(problem, v, terms, clusters, held_boundary))
     return len(scene.boundaries), problem.source is not None
+
+
+def _summary_parts(problem, v, terms, clusters, held_boundary) -> dict:
+    """Rank 0, step 5, while it holds the per-particle arrays: what its NetworkSummary needs
+    of them, each as the whole network computes it (the same operations on the same values:
+    network.constant_flows, prescribed_mean, principle_of, np.mean of the capacities for
+    dt_paper, the clusters' counts and the untied particles)."""
+    held, pw_p, c = terms["held"], terms["pw_p"], v["capacity"]
+    powered = np.unique(v["power_particle"])
+    free_powered = powered[~held[powered]]
+    rate = getattr(problem.source, "max_rise_rate", None)
+    untied = np.flatnonzero(~clusters.tied_particle)
+    return dict(
+        problem=ProblemSummary(boundary_names=problem.boundary_names,
+                               source_boundary=problem.source_boundary, source=problem.source),
+        constant_flows=constant_flows(
+            np.bincount(v["power_boundary"], weights=v["power"],
+                        minlength=len(problem.boundary_names)),
+            v["power_particle"], v["power"], held, held_boundary),
+        prescribed_mean=prescribed_mean(v["fixed_temperature"], v["exchange_t"],
+                                        v["exchange_g"]),
+        principle=principle_of(
+            np.concatenate([v["fixed_temperature"], v["exchange_t"]]), pw_p[free_powered],
+            c[free_powered], has_power=bool(np.any(pw_p[powered] != 0)),
+            has_source=problem.source is not None,
+            source_rate=None if rate is None else rate(c, ~held)),
+        capacity_mean=float(np.mean(c)),
+        clusters=ClusterCounts(n_components=clusters.n_components,
+                               floating_sizes=np.array(clusters.floating_sizes),
+                               n_rattlers=clusters.n_rattlers),
+        untied=untied, untied_label=clusters.label[untied], untied_capacity=c[untied])
 
 
 def _join_components(cut_all, gid_all, total_comp, n):
@@ -476,33 +518,71 @@ def _join_components(cut_all, gid_all, total_comp, n):
     return (k, renumber[joined][gid_all]) if n else (0, np.zeros(0, np.int32))
 
 
-def _held_rows(comm, built, routes, mine, adjacency):
-    """Rank 0 keeps the adjacency rows of the held and untied particles (its ledger, steady's
-    floating clusters): each rank sends its rows of them. Returns the pieces on rank 0 (rows
-    and columns as packing indices, H W/K), None on the others."""
-    want = np.flatnonzero(routes.scatter(built["keep"] if comm.Get_rank() == 0 else None,
-                                         np.uint8))
+def _untied_rows(comm, own, mine, adjacency, degree):
+    """The adjacency rows and degrees of the untied particles (floating clusters, rattlers:
+    what a steady solve fills on rank 0): each rank sends those of its own. Returns the pieces
+    on rank 0 (rows and columns as packing indices, H W/K; the particles and their degrees),
+    None on the others."""
+    want = np.flatnonzero(~own["tied"])
     sub = adjacency[want].tocoo()
-    return comm.gather((mine[want][sub.row], sub.col.astype(np.int64), sub.data), root=0)
+    return comm.gather((mine[want][sub.row], sub.col.astype(np.int64), sub.data, mine[want],
+                        degree[want]), root=0)
 
 
-def _root_network(built, pieces, n, m, degree_all, totals):
-    """Rank 0: the in-process Network (network.network_of) from the per-particle arrays, the
-    held and untied rows ``pieces``, the degrees and the ranks' ``totals``, without the other
-    rows: what its ledger, steady's floating clusters, the checks and the output read."""
-    idx = _index_dtype(n)
-    rp = np.concatenate([q[0] for q in pieces])
-    rc = np.concatenate([q[1] for q in pieces])
-    rd = np.concatenate([q[2] for q in pieces])
-    root_adj = sp.coo_matrix((rd, (rp.astype(idx), rc.astype(idx))), shape=(n, n)).tocsr()
-    root_adj.sum_duplicates()
-    root_adj.sort_indices()
-    v = dict(built["v"], m=m)       # the file's contacts (the problem holds none of them)
+def _explicit_bound(comm, own, degree, mine):
+    """The exact forward-Euler bound min over free p of C_p / (sum_q H_pq + g_p) and its
+    particle, as network.network_of finds it on the whole network (the same operations on the
+    same values; among equal bounds the lowest packing index, np.argmin's): each rank's over
+    its rows, the least on rank 0 (None on the others): (dt_max s, particle or -1)."""
+    ratio = degree + own["g"]
+    ok = ratio > 0
+    ok &= ~own["held"]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        np.divide(own["capacity"], ratio, out=ratio)
+    ratio[~ok] = np.inf
+    if ok.any():
+        best = float(ratio.min())
+        mine_best = (best, int(mine[ratio == best].min()))
+    else:
+        mine_best = (math.inf, -1)
+    got = comm.gather(mine_best, root=0)
+    if got is None:
+        return None
+    best = min(b for b, _ in got)
+    if best == math.inf:
+        return math.inf, -1
+    return best, min(p for b, p in got if b == best)
+
+
+def _root_summary(built, pieces, bound, n, m, totals) -> NetworkSummary:
+    """Rank 0: its :class:`~.network.NetworkSummary` from the parts it made while it held the
+    per-particle arrays (:func:`_summary_parts`), the untied particles' rows ``pieces``, the
+    explicit ``bound`` and the ranks' ``totals``: what the run, its checks and the output read
+    of the network (as network.summary_of makes it of the whole network)."""
+    parts = built.pop("parts")
+    sel = parts["untied"]
+    rp, rc, rd, dp, dv = (np.concatenate([q[k] for q in pieces]) for k in range(5))
+    adj = sp.coo_matrix((rd, (np.searchsorted(sel, rp), np.searchsorted(sel, rc))),
+                        shape=(sel.size, sel.size)).tocsr()
+    adj.sum_duplicates()
+    deg = np.empty(sel.size)
+    deg[np.searchsorted(sel, dp)] = dv
+    lap = (sp.diags(deg, format="csr") - adj).tocsr()       # as Network.laplacian's rows
+    lap.sort_indices()
     n_active = totals["n_active"]
-    return network_of(built["problem"], v, built["terms"], root_adj, degree_all, n_active,
-                      built["clusters"], totals["coord_max"],
-                      totals["h_sum"] / n_active if n_active else math.nan,
-                      adjacency_rows=np.flatnonzero(built["keep"]))
+    h_mean = totals["h_sum"] / n_active if n_active else math.nan
+    dt_paper = (float(parts["capacity_mean"] / (totals["coord_max"] * h_mean)) if n_active
+                else math.inf)
+    return NetworkSummary(
+        problem=parts["problem"], n=n, n_active_contacts=n_active,
+        n_zero_contacts=m - n_active, flags=network_flags(m - n_active, parts["clusters"]),
+        dt_max_s=bound[0], dt_max_particle=bound[1], dt_paper_s=dt_paper,
+        clusters=parts["clusters"], constant_boundary_flow_w=parts["constant_flows"],
+        prescribed_mean_k=parts["prescribed_mean"],
+        untied=UntiedParticles(particle=sel, label=parts["untied_label"],
+                               capacity_j_k=parts["untied_capacity"], laplacian=lap,
+                               n_components=parts["clusters"].n_components),
+        principle=parts["principle"])
 
 
 def _send_particle_shares(comm, built, routes, starts):

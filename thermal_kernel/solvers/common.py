@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..network import Network, ThermalProblem, assemble
+from ..network import Network, PrincipleInputs, ThermalProblem, assemble, principle_inputs
 from ..physical import TEMPERATURE_MAX_K   # one home: scenes refuse temperatures above it
 
 
@@ -256,46 +256,6 @@ class PhysicsCheck:
     bounds_k: tuple              # (lo, hi) at the last output time (+-inf when unbounded)
     overshoot_relative: float    # worst excursion outside the bounds / span (0 inside)
     ledger_relative: float       # worst |ledger residual| / energy moved
-
-
-@dataclass(frozen=True)
-class PrincipleInputs:
-    """What the maximum principle's bounds (:func:`bounds_at`) need of a network, besides the
-    start: the range of its prescribed temperatures (held particles, exchange walls; +inf /
-    -inf when it has none), the fastest a prescribed power raises / lowers a free particle
-    (max_p P_p^+ / C_p, max_p P_p^- / C_p, K/s), its source's fastest rise and fall and when
-    the source is on (:meth:`~thermal_kernel.boundaries.source.MovingSource.max_rise_rate`;
-    None without a source, ``source_unbounded`` for a source that gives no such rate), and
-    whether it is the plain principle (no source, no prescribed power). Made from the whole
-    network (:func:`principle_inputs`): when a run is checked, or on the PETSc backend's
-    rank 0 when its build ends (its transient run then keeps no per-particle array)."""
-    prescribed_lo_k: float
-    prescribed_hi_k: float
-    power_up_k_s: float
-    power_down_k_s: float
-    plain: bool
-    source_rate: tuple | None = None      # (up K/s, down K/s, start s, stop s)
-    source_unbounded: bool = False
-
-
-def principle_inputs(net: Network) -> PrincipleInputs:
-    """:class:`PrincipleInputs` of a whole network."""
-    prob = net.problem
-    vals = [net.held_temperature_k[net.fixed_particle],
-            np.asarray(net.exchange_row_temperature_k, dtype=np.float64)]
-    allv = np.concatenate(vals)
-    free = net.free
-    c = net.capacity_j_k[free]
-    pw = np.asarray(net.power_w, dtype=np.float64)[free]
-    rate = getattr(prob.source, "max_rise_rate", None)
-    return PrincipleInputs(
-        prescribed_lo_k=float(allv.min(initial=math.inf)),
-        prescribed_hi_k=float(allv.max(initial=-math.inf)),
-        power_up_k_s=float(np.max(np.clip(pw, 0, None) / c, initial=0.0)),
-        power_down_k_s=float(np.max(np.clip(-pw, 0, None) / c, initial=0.0)),
-        plain=prob.source is None and not np.any(np.asarray(net.power_w) != 0),
-        source_rate=None if rate is None else rate(net.capacity_j_k, free),
-        source_unbounded=prob.source is not None and rate is None)
 
 
 def max_principle_bounds(net: Network, T0, times) -> tuple[np.ndarray, np.ndarray]:
