@@ -3,6 +3,7 @@ does not stop the others, bad input is one line and exit 2, and docs/validation.
 are rebuilt between their markers only. Fake cases in a temporary tree: no YADE, no packing."""
 import dataclasses
 import json
+import math
 import types
 
 import pytest
@@ -574,6 +575,22 @@ def test_case8_quotes_the_fft_solve_it_computed():
     assert abs(coarse.err_rayleigh[0]) > 2 * abs(fft.err_rayleigh[0])
 
 
+def _same_numbers(a, b, where):
+    """``a`` equals ``b`` (JSON values), floats within 1e-12 relative."""
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and a.keys() == b.keys(), where
+        for k in a:
+            _same_numbers(a[k], b[k], f"{where}.{k}")
+    elif isinstance(a, list):
+        assert isinstance(b, list) and len(a) == len(b), where
+        for k, (x, y) in enumerate(zip(a, b)):
+            _same_numbers(x, y, f"{where}[{k}]")
+    elif isinstance(a, float) and isinstance(b, float):
+        assert a == b or math.isclose(a, b, rel_tol=1e-12) or (a != a and b != b), (where, a, b)
+    else:
+        assert a == b, (where, a, b)
+
+
 @pytest.mark.slow       # ~5 s each: the figures are drawn again
 @pytest.mark.parametrize("number", [4, 6])
 def test_a_rebuilt_report_is_the_saved_one(number, tmp_path, monkeypatch, capsys):
@@ -589,8 +606,12 @@ def test_a_rebuilt_report_is_the_saved_one(number, tmp_path, monkeypatch, capsys
     monkeypatch.setattr(framework, "IMG", tmp_path / "img")
     assert run.validate([str(number)], action="rebuild") == 0
     again = json.loads((results / f"case{number}.json").read_text())
-    for key in ("section_md", "our_n", "our_error", "wall_time", "numbers"):
+    for key in ("section_md", "our_n", "our_error", "wall_time"):
         assert again["result"][key] == saved["result"][key], key
+    # the numbers to round-off: a fitted order is a least squares (np.polyfit, LAPACK), whose
+    # last bit differs between CPUs (seen: -0.3124512287128757 saved, ...56 rebuilt); the text
+    # and the other numbers above are the record's exactly
+    _same_numbers(again["result"]["numbers"], saved["result"]["numbers"], "numbers")
     assert again["run_seconds"] == saved["run_seconds"]
     assert (tmp_path / "img" / f"validation_case{number}_"
             f"{'convergence' if number == 4 else 'ct'}.csv").exists()
