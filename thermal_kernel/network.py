@@ -290,6 +290,11 @@ class ClusterCounts:
     def summary(self) -> str:
         return _clusters_line(self.n_components, self.floating_sizes, self.n_rattlers)
 
+    @classmethod
+    def of(cls, report: ClusterReport) -> ClusterCounts:
+        return cls(n_components=report.n_components,
+                   floating_sizes=np.array(report.floating_sizes), n_rattlers=report.n_rattlers)
+
 
 @dataclass(frozen=True)
 class ProblemSummary:
@@ -303,14 +308,19 @@ class ProblemSummary:
     def n_boundaries(self) -> int:
         return len(self.boundary_names)
 
+    @classmethod
+    def of(cls, problem: ThermalProblem) -> ProblemSummary:
+        return cls(boundary_names=problem.boundary_names,
+                   source_boundary=problem.source_boundary, source=problem.source)
+
 
 @dataclass(frozen=True, eq=False)
 class NetworkSummary:
-    """What a transient run reads of its network on the PETSc backend's rank 0 once every rank
-    holds its rows (thermal_kernel/mpi_run.py): its counts, the explicit bounds, the flags, the
-    clusters' counts, the boundaries' names and constant powers, the source. No array of
-    every particle (the ranks' rows hold them; the physics checks' inputs are
-    :class:`~thermal_kernel.solvers.PrincipleInputs`, made before). :func:`summary_of`."""
+    """What a run reads of its network on the PETSc backend's rank 0 once every rank holds its
+    rows (thermal_kernel/mpi_run.py): its counts, the explicit bounds, the flags, the clusters'
+    counts, the boundaries' names and constant powers, the source, the steady reference and
+    untied particles, the maximum principle's inputs. No array of every particle (the ranks'
+    rows hold them). :func:`summary_of`; the per-rank build makes the same from its parts."""
     problem: ProblemSummary
     n: int
     n_active_contacts: int
@@ -329,17 +339,12 @@ class NetworkSummary:
 def summary_of(net: Network) -> NetworkSummary:
     """The :class:`NetworkSummary` of a whole network (the PETSc backend's ``--whole-build``;
     the per-rank build makes rank 0's from its parts, thermal_kernel/rank_build.py)."""
-    p, c = net.problem, net.clusters
     return NetworkSummary(
-        problem=ProblemSummary(boundary_names=p.boundary_names,
-                               source_boundary=p.source_boundary,
-                               source=p.source),
-        n=net.n, n_active_contacts=net.n_active_contacts, n_zero_contacts=net.n_zero_contacts,
+        problem=ProblemSummary.of(net.problem), n=net.n,
+        n_active_contacts=net.n_active_contacts, n_zero_contacts=net.n_zero_contacts,
         flags=net.flags, dt_max_s=net.dt_max_s, dt_max_particle=net.dt_max_particle,
         dt_paper_s=net.dt_paper_s,
-        clusters=ClusterCounts(n_components=c.n_components,
-                               floating_sizes=np.array(c.floating_sizes),
-                               n_rattlers=c.n_rattlers),
+        clusters=ClusterCounts.of(net.clusters),
         constant_boundary_flow_w=np.array(net.constant_boundary_flow_w, dtype=np.float64),
         prescribed_mean_k=net.prescribed_mean_k, untied=untied_of(net),
         principle=principle_inputs(net))
@@ -618,6 +623,20 @@ def assemble(problem: ThermalProblem) -> Network:
                       h_mean)
 
 
+def explicit_ratios(capacity_j_k, degree_w_k, g_w_k, held) -> tuple[np.ndarray, bool]:
+    """(C_p / (sum_q H_pq + g_p) for the free particles with a conductance, inf for the others;
+    whether there is any such particle): the exact forward-Euler bound is their minimum
+    (network_of, whole; the PETSc backend's ranks, each over its rows). Made in place: two
+    arrays of N at most, not five."""
+    ratio = degree_w_k + g_w_k
+    ok = ratio > 0
+    ok &= ~held
+    with np.errstate(divide="ignore", invalid="ignore"):
+        np.divide(capacity_j_k, ratio, out=ratio)
+    ratio[~ok] = np.inf
+    return ratio, bool(ok.any())
+
+
 def network_flags(n_zero_contacts: int, clusters) -> tuple[str, ...]:
     """A network's flags: contacts of H = 0 dropped, floating clusters, rattlers (``clusters``:
     a ClusterReport or ClusterCounts)."""
@@ -639,19 +658,13 @@ def network_of(problem: ThermalProblem, v: dict, terms: dict, adjacency, degree,
     held, held_t, g_p = terms["held"], terms["held_t"], terms["g_p"]
     gt_p, pw_p = terms["gt_p"], terms["pw_p"]
     c = v["capacity"]
-    # (in place: two arrays of N at most, not five)
-    ratio = degree + g_p
-    ok = ratio > 0
-    ok &= ~held
-    if ok.any():
-        with np.errstate(divide="ignore", invalid="ignore"):
-            np.divide(c, ratio, out=ratio)
-        ratio[~ok] = np.inf
+    ratio, any_free = explicit_ratios(c, degree, g_p, held)
+    if any_free:
         p_min = int(np.argmin(ratio))
         dt_max = float(ratio[p_min])
     else:
         p_min, dt_max = -1, float("inf")
-    del ratio, ok
+    del ratio
     # Paper 002 eq. 15-16 in network form: every particle like the mean particle, every contact
     # like the mean contact, the largest coordination number.
     if n_active:

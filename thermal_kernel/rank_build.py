@@ -61,7 +61,8 @@ from scipy.sparse.csgraph import connected_components
 from .checkpoint import packing_sha256
 from .neighbours import bulk_particles, choose_neighbours_on_ranks, dump_gap_tolerance_of
 from .network import (ClusterCounts, NetworkSummary, ProblemSummary, UntiedParticles,
-                      cluster_report, constant_flows, network_flags, particle_terms,
+                      cluster_report, constant_flows, explicit_ratios, network_flags,
+                      particle_terms,
                       prescribed_mean, principle_of, validate)
 from .packing import (CONTACT_BLOCK_ROWS, Packing, PackingError, _check_pairs,
                       check_contact_rows, contact_check_scales, read_contact_rows,
@@ -480,8 +481,7 @@ def _summary_parts(problem, v, terms, clusters, held_boundary) -> dict:
     rate = getattr(problem.source, "max_rise_rate", None)
     untied = np.flatnonzero(~clusters.tied_particle)
     return dict(
-        problem=ProblemSummary(boundary_names=problem.boundary_names,
-                               source_boundary=problem.source_boundary, source=problem.source),
+        problem=ProblemSummary.of(problem),
         constant_flows=constant_flows(
             np.bincount(v["power_boundary"], weights=v["power"],
                         minlength=len(problem.boundary_names)),
@@ -494,9 +494,7 @@ def _summary_parts(problem, v, terms, clusters, held_boundary) -> dict:
             has_source=problem.source is not None,
             source_rate=None if rate is None else rate(c, ~held)),
         capacity_mean=float(np.mean(c)),
-        clusters=ClusterCounts(n_components=clusters.n_components,
-                               floating_sizes=np.array(clusters.floating_sizes),
-                               n_rattlers=clusters.n_rattlers),
+        clusters=ClusterCounts.of(clusters),
         untied=untied, untied_label=clusters.label[untied], untied_capacity=c[untied])
 
 
@@ -534,13 +532,8 @@ def _explicit_bound(comm, own, degree, mine):
     particle, as network.network_of finds it on the whole network (the same operations on the
     same values; among equal bounds the lowest packing index, np.argmin's): each rank's over
     its rows, the least on rank 0 (None on the others): (dt_max s, particle or -1)."""
-    ratio = degree + own["g"]
-    ok = ratio > 0
-    ok &= ~own["held"]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        np.divide(own["capacity"], ratio, out=ratio)
-    ratio[~ok] = np.inf
-    if ok.any():
+    ratio, any_free = explicit_ratios(own["capacity"], degree, own["g"], own["held"])
+    if any_free:
         best = float(ratio.min())
         mine_best = (best, int(mine[ratio == best].min()))
     else:

@@ -364,17 +364,18 @@ class DistributedNetwork:
                             self.nb)
         return tl, ref_local, energy
 
-    def output_terms(self, t_local, ref_local, t) -> np.ndarray:
-        """(B + 1,) this rank's part of what is recorded at an output time ``t`` besides the
-        temperatures: the boundaries' heat flows at ``t_local`` (the terms of
-        Network.boundary_heat_flow on its rows, the source's power at that instant included;
-        rank 0 adds the constant power) and the stored energy sum C (T - T_ref) over its
-        rows. Collective (the mat-vec, a source's scatter)."""
+    def output_terms(self, t_local, ref_local, sw_local) -> np.ndarray:
+        """(B + 1,) this rank's part of what a run records besides the temperatures: the
+        boundaries' heat flows at ``t_local`` (the terms of Network.boundary_heat_flow on its
+        rows, the source's powers ``sw_local`` on them included, if any; rank 0 adds the
+        constant power) and the stored energy sum C (T - T_ref) over its rows (NaN without
+        ``ref_local``). Collective (the mat-vec)."""
         flow = self.partial_flows(t_local, self.matvec(t_local))
-        sw = self.source_powers(t, t)
-        if sw is not None:
-            self.source_ledger(flow, sw, 1.0)
-        return np.append(flow, float(np.dot(self.capacity, t_local - ref_local)))
+        if sw_local is not None:
+            self.source_ledger(flow, sw_local, 1.0)
+        stored = (math.nan if ref_local is None
+                  else float(np.dot(self.capacity, t_local - ref_local)))
+        return np.append(flow, stored)
 
     def gather(self, t_local: np.ndarray):
         """The whole (N,) array in the packing's order on rank 0 (None elsewhere), through the
@@ -469,8 +470,8 @@ def _record(dist, rec, k, t_local, ref_local, energy_partial, src_energy, tk, co
     the ranks' rows (one reduction; rank 0 adds the constant power ``const_b``), the
     temperatures gathered; rank 0 records them in ``rec``. Collective."""
     nb = dist.nb
-    sums = dist.total(np.concatenate([energy_partial,
-                                      dist.output_terms(t_local, ref_local, tk)]))
+    sums = dist.total(np.concatenate([energy_partial, dist.output_terms(
+        t_local, ref_local, dist.source_powers(tk, tk))]))
     T = dist.gather(t_local)
     if dist.rank == 0:
         rec.record(k, T, sums[:nb], src_energy, flow_w=sums[nb:2 * nb] + const_b,
@@ -739,14 +740,11 @@ def solve_steady(dist: DistributedNetwork, T0=None, *, tol=1e-12, pc="gamg",
     # the untied rows stay 0 here: no flow passes them (a held particle's neighbours are tied,
     # an untied particle's exchange rows have g = 0); rank 0 sets them below
     t_local = np.where(dist.held, dist.held_t, np.where(unknown, t_ref + x, 0.0))
-    flow = dist.partial_flows(t_local, dist.matvec(t_local))
-    if sw is not None:
-        dist.source_ledger(flow, sw, 1.0)
-    t0_local = dist.scatter(start.get("T0")) if p["has_T0"] else None
     tied = dist.tied
-    stored = (float(np.dot(dist.capacity[tied], t_local[tied] - t0_local[tied]))
-              if t0_local is not None else math.nan)
-    sums = dist.total(np.append(flow, stored))
+    # the stored energy over the tied rows here (the untied ones, 0 in both, add nothing)
+    t0_local = (np.where(tied, dist.scatter(start.get("T0")), 0.0) if p["has_T0"]
+                else None)
+    sums = dist.total(dist.output_terms(t_local, t0_local, sw))
     source_total = dist.source_total(sw) if sw is not None else None
     untied_b = dist.mpi.gather((dist.mine[~tied], b_local[~tied]), root=0)
     T = dist.gather(t_local)
