@@ -42,6 +42,13 @@ _CONTACT_ARRAYS = {"pair": ("contacts/pair", np.int64), "overlap": ("contacts/ov
                    "normal_force": ("contacts/normal_force", None),
                    "branch": ("contacts/branch", None),
                    "contact_radius": ("contacts/contact_radius", None)}
+# the particles' arrays, hashed from the file when asked (thermal_kernel/packing_ranks.py: no
+# rank holds them whole): read_packing casts phase to int32, keeps the others' dtypes
+PARTICLE_ARRAYS = {"position": ("particles/position", None),
+                   "radius": ("particles/radius", None),
+                   "phase": ("particles/phase", np.int32),
+                   "yade_id": ("particles/yade_id", None)}
+_FILE_ARRAYS = {**_CONTACT_ARRAYS, **PARTICLE_ARRAYS}
 _HASH_ROWS = 1 << 16
 
 
@@ -49,7 +56,7 @@ def _hash_from_file(h, path, name):
     """``h`` updated as packing_sha256 updates it with the array ``name`` of read_packing(path),
     read from the file a block of rows at a time."""
     import h5py
-    dataset, dtype = _CONTACT_ARRAYS[name]
+    dataset, dtype = _FILE_ARRAYS[name]
     h.update(name.encode() + b"\0")
     with h5py.File(path, "r") as f:
         if dataset not in f:
@@ -63,14 +70,16 @@ def _hash_from_file(h, path, name):
             h.update(block.tobytes())
 
 
-def packing_sha256(packing) -> str:
+def packing_sha256(packing, particles_in_file: bool = False) -> str:
     """sha256 (hex) of a packing's content: every array (name, dtype, shape, little-endian
     bytes) and the walls' names and kinds. Equal for the same packing read from a copy. A
     packing read without its contacts (``file_contacts`` set: the PETSc backend's ranks) hashes
-    them from its file, a block of rows at a time: the same hash, never all of them in memory."""
+    them from its file, a block of rows at a time: the same hash, never all of them in memory;
+    ``particles_in_file``: the particles' arrays too (a head without them, packing_ranks.py)."""
     h = hashlib.sha256()
     for name in _PACKING_ARRAYS:
-        if packing.file_contacts is not None and name in _CONTACT_ARRAYS:
+        if (packing.file_contacts is not None and name in _CONTACT_ARRAYS) or \
+                (particles_in_file and name in PARTICLE_ARRAYS):
             _hash_from_file(h, packing.path, name)
             continue
         a = getattr(packing, name, None)

@@ -293,11 +293,16 @@ def _read_particles(f, path) -> tuple:
     yade_id = _dataset(f, path, "particles/yade_id", "i", (n,), optional=True)
     if n == 0:
         _fail(path, "particles/position", "expected at least one particle")
+    _check_radius(path, radius)
+    return position, radius, phase, yade_id
+
+
+def _check_radius(path, radius, row0=0):
+    """Every radius > 0 (``row0``: the file's index of the first; messages name the file's)."""
     if np.any(radius <= 0):
         i = int(np.flatnonzero(radius <= 0)[0])
-        _fail(path, "particles/radius", f"particle {i} has radius {radius[i]!r}; "
+        _fail(path, "particles/radius", f"particle {i + row0} has radius {radius[i]!r}; "
                                         "expected > 0")
-    return position, radius, phase, yade_id
 
 
 def _read_contacts(f, path, n, contacts) -> tuple:
@@ -454,36 +459,55 @@ def _check_geometry(path, position, radius, phase, pair, overlap, branch, wall_p
     shape keeps the spheres cut by its surface) and a wall overlap may reach the radius (their
     wall contacts have overlap r - distance, 0 ... r): only the centre must be inside, and only
     an overlap beyond the radius is refused."""
-    if phase.size and phase.min() < 0:
-        i = int(np.flatnonzero(phase < 0)[0])
-        _fail(path, "particles/phase", f"particle {i} has phase {int(phase[i])}; expected a "
-                                       "phase id >= 0")
+    _check_phase(path, phase)
     extent = hi - lo
     scale = abs_max(position) + np.abs(lo).max() + np.abs(hi).max()
-    tol = GEOMETRY_RTOL * extent + 8 * np.finfo(float).eps * scale
+    _check_centres(path, position, lo, hi, scale)
+    if pair.shape[0]:
+        i, j = pair[:, 0], pair[:, 1]
+        _check_contact_geometry(path, pair, radius[i], radius[j], position[j] - position[i],
+                                overlap, branch, extent, periodic, scale, row0)
+    if wall_particle.size:
+        _check_wall_depth(path, wall_particle, wall_overlap, radius[wall_particle], scale)
+
+
+# The parts of _check_geometry and _check_forces_and_walls on a block of particles or of wall
+# rows (``row0``: the file's index of the block's first; messages name the file's), the
+# packing's scales given: the ranks' reader (thermal_kernel/packing_ranks.py) checks each
+# block where it is read.
+
+def _check_phase(path, phase, row0=0):
+    if phase.size and phase.min() < 0:
+        i = int(np.flatnonzero(phase < 0)[0])
+        _fail(path, "particles/phase", f"particle {i + row0} has phase {int(phase[i])}; "
+                                       "expected a phase id >= 0")
+
+
+def _check_centres(path, position, lo, hi, scale, row0=0):
+    """Every centre inside the domain (``scale``: :func:`_check_geometry`'s, the whole
+    packing's)."""
+    tol = GEOMETRY_RTOL * (hi - lo) + 8 * np.finfo(float).eps * scale
     # the columns' extremes first (no (N, 3) temporaries); the first centre outside only then
     if position.shape[0] and (np.any(position.min(axis=0) < lo - tol)
                               or np.any(position.max(axis=0) > hi + tol)):
         outside = (position < lo - tol) | (position > hi + tol)
         i, axis = (int(v) for v in np.argwhere(outside)[0])
         _fail(path, "particles/position",
-              f"particle {i} has its centre at {'xyz'[axis]} = {position[i, axis]:.6g} m, outside "
-              f"the domain [{lo[axis]:.6g}, {hi[axis]:.6g}] (domain/lo, domain/hi); expected every "
-              "centre inside the domain")
-    if pair.shape[0]:
-        i, j = pair[:, 0], pair[:, 1]
-        _check_contact_geometry(path, pair, radius[i], radius[j], position[j] - position[i],
-                                overlap, branch, extent, periodic, scale, row0)
-    if wall_particle.size:
-        r = radius[wall_particle]
-        too_deep = wall_overlap > r * (1.0 + GEOMETRY_RTOL) + 8 * np.finfo(float).eps * scale
-        if too_deep.any():
-            c = int(np.flatnonzero(too_deep)[0])
-            _fail(path, "wall_contacts/overlap",
-                  f"row {c} (particle {int(wall_particle[c])}) has overlap "
-                  f"{wall_overlap[c]:.6g} m, "
-                  f"larger than its radius {r[c]:.6g} m; expected overlap <= the radius (the "
-                  "centre on the wall's side)")
+              f"particle {i + row0} has its centre at {'xyz'[axis]} = {position[i, axis]:.6g} m, "
+              f"outside the domain [{lo[axis]:.6g}, {hi[axis]:.6g}] (domain/lo, domain/hi); "
+              "expected every centre inside the domain")
+
+
+def _check_wall_depth(path, wall_particle, wall_overlap, r, scale, row0=0):
+    """No wall overlap beyond its particle's radius ``r`` (per row)."""
+    too_deep = wall_overlap > r * (1.0 + GEOMETRY_RTOL) + 8 * np.finfo(float).eps * scale
+    if too_deep.any():
+        c = int(np.flatnonzero(too_deep)[0])
+        _fail(path, "wall_contacts/overlap",
+              f"row {c + row0} (particle {int(wall_particle[c])}) has overlap "
+              f"{wall_overlap[c]:.6g} m, "
+              f"larger than its radius {r[c]:.6g} m; expected overlap <= the radius (the "
+              "centre on the wall's side)")
 
 
 # Root attributes with a physical range (the thermal laws use young_pa and poisson when a scene
@@ -585,29 +609,10 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
             rows = np.flatnonzero(wall_index == w)
             if not rows.size:
                 continue
-            dist = _wall_distance(kind, wall_point[w], wall_normal[w], wall_radius[w],
-                                  position[wall_particle[rows]])
-            geo = r[rows] - dist
-            rtol = WALL_RTOL
-            # touching rows only: a row with overlap <= 0 is a near-wall neighbour without
-            # force (thermal_kernel.lattice writes 0 for its outer layers whatever the radius)
-            off = (wall_overlap[rows] > 0) & \
-                (np.abs(wall_overlap[rows] - geo) > rtol * r[rows] + eps)
-            if off.any():
-                k = int(np.flatnonzero(off)[0])
-                c = int(rows[k])
-                _fail(path, "wall_contacts/overlap",
-                      f"row {c} (particle {int(wall_particle[c])}, wall {w}) has overlap "
-                      f"{wall_overlap[c]:.6g} m, but the particle's centre is "
-                      f"{dist[k]:.6g} m from the {kind} wall (r - distance = {geo[k]:.6g} m); "
-                      f"expected r - distance (within {rtol:g} of the radius)")
-        gap_force = (wall_overlap <= 0) & (wall_normal_force > 0)
-        if gap_force.any():
-            c = int(np.flatnonzero(gap_force)[0])
-            _fail(path, "wall_contacts/normal_force",
-                  f"row {c} (particle {int(wall_particle[c])}) is a gap (overlap "
-                  f"{wall_overlap[c]:.6g} m) with a normal force of "
-                  f"{wall_normal_force[c]:.6g} N; expected 0 on a gap")
+            _check_wall_overlap(path, w, kind, wall_point[w], wall_normal[w], wall_radius[w],
+                                rows, wall_particle[rows], r[rows],
+                                position[wall_particle[rows]], wall_overlap[rows], eps)
+        _check_wall_gap_force(path, wall_particle, wall_overlap, wall_normal_force)
     # coincident centres: two spheres in one place (any overlap search would be O(N log N) on
     # every load; equal centres are the impossible case that costs one sort). Sorted by x,
     # y, z (ties in index order), a column at a time: a tiled packing ties every x (its tiles
@@ -622,10 +627,43 @@ def _check_forces_and_walls(path, position, radius, pair, overlap, normal_force,
         del equal
         if same.size:
             a, b = sorted((int(order[same[0]]), int(order[same[0] + 1])))
-            _fail(path, "particles/position",
-                  f"particles {a} and {b} have the same centre "
-                  f"({', '.join(f'{v:.6g}' for v in position[a])}) m; expected distinct "
-                  "spheres")
+            _fail_coincident(path, a, b, position[a])
+
+
+def _fail_coincident(path, a, b, centre):
+    """The error of particles ``a`` < ``b`` at the same ``centre`` (``a``'s)."""
+    _fail(path, "particles/position",
+          f"particles {a} and {b} have the same centre "
+          f"({', '.join(f'{v:.6g}' for v in centre)}) m; expected distinct spheres")
+
+
+def _check_wall_overlap(path, w, kind, point, normal, wall_radius, rows, particle, r, x,
+                        overlap, eps):
+    """The touching rows ``rows`` (the file's) of wall ``w``: overlap = r - the centre's
+    distance to the wall (``particle``, ``r``, ``x``, ``overlap``: the rows')."""
+    dist = _wall_distance(kind, point, normal, wall_radius, x)
+    geo = r - dist
+    rtol = WALL_RTOL
+    # touching rows only: a row with overlap <= 0 is a near-wall neighbour without
+    # force (thermal_kernel.lattice writes 0 for its outer layers whatever the radius)
+    off = (overlap > 0) & (np.abs(overlap - geo) > rtol * r + eps)
+    if off.any():
+        k = int(np.flatnonzero(off)[0])
+        _fail(path, "wall_contacts/overlap",
+              f"row {int(rows[k])} (particle {int(particle[k])}, wall {w}) has overlap "
+              f"{overlap[k]:.6g} m, but the particle's centre is "
+              f"{dist[k]:.6g} m from the {kind} wall (r - distance = {geo[k]:.6g} m); "
+              f"expected r - distance (within {rtol:g} of the radius)")
+
+
+def _check_wall_gap_force(path, wall_particle, wall_overlap, wall_normal_force):
+    gap_force = (wall_overlap <= 0) & (wall_normal_force > 0)
+    if gap_force.any():
+        c = int(np.flatnonzero(gap_force)[0])
+        _fail(path, "wall_contacts/normal_force",
+              f"row {c} (particle {int(wall_particle[c])}) is a gap (overlap "
+              f"{wall_overlap[c]:.6g} m) with a normal force of "
+              f"{wall_normal_force[c]:.6g} N; expected 0 on a gap")
 
 
 def _x_tied(x) -> bool:
@@ -668,6 +706,11 @@ def _check_solid_fraction(path, phi, position, radius, wall_kind, wall_normal, w
                           wall_particle, wall_overlap, lo, hi):
     bounds = solid_fraction_bounds(radius, wall_kind, wall_normal, wall_radius, wall_particle,
                                    wall_overlap, lo, hi)
+    _check_solid_fraction_bounds(path, phi, bounds, wall_kind)
+
+
+def _check_solid_fraction_bounds(path, phi, bounds, wall_kind):
+    """solid_fraction against :func:`solid_fraction_bounds`' (cut, whole), None: not checked."""
     if bounds is None:
         return
     cut, whole = bounds
