@@ -110,15 +110,14 @@ runpy.run_module("thermal_kernel.mpi_run", run_name="__main__", alter_sys=True)
 '''
 # the build's steps in the order build_on_ranks calls them (names in rank_build.py); those in
 # ROOT_ALONE are rank 0's work while the other ranks wait (their wall time is serial)
-STEPS = ["_read_particles", "morton_blocks_on_ranks", "Routes", "_bulk_flags",
-         "_contacts_to_owners", "_capacities_on_root", "_conducting_contacts", "_rank_rows",
-         "_local_components", "_root_problem", "_send_particle_shares", "_untied_rows",
-         "_explicit_bound", "_root_summary"]
+STEPS = ["read_packing_on_ranks", "morton_blocks_on_ranks", "Routes", "_bulk_flags",
+         "_contacts_to_owners", "_owner_block", "_conducting_contacts", "_rank_rows",
+         "_owner_problem", "_clusters_on_ranks", "_untied_rows", "_explicit_bound",
+         "_root_summary"]
 # after the build: the run itself (petsc_backend's solver functions), what each rank holds
 # for it and at its peak (the explicit cases of STAGE_CASES)
 RUN_STEPS = ["run_explicit"]
-ROOT_ALONE = ("_read_particles", "_bulk_flags", "_capacities_on_root", "_root_problem",
-              "_root_summary")
+ROOT_ALONE = ("_root_summary",)
 STAGE_CASES = [("1e6", "explicit", 2), ("1e6", "explicit", 3)]
 STAGES_JSON = ROOT / "bench/results/rank_build_stages.json"
 

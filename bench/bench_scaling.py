@@ -384,20 +384,21 @@ BUILD = ROOT / "bench/results/rank_build_memory.json"
 BUILD_STAGES = ROOT / "bench/results/rank_build_stages.json"
 # what each step of rank_build.build_on_ranks does (the stages table's second column)
 STEP_WORDS = {
-    "_read_particles": "rank 0 reads and checks the particles whole (not the contacts)",
-    "morton_blocks_on_ranks": "each rank reads its block of the file's particles; the Morton "
-                              "order sorted on the ranks",
+    "read_packing_on_ranks": "each rank reads and checks its block of the file's particles "
+                             "(the reader's checks, the first fault agreed on)",
+    "morton_blocks_on_ranks": "the Morton order sorted on the ranks",
     "Routes": "the ways between the blocks of the order and the file's order",
     "_bulk_flags": "a [neighbours] scene's bulk flags (none here)",
     "_contacts_to_owners": "each rank reads its slice of the contacts, checks them, sends "
                            "each to its particles' owners",
-    "_capacities_on_root": "rank 0 evaluates the law's capacities and inputs on every particle",
+    "_owner_block": "each rank fetches its particles and evaluates the law's capacities on "
+                    "them",
     "_conducting_contacts": "each rank evaluates the law on its contacts",
     "_rank_rows": "each rank's rows of the matrix",
-    "_local_components": "each rank's components of its contacts",
-    "_root_problem": "rank 0: the boundary kinds on every particle, the per-particle terms, "
-                     "the clusters joined",
-    "_send_particle_shares": "each rank's per-particle and boundary rows from rank 0",
+    "_owner_problem": "each rank runs the boundary kinds on its particles; the summary's "
+                      "parts reduced",
+    "_clusters_on_ranks": "each rank's components of its contacts, joined on rank 0 (an array "
+                          "of the components)",
     "run_explicit": "the run after the build: the explicit steps, the output times' sums, "
                     "the temperatures gathered on rank 0",
     "_untied_rows": "the untied particles' rows to rank 0 (a steady solve fills them there)",
@@ -762,22 +763,23 @@ def _doc_build_stages(st) -> list[str]:
         p2, p3 = per[2][0], per[3][0]
         top2 = max(p2, key=p2.get)
         whole = stages_whole(st)
-        late = [k for k in ("_root_problem", "_send_particle_shares", "_untied_rows",
+        late = [k for k in ("_owner_problem", "_clusters_on_ranks", "_untied_rows",
                             "_root_summary", "run_explicit") if k in whole]
         wl = max(late, key=whole.get) if late else None
         first = rows[0]["steps"][0][0]["step"]
         L.append(f"Read: on 2 and 3 ranks rank 0's highest step is `{top2}` ({p2[top2]:.0f} "
                  f"and {p3[top2]:.0f} B per particle), where every rank holds its contacts. "
                  "Written as peak = w + d / R from the two rows, rank 0's part not divided by "
-                 f"the ranks is w = {whole[top2]:.0f} B per particle there (the particles, the "
-                 f"law's inputs and capacities), w = {whole[first]:.0f} in `{first}` (the "
-                 "reader's checks of every particle)"
+                 f"the ranks is w = {whole[top2]:.0f} B per particle there, "
+                 f"w = {whole[first]:.0f} in `{first}`"
                  + (f" and w = {whole[wl]:.0f} in `{wl}`, the largest of the later steps "
                     f"({STEP_WORDS.get(wl, '')})" if wl else "")
-                 + ": once the contacts are divided among enough ranks, rank 0's peak is the "
-                 "largest of these, in bytes per particle not divided by the ranks. The next "
-                 "step of issue 25 (the reader's checks and the boundary kinds on the "
-                 "directories' blocks) takes the particles off rank 0.\n")
+                 + ". Every rank reads, checks and builds its own particles: what rank 0 "
+                 "holds beyond its block is the components' arrays (one entry per cluster "
+                 "and rattler, to join them), the untied particles' rows and, in the run, "
+                 "the temperatures it gathers at an output time. Two rows (R = 2, 3) of "
+                 "traced memory are noisy at a few B per particle: a w near 0 means no array "
+                 "of every particle.\n")
     if timed and rows[0].get("root_alone"):
         r = rows[0]
         alone = [s for s in r["steps"][0] if s["step"] in r["root_alone"]]
@@ -786,9 +788,8 @@ def _doc_build_stages(st) -> list[str]:
                  + ", ".join(f"`{s['step']}`" for s in alone)
                  + f") took {total:.2f} s on {r['ranks']} ranks, {total / r['n'] * 1e9:.0f} "
                  "ns per particle, not divided by the ranks: at 1e9 particles about "
-                 f"{total / r['n'] * 1e9 / 60:.0f} min of the build on rank 0 alone (linear "
-                 "in N; the sort of the coincident-centre check adds a log N), before the "
-                 "first step of the solve.\n")
+                 f"{total / r['n'] * 1e9 / 60:.1f} min of the build on rank 0 alone, "
+                 "before the first step of the solve.\n")
     return L
 
 

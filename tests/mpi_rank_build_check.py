@@ -87,25 +87,38 @@ def main(scene_path):
             same(info["neighbours"].keep[:keep.size], keep, "neighbours.keep (rank 0's rows)")
             assert 0 < s1["n_kept"] < s1["n_dumped"], s1      # the criterion does cut rows
         # rank 0's NetworkSummary against the whole network's (summary_of): every number
-        # bit for bit but dt_paper (its mean H summed in another order: 1e-14)
+        # bit for bit but the sums the ranks add up from their partial sums (dt_paper's mean
+        # H and mean C, the steady reference, the constant powers: 1e-14)
         a, b = summary_of(whole), rb.net
         assert (a.n, a.dt_max_s, a.dt_max_particle, a.n_active_contacts, a.n_zero_contacts,
-                a.flags, a.prescribed_mean_k, a.principle) == (
+                a.flags, a.principle) == (
             b.n, b.dt_max_s, b.dt_max_particle, b.n_active_contacts, b.n_zero_contacts,
-            b.flags, b.prescribed_mean_k, b.principle), (a, b)
+            b.flags, b.principle), (a, b)
         assert abs(a.dt_paper_s - b.dt_paper_s) <= 1e-14 * a.dt_paper_s
-        assert (a.problem.boundary_names, a.problem.source_boundary,
-                a.problem.source is None) == (b.problem.boundary_names,
-                                              b.problem.source_boundary, b.problem.source is None)
+        assert abs(a.prescribed_mean_k - b.prescribed_mean_k) <= 1e-14 * a.prescribed_mean_k
+        flows = np.abs(a.constant_boundary_flow_w - b.constant_boundary_flow_w)
+        assert np.all(flows <= 1e-14 * np.abs(a.constant_boundary_flow_w).max(initial=0.0)), \
+            (a.constant_boundary_flow_w, b.constant_boundary_flow_w)
+        # the source stays on the ranks, each over its block (checked below)
+        assert (a.problem.boundary_names, a.problem.source_boundary) == (
+            b.problem.boundary_names, b.problem.source_boundary)
+        assert b.problem.source is None
         assert (a.clusters.n_components, a.clusters.n_rattlers) == (
             b.clusters.n_components, b.clusters.n_rattlers)
         same(a.clusters.floating_sizes, b.clusters.floating_sizes, "clusters.floating_sizes")
-        same(a.constant_boundary_flow_w, b.constant_boundary_flow_w, "constant flows")
         for key in ("particle", "label", "capacity_j_k"):
             same(getattr(a.untied, key), getattr(b.untied, key), f"untied.{key}")
         same(a.untied.laplacian.toarray(), b.untied.laplacian.toarray(), "untied.laplacian")
         assert a.untied.n_components == b.untied.n_components
         assert a.untied.particle.size == int((~whole.clusters.tied_particle).sum())
+    # a source: each rank's, built by the kinds on its particles, gives the whole source's
+    # powers over its block, bit for bit (a still and a moving window, an instant)
+    has_source = comm.bcast(whole.problem.source is not None if rank == 0 else None, root=0)
+    assert (rb.local_source is not None) == has_source, rank
+    if has_source:
+        for t0, t1 in ((0.0, 2.0), (0.3, 0.5), (0.5, 0.5), (1.0, 1.7)):
+            powers = comm.bcast(whole.problem.source(t0, t1) if rank == 0 else None, root=0)
+            same(rb.local_source(t0, t1), powers[rb.mine], f"rank {rank}: source {t0} {t1}")
     r1 = backend.solve_steady(ref, np.full(ref.n, 300.0) if rank == 0 else None)
     r2 = backend.solve_steady(mine, np.full(ref.n, 300.0) if rank == 0 else None)
     if rank == 0:

@@ -205,6 +205,38 @@ def test_a_bad_scene_on_the_ranks_is_one_line_and_exit_2(tmp_path, capsys):
     assert not (tmp_path / "o" / "thermal.h5").exists()
 
 
+# the boundary kinds run on each rank's particles (rank_build.py: RanksWhole): each refusal
+# that depends on every particle (a count, a flag, the phases present, the lowest particle)
+BAD_BOUNDARIES = {
+    "held twice": '[[boundary]]\nkind = "temperature"\non = "xmin"\nvalue = 300.0\n'
+                  'name = "again"\n',
+    "flux on held": '[[boundary]]\nkind = "flux"\non = "xmin"\nvalue = 10.0\n',
+    "no such phase": '[[boundary]]\nkind = "phase_temperature"\nphase = 7\nvalue = 300.0\n',
+}
+
+
+@pytest.mark.parametrize("case", [*BAD_BOUNDARIES, "source away", "capacity"])
+def test_a_boundary_refused_on_the_ranks_is_the_in_process_line(tmp_path, capsys, case):
+    """Each rank runs the boundary kinds on its own particles: a refusal that depends on
+    every particle -- every particle of a face already held (the boundary named by the lowest
+    particle), no particle of a phase (the phases present, over every rank), a source that
+    reaches no centre, a capacity out of range (counted over every rank, the lowest particle
+    named) -- is on 3 ranks the in-process run's one line, exit 2, no output. What could fail:
+    a rank's own count or first particle in the message, a rank raising alone (a hang)."""
+    text = DENSE_ROWS + BAD_BOUNDARIES.get(case, "")
+    if case == "capacity":
+        text = text.replace("[material.1]\n", "[material.1]\ndensity = 1e-320\n", 1)
+    if case == "source away":
+        text = text.replace("centre_m = [0.004, 0.0075, 0.0075]", "centre_m = [0.5, 0.5, 0.5]")
+    scene = _scene(tmp_path, "bad", text + '[solver]\nmethod = "steady"\n')
+    assert main(["run", str(scene), "--out", str(tmp_path / "i")]) == 2
+    inproc = capsys.readouterr().err.strip().splitlines()
+    assert len(inproc) == 1 and inproc[0].startswith(f"tdem: error: {scene}: "), inproc
+    assert main(["run", str(scene), "--out", str(tmp_path / "o"), "--ranks", "3"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == inproc
+    assert not (tmp_path / "o" / "thermal.h5").exists()
+
+
 # ------------------------------------------------------------------ the per-rank build
 def test_the_morton_order_sorted_on_the_ranks_is_the_whole_sort():
     """thermal_kernel/solvers/partition.py on 1-4 ranks (tests/mpi_partition_check.py, under

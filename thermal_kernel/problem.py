@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from .boundaries import BuildContext, Rows
+from .boundaries.base import Whole
 from .boundaries.base import FACES, boundary_particles  # noqa: F401 (imported from here by tdem_post, validation, bench and tests)
 from .laws import get_law
 from .laws.base import ContactInput, ParticleInput
@@ -79,11 +80,13 @@ def law_params(scene: Scene, law) -> dict:
 
 
 def evaluate_law(scene: Scene, packing: Packing, keep: np.ndarray | None = None,
-                 neighbours: np.ndarray | None = None):
+                 neighbours: np.ndarray | None = None, check_capacity: bool = True):
     """The scene's law on the packing's contacts and particles, checked: (law, params,
     ParticleInput, H per contact of ``packing``, C per particle). The one place a law is
     evaluated: on the whole packing (:func:`build_problem`) or on the contacts a rank holds
-    (``packing.contact_row``, ``neighbours`` the whole packing's counts; rank_build.py)."""
+    (``packing.contact_row``, ``neighbours`` the whole packing's counts; rank_build.py).
+    ``check_capacity`` False: the capacities are the caller's to check (a rank's particles:
+    :func:`bad_capacity`, :func:`capacity_refusal` over every rank's)."""
     law = get_law(scene.law)
     params = law_params(scene, law)
     contacts, particles = build_law_inputs(scene, packing, keep, neighbours)
@@ -92,7 +95,8 @@ def evaluate_law(scene: Scene, packing: Packing, keep: np.ndarray | None = None,
         capacity = np.asarray(law.capacity(particles, params), dtype=np.float64)
     if keep is not None:
         conductance = np.where(keep, conductance, 0.0)
-    _check_law_output(scene, law, conductance, capacity, packing.contact_row)
+    _check_law_output(scene, law, conductance, capacity if check_capacity else np.ones(1),
+                      packing.contact_row)
     return law, params, particles, conductance, capacity
 
 
@@ -111,18 +115,22 @@ def build_problem(scene: Scene, packing: Packing):
 
 
 def boundary_problem(scene: Scene, packing: Packing, law, params, particles, capacity,
-                     conductance, choice=None):
+                     conductance, choice=None, whole: Whole | None = None):
     """(ThermalProblem, info) from the law's outputs: each boundary adds its rows (its kind's
     ``contribute``), checked. ``packing.pair`` and ``conductance`` are the problem's contacts
-    (none: the PETSc backend's rank 0, whose ranks hold the contacts, rank_build.py)."""
+    (none: the PETSc backend's ranks, which hold the contacts apart, rank_build.py).
+    ``whole``: how the kinds see the whole packing when ``packing`` holds a rank's particles
+    only (:class:`~thermal_kernel.boundaries.base.Whole`; default: it is whole); the rows are
+    then that rank's, the checks and ``info`` the whole packing's."""
+    whole = whole or Whole()
     young, poisson = mechanical_properties(scene, packing)
     ctx = BuildContext(scene=scene, packing=packing, law=law, params=params,
                        particles=particles, capacity_j_k=capacity, young_pa=young,
-                       poisson=poisson)
+                       poisson=poisson, whole=whole)
     rows = Rows()
     for index, b in enumerate(scene.boundaries):
         b.contribute(ctx, index, rows)
-    _check_rows(scene, packing, rows)
+    _check_rows(scene, packing, rows, whole)
 
     fixed_particle = _cat(rows.fixed_p, np.int64)
     fixed_temperature = _cat(rows.fixed_t, np.float64)
@@ -157,7 +165,8 @@ def boundary_problem(scene: Scene, packing: Packing, law, params, particles, cap
         power_boundary=_cat(rows.pow_b, np.int32),
         source=source, source_boundary=int(source_boundary),
         boundary_names=tuple(b.name for b in scene.boundaries))
-    info = {"law_params": params, "particles_on_two_temperature_boundaries": n_shared,
+    info = {"law_params": params,
+            "particles_on_two_temperature_boundaries": whole.count(n_shared),
             "neighbours": choice}
     return problem, info
 
@@ -177,18 +186,30 @@ def _scene_inputs(scene: Scene, keys) -> str:
     return ", ".join(out)
 
 
+def bad_capacity(capacity_j_k) -> np.ndarray:
+    """The capacities a law may not give: not finite or <= 0."""
+    return ~np.isfinite(capacity_j_k) | (capacity_j_k <= 0)
+
+
+def capacity_refusal(scene: Scene, law, value, n_bad: int, n: int, first: int) -> SceneError:
+    """The one-line refusal of ``n_bad`` of ``n`` capacities (``first``: the lowest particle,
+    its C ``value``): the whole packing's, or the PETSc backend's ranks' reduced
+    (rank_build.py)."""
+    return SceneError(
+        f"{scene.path}: {_scene_inputs(scene, ('density', 'heat_capacity'))}: law "
+        f"{law.name!r} gives a heat capacity C = {value:g} J/K for {n_bad} "
+        f"of {n} particles (first: particle {first}); expected numbers whose "
+        "product rho c_p V is finite and > 0")
+
+
 def _check_law_output(scene: Scene, law, conductance, capacity, contact_row=None) -> None:
     """A law's H and C computed from the scene's numbers, refused in one line naming the scene
     keys they came from (not the solvers' arrays) when a value is out of floating-point range:
     H not finite or < 0, C not finite or <= 0."""
-    bad = ~np.isfinite(capacity) | (capacity <= 0)
+    bad = bad_capacity(capacity)
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
-        raise SceneError(
-            f"{scene.path}: {_scene_inputs(scene, ('density', 'heat_capacity'))}: law "
-            f"{law.name!r} gives a heat capacity C = {capacity[k]:g} J/K for {int(bad.sum())} "
-            f"of {capacity.size} particles (first: particle {k}); expected numbers whose "
-            "product rho c_p V is finite and > 0")
+        raise capacity_refusal(scene, law, capacity[k], int(bad.sum()), capacity.size, k)
     bad = ~np.isfinite(conductance) | (conductance < 0)
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
@@ -201,17 +222,16 @@ def _check_law_output(scene: Scene, law, conductance, capacity, contact_row=None
             "numbers for which the law's H is finite and >= 0")
 
 
-def _check_rows(scene: Scene, packing: Packing, rows) -> None:
+def _check_rows(scene: Scene, packing: Packing, rows, whole: Whole) -> None:
     """What the boundaries' rows cannot mean, refused in one line: a temperature boundary whose
     particles are all held already by one listed before it (it would hold nothing: "the first
     listed wins" applies to shared edges, not to a whole wall), and a flux whose particles are
     all held (its power would go straight into the held temperature, heating nothing)."""
     held = np.zeros(packing.n_particles, bool)
     held_by = np.full(packing.n_particles, -1, dtype=np.int32)
-    for p, b in zip(rows.fixed_p, rows.fixed_b):
-        index = int(b[0]) if b.size else -1
-        if p.size and held[p].all():
-            first = int(held_by[p[0]])
+    for p, index in zip(rows.fixed_p, rows.fixed_i):
+        if whole.count(p.size) and whole.all(held[p].all()):
+            first = int(whole.lowest(p, held_by[p]))
             raise SceneError(
                 f"{scene.path}: boundary[{index}].on: every particle of "
                 f"{scene.boundaries[index].on!r} is already held by boundary[{first}] "
@@ -221,10 +241,9 @@ def _check_rows(scene: Scene, packing: Packing, rows) -> None:
         fresh = p[~held[p]]
         held[fresh] = True
         held_by[fresh] = index
-    for p, b in zip(rows.pow_p, rows.pow_b):
-        index = int(b[0]) if b.size else -1
-        if p.size and held[p].all():
-            first = int(held_by[p[0]])
+    for p, index in zip(rows.pow_p, rows.pow_i):
+        if whole.count(p.size) and whole.all(held[p].all()):
+            first = int(whole.lowest(p, held_by[p]))
             bnd = scene.boundaries[index]
             raise SceneError(
                 f"{scene.path}: boundary[{index}].on: every sphere of {bnd.on!r} is held at a "

@@ -1,52 +1,56 @@
 """Each MPI rank reads and builds its own rows of the network (issue 25; docs/scaling.md).
 
-The PETSc backend's build (:mod:`thermal_kernel.mpi_run`): no rank reads the whole contact list
-or evaluates the law on every contact, and only rank 0 holds the particles whole. Collective
-over an mpi4py communicator:
+The PETSc backend's build (:mod:`thermal_kernel.mpi_run`): no rank reads the whole packing,
+evaluates the law on every contact or every particle, or runs the boundary kinds on every
+particle. Collective over an mpi4py communicator:
 
-1. rank 0 reads the packing without its contacts (``read_packing(path, contacts=False)``,
-   checked as always: the boundary kinds and the output need the particles whole); rank r
-   reads the r-th block of the file's particles (it is their *directory*), the ranks sort
-   the Morton order together (:func:`~.solvers.partition.morton_blocks_on_ranks`, the whole
-   sort's order bit for bit) and rank r owns the r-th block of it; values go between the
-   owners, the directories and rank 0 (in the file's order) by
+1. rank r reads the r-th block of the file's particles (it is their *directory*), checked as
+   the whole reader checks them, with the same first fault
+   (:func:`~.packing_ranks.read_packing_on_ranks`; the walls and wall contacts, a surface's
+   worth, on every rank); the ranks sort the Morton order together
+   (:func:`~.solvers.partition.morton_blocks_on_ranks`, the whole sort's order bit for bit)
+   and rank r owns the r-th block of it; values go between the owners and the directories by
    :class:`~.solvers.partition.Routes`: no rank holds the order;
 2. rank r reads the r-th slice of the file's contact rows (``read_contact_rows``), fetches
    their spheres from the directories and checks the rows against them
    (``check_contact_rows``, the reader's checks); a scene's ``[neighbours]`` criterion is
    chosen over every rank's rows with collectives
-   (:func:`~.neighbours.choose_neighbours_on_ranks`: the bulk flags from rank 0, which holds
-   the particles; the gap giving the target bulk Z found by a bisection over the ratios'
-   bits, the ranks' summed weights gathered a step: the whole build's gap, bit for bit) and each
-   row marked kept or not; the neighbour counts (of the kept rows) are summed at the
-   directories and fetched back; each contact goes, with its two spheres' values, to the
-   rank(s) owning its particles (one Alltoallv a field): a rank then holds the contacts
-   touching its particles, in the file's order (duplicates found there: both copies reach
-   the owner of i);
-3. each rank evaluates the scene's law on those contacts (:func:`~.problem.evaluate_law`, the
-   one law registry, on a packing of the contacts' spheres; H = 0 on the rows not kept) and
-   builds its rows of A = L + diag(g) with the in-process arithmetic (the same sums in the
-   same order: the rows equal the whole build's bit for bit, ``tests/test_petsc_backend.py``);
-4. rank 0 evaluates the law's capacities and runs the boundary kinds
-   (:func:`~.problem.boundary_problem`, the one registry) on the whole particles, and sends
-   each rank the per-particle and boundary rows of its block;
-5. the clusters: each rank labels the components of its own rows' contacts, rank 0 joins them
-   through the cut contacts (the same numbering as in-process); while rank 0 holds the
-   per-particle arrays the kinds made, it keeps what its summary needs of them
-   (:func:`_summary_parts`: the constant powers, the steady reference, the maximum
-   principle's inputs, the clusters' counts, the untied particles), then drops them; the
-   untied particles' rows come to rank 0 (:func:`_untied_rows`), the explicit bound is each
-   rank's over its rows, the least on rank 0 (:func:`_explicit_bound`), and rank 0 makes its
+   (:func:`~.neighbours.choose_neighbours_on_ranks`: the bulk flags found by the
+   directories, the mean radius summed over the ranks; the gap giving the target bulk Z
+   found by a bisection over the ratios' bits, the ranks' summed weights gathered a step: the
+   whole build's gap, bit for bit) and each row marked kept or not; the neighbour counts (of
+   the kept rows) are summed at the directories and fetched back; each contact goes, with its
+   two spheres' values, to the rank(s) owning its particles (one Alltoallv a field): a rank
+   then holds the contacts touching its particles, in the file's order (duplicates found
+   there: both copies reach the owner of i);
+3. each rank fetches its own particles from their directories and evaluates the law's
+   capacities on them (:func:`_owner_block`; a refusal counted over every rank, naming the
+   lowest particle, as the whole build's), then the law on its contacts
+   (:func:`~.problem.evaluate_law`, the one law registry, on a packing of the contacts'
+   spheres; H = 0 on the rows not kept) and builds its rows of A = L + diag(g) with the
+   in-process arithmetic (the same sums in the same order: the rows equal the whole build's
+   bit for bit, ``tests/mpi_rank_build_check.py``);
+4. each rank runs the boundary kinds (:func:`~.problem.boundary_problem`, the one registry) on
+   its own particles, sorted by packing index, seeing the whole packing through
+   :class:`RanksWhole` (a count, a flag, a sum in packing order, the phases present, reduced
+   over the ranks): its rows of the problem, the whole problem's restricted to it, bit for
+   bit; a source is built over its block and evaluated there every step. What rank 0's
+   summary needs of the per-particle arrays is reduced over the ranks
+   (:func:`_summary_on_ranks`: the constant powers, the steady reference, the maximum
+   principle's inputs, the mean capacity);
+5. the clusters (:func:`_clusters_on_ranks`): each rank labels the components of its own rows'
+   contacts, rank 0 joins them through the cut contacts (the same numbering as in-process)
+   and sends back each component's label and tied flag; the untied particles' rows come to
+   rank 0 (:func:`_untied_rows`), the explicit bound is each rank's over its rows, the least
+   on rank 0 (:func:`_explicit_bound`), and rank 0 makes its
    :class:`~.network.NetworkSummary` (:func:`_root_summary`: network.summary_of's of the whole
-   network, bit for bit but dt_paper, ``tests/mpi_rank_build_check.py``): what the run, its
-   checks and the output read of the network.
+   network, bit for bit but the sums the ranks add from partial sums, to 1e-14).
 
-What stays whole: on rank 0 the particles (read and checked, for the boundary kinds) and,
-while the kinds run and each rank's per-particle rows are sent, the problem's per-particle
-arrays; during the run, the start and the temperatures it gathers at an output time (they go,
-one time at a time, into the run's history, paged to disk when large:
-:func:`~.atomic.history_rows`). ``mpi_run --whole-build`` builds the network whole on rank 0
-instead (for comparison).
+What rank 0 holds beyond its block: arrays of the components (one per cluster and rattler:
+the joining) and of the untied particles; during the run, the start and the temperatures it
+gathers at an output time (they go, one time at a time, into the run's history, paged to disk
+when large: :func:`~.atomic.history_rows`). ``mpi_run --whole-build`` builds the network whole
+on rank 0 instead (for comparison).
 """
 from __future__ import annotations
 
@@ -58,19 +62,18 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .checkpoint import packing_sha256
-from .neighbours import bulk_particles, choose_neighbours_on_ranks, dump_gap_tolerance_of
+from .boundaries.base import Whole
+from .neighbours import choose_neighbours_on_ranks, dump_gap_tolerance_of, face_distance
 from .network import (ClusterCounts, NetworkSummary, ProblemSummary, UntiedParticles,
-                      cluster_report, constant_flows, explicit_ratios, network_flags,
-                      particle_terms,
-                      prescribed_mean, principle_of, validate)
+                      constant_flows, explicit_ratios, network_flags, particle_terms,
+                      principle_of, validate)
 from .packing import (CONTACT_BLOCK_ROWS, Packing, PackingError, _check_pairs,
-                      check_contact_rows, contact_check_scales, read_contact_rows,
-                      read_packing, read_particle_rows)
-from .problem import boundary_problem, evaluate_law
+                      check_contact_rows, read_contact_rows)
+from .packing_ranks import read_packing_on_ranks
+from .problem import bad_capacity, boundary_problem, capacity_refusal, evaluate_law
 from .scene import SceneError
 from .solvers.partition import (Routes, alltoallv, block_starts, exchange_counts,
-                                 gather_blocks, morton_blocks_on_ranks, scatter_blocks)
+                                 morton_blocks_on_ranks)
 
 class RankError(RuntimeError):
     """Another rank's part of the build failed: its one-line message (each rank raises)."""
@@ -91,6 +94,7 @@ class RankBuild:
     net: object = None
     info: dict | None = None
     packing_sha256: str = ""
+    local_source: object = None     # the source over this rank's block (its places), or None
 
 
 def agree(comm, fn):
@@ -169,29 +173,31 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     memory per rank: docs/scaling.md)."""
     rank, size = comm.Get_rank(), comm.Get_size()
 
-    # 1. rank 0: the particles whole; each rank its block of the file's particles, the Morton
-    # order sorted on the ranks, its block of it
-    particles, head, packing_hash = _read_particles(comm, packing_path)
-    root_in = dict(particles=particles)     # rank 0: dropped once the boundary kinds ran
-    del particles
-    n, m, path = head["n"], head["m"], head["path"]
+    # 1. each rank reads its block of the file's particles (it is their directory), checked
+    # as the whole reader checks them; the Morton order sorted on the ranks, its block of it
+    pk = read_packing_on_ranks(packing_path, comm)
+    head = dict(n=pk.n_particles, m=int(pk.head.file_contacts), path=pk.head.path,
+                attrs=pk.head.attrs, lo=pk.head.domain_lo, hi=pk.head.domain_hi,
+                periodic=pk.head.periodic, scales=pk.scales)
+    n, m = head["n"], head["m"]
     starts = block_starts(n, size)          # the ranks' blocks of the Morton order
-    fblock = starts                         # the directories' blocks of the file's particles
+    fblock = np.asarray(pk.starts)          # the directories' blocks of the file's particles
     lo, hi = int(starts[rank]), int(starts[rank + 1])
-    fb = agree(comm, lambda: read_particle_rows(path, fblock[rank], fblock[rank + 1]))
+    fb = pk.block
     mine = morton_blocks_on_ranks(comm, fb["position"], starts)
-    routes = Routes(comm, mine, starts)     # owners <-> directories <-> rank 0 (file order)
+    routes = Routes(comm, mine, starts)     # owners <-> directories
     own_new = routes.places()               # the file block's places in the order
-    n_bulk, own_bulk = _bulk_flags(comm, scene.neighbours, root_in["particles"], fblock)
+    n_bulk, own_bulk = _bulk_flags(comm, scene.neighbours, pk.head, fb, n)
 
     # 2. this rank's slice of the contact rows, checked, chosen, sent to their particles' owners
     got, nb_block, choice = _contacts_to_owners(scene, comm, head, starts, fblock, fb, own_new,
                                                 n_bulk, own_bulk)
     del own_bulk
 
-    # 3. rank 0: the law's capacities and inputs on the whole particles (its boundary kinds',
-    # its output's), then the law on each rank's contacts and this rank's rows of A
-    root_in.update(_capacities_on_root(scene, comm, root_in["particles"], nb_block, fblock))
+    # 3. this rank's particles from their directories, the law's capacities on them (checked
+    # over every rank); then the law on each rank's contacts and this rank's rows of A
+    blk = _owner_block(scene, comm, pk.head, fb, nb_block, mine, fblock)
+    del fb["position"]
     directory = dict(radius=fb["radius"], phase=fb["phase"], nb=nb_block, new=own_new)
     del fb, nb_block, own_new
     ids, new_l, active = _conducting_contacts(scene, comm, head, got, directory, fblock,
@@ -200,38 +206,35 @@ def build_on_ranks(scene, packing_path, comm, *, conductance_factor=None) -> Ran
     adjacency, columns, degree, totals = _rank_rows(comm, active, ids, new_l, lo, hi, n)
     del active, ids, new_l
 
-    # 4. clusters: components of this rank's own contacts, joined on rank 0 by the cut ones
-    gid, cut_edges, n_comp, comp_first = _local_components(comm, adjacency, columns, lo, hi,
-                                                           mine)
-    total_comp = comm.allreduce(int(n_comp))
-    gid_all = routes.gather(gid, _index_dtype(total_comp))     # int32 while it holds them
-    cut_all = comm.gather((cut_edges, comp_first), root=0)     # per component, rank order
-    del gid, cut_edges, comp_first
+    # 4. the boundary kinds (the one registry) on this rank's particles, the whole packing's
+    # counts and sums by reductions: its per-particle and boundary rows
+    own, problem, info, parts = _owner_problem(scene, comm, blk, choice, n)
+    local_source = (None if problem.source is None
+                    else problem.source.restricted(_sorted_place(blk.by)))
+    del problem, blk
 
-    # 5. rank 0: the boundary kinds, the clusters, what its summary needs of them; each rank
-    # its per-particle rows, from which the explicit bound is found
-    built = {}
-    nb_count, has_source = comm.bcast(agree(comm, (lambda: _root_problem(
-        scene, root_in, choice, cut_all, gid_all, total_comp, built)) if rank == 0
-        else (lambda: None)), root=0)
-    cut_all = gid_all = None
+    # 5. clusters: components of this rank's own contacts, joined on rank 0 by the cut ones;
+    # the tied flags and the untied particles' labels back at their owners
+    label, own["tied"], counts = _clusters_on_ranks(comm, adjacency, columns, lo, hi, mine,
+                                                    own["held"] | (own["g"] > 0), starts)
     from .solvers.petsc_backend import share_block
-    own = _send_particle_shares(comm, built, routes, starts)
-    for key in ("v", "terms", "clusters", "held_boundary", "problem"):
-        built.pop(key, None)            # rank 0: no array of every particle from here on
     own.update(share_block(adjacency, degree, own["g"], lo, n, columns))
     del columns
-    pieces = _untied_rows(comm, own, mine, adjacency, degree)
-    del adjacency
+    pieces = _untied_rows(comm, own, mine, adjacency, degree, label)
+    del adjacency, label
     bound = _explicit_bound(comm, own, degree, mine)
-    meta = dict(n=n, starts=starts, nb=nb_count, has_source=has_source, cut=totals["cut"],
-                active_contacts=totals["n_active"])
+    meta = dict(n=n, starts=starts, nb=len(scene.boundaries),
+                has_source=local_source is not None, cut=totals["cut"],
+                active_contacts=totals["n_active"],
+                source_boundary=int(parts["problem"].source_boundary))
     if rank != 0:
-        return RankBuild(share=own, meta=meta, mine=mine, routes=routes)
-    net = _root_summary(built, pieces, bound, n, m, totals)
+        return RankBuild(share=own, meta=meta, mine=mine, routes=routes,
+                         local_source=local_source)
+    parts["clusters"] = counts
+    net = _root_summary(parts, pieces, bound, n, m, totals)
     return RankBuild(share=own, meta=meta, mine=mine, routes=routes, particles=SimpleNamespace(
-        path=head["path"], n_particles=n), net=net, info=built["info"],
-        packing_sha256=packing_hash)
+        path=head["path"], n_particles=n), net=net, info=info,
+        packing_sha256=pk.sha256, local_source=local_source)
 
 
 def _index_dtype(n):
@@ -239,35 +242,17 @@ def _index_dtype(n):
     return np.int32 if n < 2 ** 31 - 1 else np.int64
 
 
-def _read_particles(comm, packing_path):
-    """Step 1: rank 0 reads the packing without its contacts (checked as always: the boundary
-    kinds and the output need the particles whole); every rank gets its
-    head (counts, path, attributes, domain and the contact checks' scales). Returns the
-    particles and the packing's sha256 (the checkpoints' and the output's; made here, so the
-    particles can go once the boundary kinds ran), None and "" but on rank 0, and the head."""
-    rank = comm.Get_rank()
-    particles = agree(comm, lambda: read_packing(packing_path, contacts=False)
-                      if rank == 0 else None)
-    head, packing_hash = None, ""
-    if rank == 0:
-        p = particles
-        head = dict(n=p.n_particles, m=int(p.file_contacts), path=p.path, attrs=p.attrs,
-                    lo=p.domain_lo, hi=p.domain_hi, periodic=p.periodic,
-                    scales=contact_check_scales(p.position, p.domain_lo, p.domain_hi))
-        packing_hash = packing_sha256(p)
-    return particles, comm.bcast(head, root=0), packing_hash
-
-
-def _bulk_flags(comm, crit, particles, fblock):
-    """Step 1, a [neighbours] criterion ``crit`` only: rank 0 finds the bulk particles (their
-    distance to every wall and cut face, the mean radius: the particles whole); returns their
-    number (every rank) and this directory's block of the flags (uint8), or 0, None."""
+def _bulk_flags(comm, crit, head, fb, n):
+    """Step 1, a [neighbours] criterion ``crit`` only: the bulk particles (their distance to
+    every wall and cut face, neighbours.face_distance, against the mean diameter's margin,
+    the mean radius summed over the ranks) of this directory's block ``fb``; returns their
+    number (every rank) and this block's flags (uint8), or 0, None."""
     if crit is None:
         return 0, None
-    rank = comm.Get_rank()
-    bulk = (bulk_particles(particles, crit.bulk_margin_diameters) if rank == 0 else None)
-    n_bulk = comm.bcast(int(bulk.sum()) if rank == 0 else None, root=0)
-    return n_bulk, scatter_blocks(comm, bulk, fblock, np.uint8)
+    margin = 2.0 * (comm.allreduce(float(fb["radius"].sum())) / n) * crit.bulk_margin_diameters
+    bulk = face_distance(dataclasses.replace(head, position=fb["position"],
+                                             radius=fb["radius"])) >= margin
+    return comm.allreduce(int(bulk.sum())), bulk.astype(np.uint8)
 
 
 def _contacts_to_owners(scene, comm, head, starts, fblock, fb, own_new, n_bulk, own_bulk):
@@ -291,7 +276,6 @@ def _contacts_to_owners(scene, comm, head, starts, fblock, fb, own_new, n_bulk, 
     bulk_e = bulk_e[0] if bulk_e else None
     agree(comm, lambda: _check_slice(head, part, loc, pos_e, rad_e, int(ms[rank])))
     pos_e = None
-    del fb["position"]
     keep, choice, refused = _choose_rows(scene, comm, head, n_bulk, part, loc, rad_e, bulk_e)
     # the neighbour counts (every dumped row, or the rows kept), summed at the directories,
     # fetched back
@@ -344,21 +328,6 @@ def _choose_rows(scene, comm, head, n_bulk, part, loc, rad_e, bulk_e):
         refused, keep = e, np.zeros(ratio.size, dtype=bool)
     part["keep"] = keep.astype(np.uint8)    # travels with its contact
     return keep, choice, refused
-
-
-def _capacities_on_root(scene, comm, particles, nb_block, fblock):
-    """Step 3: rank 0 evaluates the law on the whole particles (its capacities and the inputs
-    its boundary kinds and output read), with the neighbour counts gathered from the
-    directories. Returns them (a dict on rank 0, empty on the others)."""
-    whole = {}
-    nb_whole = gather_blocks(comm, nb_block, fblock)
-
-    def capacities():
-        law, params, pinput, _, capacity = evaluate_law(scene, particles, None, nb_whole)
-        whole.update(law=law, params=params, pinput=pinput, capacity=capacity)
-
-    agree(comm, capacities if comm.Get_rank() == 0 else (lambda: None))
-    return whole
 
 
 def _conducting_contacts(scene, comm, head, got, directory, fblock, conductance_factor):
@@ -428,7 +397,7 @@ def _rank_rows(comm, active, ids, new_l, lo, hi, n):
 def _local_components(comm, adjacency, columns, lo, hi, mine):
     """Step 4: the connected components of this rank's own contacts (both ends in ``lo:hi``),
     numbered after the lower ranks' (exscan). Returns each particle's component, the cut
-    contacts as (component, other particle's packing index), the number of components and
+    contacts as (component, other particle's place in the order), the number of components and
     each component's lowest packing index (``mine``: this rank's particles)."""
     inner = (columns >= lo) & (columns < hi)
     arow = np.repeat(np.arange(hi - lo), np.diff(adjacency.indptr))
@@ -437,94 +406,22 @@ def _local_components(comm, adjacency, columns, lo, hi, mine):
                       shape=(hi - lo, hi - lo)), directed=False)
     offset = comm.exscan(int(n_comp)) or 0
     gid = lab.astype(np.int64) + offset
-    cut_edges = np.stack([gid[arow[~inner]], adjacency.indices[~inner].astype(np.int64)], axis=1)
+    cut_edges = np.stack([gid[arow[~inner]], columns[~inner].astype(np.int64)], axis=1)
     by = np.argsort(lab, kind="stable")     # every label 0 .. n_comp - 1 holds a particle
     starts = np.flatnonzero(np.concatenate([[True], lab[by][1:] != lab[by][:-1]]))
     first = (np.minimum.reduceat(mine[by], starts) if lab.size else np.zeros(0, np.int64))
     return gid, cut_edges, n_comp, first.astype(np.int64)
 
 
-def _root_problem(scene, root_in, choice, cut_all, gid_all, total_comp, built):
-    """Step 5, rank 0: the boundary kinds (the one registry) on the whole particles, the
-    per-particle terms, the clusters (the ranks' components joined by the cut contacts), into
-    ``built``. ``root_in`` (the particles, the law's outputs on them) is emptied once the
-    kinds ran: the particles' arrays go before the terms are made (a source keeps the centres
-    it evaluates). Returns the number of boundaries and whether there is a source (every rank
-    needs them)."""
-    particles = root_in.pop("particles")
-    n = particles.n_particles
-    problem, info = boundary_problem(scene, particles, root_in["law"], root_in["params"],
-                                     root_in["pinput"], root_in["capacity"], np.zeros(0),
-                                     choice)
-    del particles
-    root_in.clear()
-    v = validate(problem)
-    terms = particle_terms(v)
-    k, label = _join_components(cut_all, gid_all, total_comp, n)
-    clusters = cluster_report(k, label, terms["held"] | (terms["g_p"] > 0))
-    held_boundary = np.full(n, -1, np.int32)
-    held_boundary[v["fixed_particle"]] = v["fixed_boundary"]
-    built.update(problem=problem, info=info, v=v, terms=terms, clusters=clusters,
-                 held_boundary=held_boundary,
-                 parts=_summary_parts(problem, v, terms, clusters, held_boundary))
-    return len(scene.boundaries), problem.source is not None
-
-
-def _summary_parts(problem, v, terms, clusters, held_boundary) -> dict:
-    """Rank 0, step 5, while it holds the per-particle arrays: what its NetworkSummary needs
-    of them, each as the whole network computes it (the same operations on the same values:
-    network.constant_flows, prescribed_mean, principle_of, np.mean of the capacities for
-    dt_paper, the clusters' counts and the untied particles)."""
-    held, pw_p, c = terms["held"], terms["pw_p"], v["capacity"]
-    powered = np.unique(v["power_particle"])
-    free_powered = powered[~held[powered]]
-    rate = getattr(problem.source, "max_rise_rate", None)
-    untied = np.flatnonzero(~clusters.tied_particle)
-    return dict(
-        problem=ProblemSummary.of(problem),
-        constant_flows=constant_flows(
-            np.bincount(v["power_boundary"], weights=v["power"],
-                        minlength=len(problem.boundary_names)),
-            v["power_particle"], v["power"], held, held_boundary),
-        prescribed_mean=prescribed_mean(v["fixed_temperature"], v["exchange_t"],
-                                        v["exchange_g"]),
-        principle=principle_of(
-            np.concatenate([v["fixed_temperature"], v["exchange_t"]]), pw_p[free_powered],
-            c[free_powered], has_power=bool(np.any(pw_p[powered] != 0)),
-            has_source=problem.source is not None,
-            source_rate=None if rate is None else rate(c, ~held)),
-        capacity_mean=float(np.mean(c)),
-        clusters=ClusterCounts.of(clusters),
-        untied=untied, untied_label=clusters.label[untied], untied_capacity=c[untied])
-
-
-def _join_components(cut_all, gid_all, total_comp, n):
-    """Rank 0: the ranks' components joined through the cut contacts, numbered by their first
-    particle as connected_components numbers the whole network's (the in-process clusters).
-    ``cut_all``: each rank's cut contacts and its components' lowest packing indices. Works
-    per component (one array of N: the labels). Returns their number and each particle's
-    label (int32)."""
-    edges = np.concatenate([c[0] for c in cut_all])
-    first_of = np.concatenate([c[1] for c in cut_all])     # by component id (rank order)
-    graph = sp.coo_matrix((np.ones(edges.shape[0]), (edges[:, 0], gid_all[edges[:, 1]])),
-                          shape=(total_comp, total_comp))
-    k, joined = connected_components(graph, directed=False)
-    first_p = np.full(k, n, dtype=np.int64)
-    np.minimum.at(first_p, joined, first_of)
-    renumber = np.empty(k, dtype=np.int32)
-    renumber[np.argsort(first_p, kind="stable")] = np.arange(k, dtype=np.int32)
-    return (k, renumber[joined][gid_all]) if n else (0, np.zeros(0, np.int32))
-
-
-def _untied_rows(comm, own, mine, adjacency, degree):
-    """The adjacency rows and degrees of the untied particles (floating clusters, rattlers:
-    what a steady solve fills on rank 0): each rank sends those of its own. Returns the pieces
-    on rank 0 (rows and columns as packing indices, H W/K; the particles and their degrees),
-    None on the others."""
+def _untied_rows(comm, own, mine, adjacency, degree, label):
+    """The adjacency rows, degrees, components and capacities of the untied particles
+    (floating clusters, rattlers: what a steady solve fills on rank 0): each rank sends those
+    of its own. Returns the pieces on rank 0 (rows and columns as packing indices, H W/K; the
+    particles, their degrees, labels and capacities), None on the others."""
     want = np.flatnonzero(~own["tied"])
     sub = adjacency[want].tocoo()
     return comm.gather((mine[want][sub.row], sub.col.astype(np.int64), sub.data, mine[want],
-                        degree[want]), root=0)
+                        degree[want], label[want], own["capacity"][want]), root=0)
 
 
 def _explicit_bound(comm, own, degree, mine):
@@ -547,92 +444,236 @@ def _explicit_bound(comm, own, degree, mine):
     return best, min(p for b, p in got if b == best)
 
 
-def _root_summary(built, pieces, bound, n, m, totals) -> NetworkSummary:
-    """Rank 0: its :class:`~.network.NetworkSummary` from the parts it made while it held the
-    per-particle arrays (:func:`_summary_parts`), the untied particles' rows ``pieces``, the
-    explicit ``bound`` and the ranks' ``totals``: what the run, its checks and the output read
-    of the network (as network.summary_of makes it of the whole network)."""
-    parts = built.pop("parts")
-    sel = parts["untied"]
-    rp, rc, rd, dp, dv = (np.concatenate([q[k] for q in pieces]) for k in range(5))
+def _root_summary(parts, pieces, bound, n, m, totals) -> NetworkSummary:
+    """Rank 0: its :class:`~.network.NetworkSummary` from the parts the ranks reduced
+    (:func:`_summary_on_ranks`, the clusters' counts), the untied particles' rows ``pieces``,
+    the explicit ``bound`` and the ranks' ``totals``: what the run, its checks and the output
+    read of the network (as network.summary_of makes it of the whole network)."""
+    rp, rc, rd, dp, dv, dl, dc = (np.concatenate([q[k] for q in pieces]) for k in range(7))
+    by = np.argsort(dp, kind="stable")
+    sel = dp[by]
     adj = sp.coo_matrix((rd, (np.searchsorted(sel, rp), np.searchsorted(sel, rc))),
                         shape=(sel.size, sel.size)).tocsr()
     adj.sum_duplicates()
-    deg = np.empty(sel.size)
-    deg[np.searchsorted(sel, dp)] = dv
-    lap = (sp.diags(deg, format="csr") - adj).tocsr()       # as Network.laplacian's rows
+    lap = (sp.diags(dv[by], format="csr") - adj).tocsr()    # as Network.laplacian's rows
     lap.sort_indices()
     n_active = totals["n_active"]
     h_mean = totals["h_sum"] / n_active if n_active else math.nan
     dt_paper = (float(parts["capacity_mean"] / (totals["coord_max"] * h_mean)) if n_active
                 else math.inf)
+    clusters = parts["clusters"]
     return NetworkSummary(
         problem=parts["problem"], n=n, n_active_contacts=n_active,
-        n_zero_contacts=m - n_active, flags=network_flags(m - n_active, parts["clusters"]),
+        n_zero_contacts=m - n_active, flags=network_flags(m - n_active, clusters),
         dt_max_s=bound[0], dt_max_particle=bound[1], dt_paper_s=dt_paper,
-        clusters=parts["clusters"], constant_boundary_flow_w=parts["constant_flows"],
+        clusters=clusters, constant_boundary_flow_w=parts["constant_flows"],
         prescribed_mean_k=parts["prescribed_mean"],
-        untied=UntiedParticles(particle=sel, label=parts["untied_label"],
-                               capacity_j_k=parts["untied_capacity"], laplacian=lap,
-                               n_components=parts["clusters"].n_components),
+        untied=UntiedParticles(particle=sel, label=dl[by].astype(np.int32),
+                               capacity_j_k=dc[by], laplacian=lap,
+                               n_components=clusters.n_components),
         principle=parts["principle"])
 
 
-def _send_particle_shares(comm, built, routes, starts):
-    """Each rank's per-particle and boundary rows (the keys of ``share_particles``) from rank
-    0's whole arrays, in the file's order: the per-particle ones through the directories
-    (:class:`~.solvers.partition.Routes`), the boundary rows to the owners of their particles
-    (:func:`_rows_to_owners`, in their order on rank 0). This rank's."""
-    root = comm.Get_rank() == 0
-    v, t = (built["v"], built["terms"]) if root else ({}, {})
-    own = {}
-    for key, whole, dtype in (
-            ("capacity", v.get("capacity"), np.float64), ("held", t.get("held"), np.uint8),
-            ("held_t", t.get("held_t"), np.float64), ("g", t.get("g_p"), np.float64),
-            ("b", (t["gt_p"] + t["pw_p"]) if root else None, np.float64),
-            ("tied", built["clusters"].tied_particle if root else None, np.uint8)):
-        own[key] = routes.scatter(whole, dtype)
-    own["held"], own["tied"] = own["held"].view(bool), own["tied"].view(bool)
-    places = routes.places()
-    local, cols = _rows_to_owners(comm, starts, places, v.get("fixed_particle"), dict(
-        fixed_boundary=v.get("fixed_boundary")))
-    own.update(fixed_local=local, fixed_boundary=cols["fixed_boundary"])
-    local, cols = _rows_to_owners(comm, starts, places, v.get("exchange_particle"), dict(
-        ex_g=v.get("exchange_g"), ex_t=v.get("exchange_t"), ex_b=v.get("exchange_boundary"),
-        ex_held_b=built["held_boundary"][v["exchange_particle"]] if root else None))
-    own.update(ex_local=local, **cols)
-    return own
+class RanksWhole(Whole):
+    """The whole packing as the boundary kinds see it from one rank's particles (``ids``:
+    their packing indices, ascending): counts, flags and the phases present reduced over the
+    ranks, a sum in packing order gathered (the few particles of a face), the lowest
+    particle's value found over the ranks. Collective: every rank runs the kinds in the same
+    order and calls these alike; a kind's refusal follows the reduction it depends on, so every
+    rank raises it."""
+
+    def __init__(self, comm, ids):
+        self.comm, self.ids = comm, ids
+
+    def count(self, k):
+        return int(self.comm.allreduce(int(k)))
+
+    def any(self, flag):
+        return bool(self.comm.allreduce(int(bool(flag)), op=_max()))
+
+    def all(self, flag):
+        return not self.any(not flag)
+
+    def ordered_sum(self, values, particles):
+        got = self.comm.allgather((self.ids[particles], np.asarray(values)))
+        at = np.concatenate([g[0] for g in got])
+        return np.concatenate([g[1] for g in got])[np.argsort(at, kind="stable")].sum()
+
+    def union(self, values):
+        return np.unique(np.concatenate(self.comm.allgather(np.unique(values))))
+
+    def lowest(self, particles, values):
+        here = (int(self.ids[particles[0]]), values[0]) if particles.size else None
+        got = [g for g in self.comm.allgather(here) if g is not None]
+        return min(got, key=lambda g: g[0])[1] if got else None
 
 
-def _rows_to_owners(comm, starts, places, particle, columns):
-    """Rows given on rank 0 (``particle``: each row's packing index; ``columns``: name ->
-    (R,) array, None on the other ranks) sent through their particles' directories
-    (``places``: the directory's block's places in the order) to the particles' owners.
-    Returns this rank's rows, in their order on rank 0: (their particles' places in this
-    rank's block, {name: values})."""
-    rank, size = comm.Get_rank(), comm.Get_size()
-    spec = comm.bcast([(k, np.asarray(a).dtype.str) for k, a in sorted(columns.items())]
-                      if rank == 0 else None, root=0)
-    if rank == 0:
-        particle = np.asarray(particle, dtype=np.int64)
-        dest = np.searchsorted(starts, particle, side="right") - 1
-        by = np.argsort(dest, kind="stable")
-        send = dict(row=by.astype(np.int64), particle=particle[by],
-                    **{k: np.asarray(columns[k])[by] for k, _ in spec})
-    else:
-        dest = np.zeros(0, dtype=np.int64)
-        send = dict(row=np.zeros(0, np.int64), particle=np.zeros(0, np.int64),
-                    **{k: np.zeros(0, dtype=dt) for k, dt in spec})
-    send_n, recv_n = exchange_counts(comm, dest, size)
-    got = {k: alltoallv(comm, a, send_n, recv_n) for k, a in send.items()}
-    got["place"] = places[got.pop("particle") - starts[rank]]
-    owner = np.searchsorted(starts, got["place"], side="right") - 1
-    by = np.argsort(owner, kind="stable")
-    send_n, recv_n = exchange_counts(comm, owner, size)
-    got = {k: alltoallv(comm, a[by], send_n, recv_n) for k, a in got.items()}
-    in_order = np.argsort(got.pop("row"), kind="stable")
-    return (got.pop("place")[in_order] - starts[rank],
-            {k: a[in_order] for k, a in got.items()})
+def _sorted_place(by):
+    """``by``: the places (in this rank's block) of its particles sorted by packing index.
+    Returns, for each place, the particle's index in that sorted list."""
+    inv = np.empty_like(by)
+    inv[by] = np.arange(by.size, dtype=by.dtype)
+    return inv
+
+
+def _owner_block(scene, comm, head, fb, nb_block, mine, fblock):
+    """Step 3: this rank's particles (``mine``, its block of the order), sorted by packing
+    index (so that the kinds' rows come in the whole problem's order), fetched from their
+    directories (``fb`` this directory's particles, ``nb_block`` their neighbour counts): a
+    Packing of them with the walls and their own wall contacts (``head``: the file's walls
+    and wall contacts, every rank's), and the law's inputs and capacities on them. A phase
+    without a material, then a capacity out of range, refused as the whole build refuses it
+    (the lowest phase; the count over every rank and the lowest particle)."""
+    by = np.argsort(mine, kind="stable")
+    ids = mine[by]
+    pos, rad, phase, nb = _fetch(comm, ids, fblock, [fb["position"], fb["radius"],
+                                                     fb["phase"], nb_block])
+    wp = np.asarray(head.wall_particle, dtype=np.int64)
+    at = np.minimum(np.searchsorted(ids, wp), max(ids.size - 1, 0))
+    hit = (ids[at] == wp) if ids.size else np.zeros(wp.size, bool)
+    block = dataclasses.replace(
+        head, position=pos, radius=rad, phase=phase, pair=np.zeros((0, 2), np.int64),
+        overlap=np.zeros(0), normal_force=np.zeros(0), branch=np.zeros((0, 3)),
+        contact_radius=None, yade_id=None, wall_particle=at[hit],
+        wall_index=np.asarray(head.wall_index)[hit],
+        wall_overlap=np.asarray(head.wall_overlap)[hit],
+        wall_normal_force=np.asarray(head.wall_normal_force)[hit],
+        wall_contact_radius=(None if head.wall_contact_radius is None
+                             else np.asarray(head.wall_contact_radius)[hit]))
+    phases = np.unique(np.concatenate(comm.allgather(np.unique(phase))))
+    agree(comm, lambda: [scene.material(int(p)) for p in phases])
+    law, params, pinput, _, capacity = agree(comm, lambda: evaluate_law(
+        scene, block, None, nb, check_capacity=False))
+    bad = bad_capacity(capacity)
+    n_bad = comm.allreduce(int(bad.sum()))
+    if n_bad:
+        k = np.flatnonzero(bad)
+        first = min(g for g in comm.allgather(
+            (int(ids[k[0]]), float(capacity[k[0]])) if k.size else None) if g is not None)
+        raise capacity_refusal(scene, law, first[1], n_bad, comm.allreduce(int(ids.size)),
+                               first[0])
+    return SimpleNamespace(ids=ids, by=by, packing=block, law=law, params=params,
+                           pinput=pinput, capacity=capacity)
+
+
+def _owner_problem(scene, comm, blk, choice, n):
+    """Step 4: the boundary kinds (:func:`~.problem.boundary_problem`, the one registry) on
+    this rank's particles ``blk`` (:func:`_owner_block`), seeing the whole packing through
+    :class:`RanksWhole`: this rank's rows of the problem, in the whole problem's order. Returns
+    this rank's per-particle and boundary rows (at its places in the order: the keys of the
+    PETSc backend's share), the problem (its rows over this rank's particles, sorted by
+    packing index), the info (the whole build's) and the summary's parts reduced over the
+    ranks (:func:`_summary_on_ranks`)."""
+    problem, info = agree(comm, lambda: boundary_problem(
+        scene, blk.packing, blk.law, blk.params, blk.pinput, blk.capacity, np.zeros(0),
+        choice, whole=RanksWhole(comm, blk.ids)))
+    v = agree(comm, lambda: validate(problem))
+    terms = particle_terms(v)
+    held_boundary = np.full(v["n"], -1, np.int32)
+    held_boundary[v["fixed_particle"]] = v["fixed_boundary"]
+    by = blk.by
+
+    def at_places(a):
+        out = np.empty_like(a)
+        out[by] = a
+        return out
+
+    own = dict(capacity=at_places(v["capacity"]), held=at_places(terms["held"]),
+               held_t=at_places(terms["held_t"]), g=at_places(terms["g_p"]),
+               b=at_places(terms["gt_p"] + terms["pw_p"]),
+               fixed_local=by[v["fixed_particle"]], fixed_boundary=v["fixed_boundary"],
+               ex_local=by[v["exchange_particle"]], ex_g=v["exchange_g"],
+               ex_t=v["exchange_t"], ex_b=v["exchange_boundary"],
+               ex_held_b=held_boundary[v["exchange_particle"]])
+    parts = _summary_on_ranks(comm, problem, v, terms, held_boundary, n)
+    return own, problem, info, parts
+
+
+def _summary_on_ranks(comm, problem, v, terms, held_boundary, n) -> dict:
+    """What rank 0's NetworkSummary needs of the per-particle arrays, reduced over the ranks'
+    rows (each rank's ``v`` and ``terms`` over its particles): the constant powers
+    (network.constant_flows, summed), the steady reference (the prescribed temperatures'
+    sum and count), the maximum principle's inputs (network.principle_of on each rank's rows;
+    extremes and rates are maxima and minima: the whole network's, bit for bit), the mean
+    capacity for dt_paper. Sums over the ranks add the ranks' partial sums: the whole
+    network's to round-off (1e-14, tests/mpi_rank_build_check.py)."""
+    held, pw_p, c = terms["held"], terms["pw_p"], v["capacity"]
+    nb = len(problem.boundary_names)
+    flows = comm.allreduce(constant_flows(
+        np.bincount(v["power_boundary"], weights=v["power"], minlength=nb),
+        v["power_particle"], v["power"], held, held_boundary))
+    prescribed = np.concatenate([v["fixed_temperature"],
+                                 v["exchange_t"][v["exchange_g"] > 0]])
+    total = comm.allreduce(float(prescribed.sum()))
+    count = comm.allreduce(int(prescribed.size))
+    powered = np.unique(v["power_particle"])
+    free_powered = powered[~held[powered]]
+    rate = getattr(problem.source, "max_rise_rate", None)
+    local = principle_of(
+        prescribed, pw_p[free_powered], c[free_powered],
+        has_power=bool(np.any(pw_p[powered] != 0)), has_source=problem.source is not None,
+        source_rate=None if rate is None else rate(c, ~held))
+    principles = comm.allgather(local)
+    rates = [p.source_rate for p in principles if p.source_rate is not None]
+    principle = dataclasses.replace(
+        local, prescribed_lo_k=min(p.prescribed_lo_k for p in principles),
+        prescribed_hi_k=max(p.prescribed_hi_k for p in principles),
+        power_up_k_s=max(p.power_up_k_s for p in principles),
+        power_down_k_s=max(p.power_down_k_s for p in principles),
+        plain=all(p.plain for p in principles),
+        source_rate=(max(r[0] for r in rates), max(r[1] for r in rates), rates[0][2],
+                     rates[0][3]) if rates else None)
+    return dict(
+        problem=dataclasses.replace(ProblemSummary.of(problem), source=None),
+        constant_flows=flows, prescribed_mean=total / count if count else 0.0,
+        principle=principle, capacity_mean=comm.allreduce(float(c.sum())) / n)
+
+
+def _clusters_on_ranks(comm, adjacency, columns, lo, hi, mine, reservoir, starts):
+    """Step 5: the clusters (network.cluster_report's) across the ranks. Each rank labels the
+    components of its own contacts (:func:`_local_components`), finds the component at the
+    other end of each cut contact at its owner, and sends rank 0 those pairs with each
+    component's lowest packing index, size and whether it holds a reservoir (``reservoir``: a
+    held particle or g > 0, by place). Rank 0 joins them, numbers them by their first particle
+    (as connected_components numbers the whole network's) and sends each rank its components'
+    labels and tied flags. Returns this rank's particles' labels and tied flags, and the
+    clusters' counts on rank 0 (None elsewhere). Rank 0 holds arrays of the components (a
+    rattler is one), never of every particle."""
+    gid, cut_edges, n_comp, comp_first = _local_components(comm, adjacency, columns, lo, hi,
+                                                           mine)
+    offset = comm.exscan(int(n_comp)) or 0
+    there, back = np.unique(cut_edges[:, 1], return_inverse=True)
+    (other,) = _fetch(comm, there, starts, [gid])
+    edges = np.stack([cut_edges[:, 0], other[back.reshape(-1)]], axis=1)
+    local = gid - offset
+    tied_c = np.zeros(n_comp, dtype=bool)
+    tied_c[local[reservoir]] = True
+    size_c = np.bincount(local, minlength=n_comp).astype(np.int64)
+    got = comm.gather((edges, comp_first, tied_c, size_c), root=0)
+    counts, reply = None, None
+    if comm.Get_rank() == 0:
+        total = sum(g[1].size for g in got)
+        edges = np.concatenate([g[0] for g in got])
+        graph = sp.coo_matrix((np.ones(edges.shape[0]), (edges[:, 0], edges[:, 1])),
+                              shape=(total, total))
+        k, joined = connected_components(graph, directed=False)
+        first_p = np.full(k, np.iinfo(np.int64).max, dtype=np.int64)
+        np.minimum.at(first_p, joined, np.concatenate([g[1] for g in got]))
+        renumber = np.empty(k, dtype=np.int64)
+        renumber[np.argsort(first_p, kind="stable")] = np.arange(k)
+        label_c = renumber[joined]
+        tied = np.zeros(k, dtype=bool)
+        tied[label_c[np.concatenate([g[2] for g in got])]] = True
+        sizes = np.zeros(k, dtype=np.int64)
+        np.add.at(sizes, label_c, np.concatenate([g[3] for g in got]))
+        untied = np.flatnonzero(~tied)
+        floating = untied[sizes[untied] >= 2]
+        counts = ClusterCounts(n_components=int(k), floating_sizes=sizes[floating],
+                               n_rattlers=int(np.count_nonzero(sizes[untied] == 1)))
+        bounds = np.concatenate([[0], np.cumsum([g[1].size for g in got])])
+        reply = [(label_c[a:b], tied[label_c[a:b]]) for a, b in zip(bounds[:-1], bounds[1:])]
+    label_c, tied_c = comm.scatter(reply, root=0)
+    return label_c[local], tied_c[local], counts
 
 
 __all__ = ["RankBuild", "RankError", "agree", "build_on_ranks", "PackingError"]

@@ -46,6 +46,40 @@ class BoundaryKind:
         raise NotImplementedError
 
 
+class Whole:
+    """How a kind sees the whole packing when ``ctx.packing`` holds only part of it: the
+    numbers a kind needs of every particle (a count, a sum, the phases present) from its
+    part's. This one is the whole packing in one process (each method the identity); the
+    PETSc backend's ranks, each building the rows of its own particles, pass one that
+    reduces over the ranks (thermal_kernel/rank_build.py: ``RanksWhole``), so a kind is
+    written once for both."""
+
+    def count(self, k: int) -> int:
+        """How many particles over the whole packing, ``k`` of them here."""
+        return int(k)
+
+    def any(self, flag) -> bool:
+        return bool(flag)
+
+    def all(self, flag) -> bool:
+        return bool(flag)
+
+    def ordered_sum(self, values: np.ndarray, particles: np.ndarray) -> float:
+        """sum(values) over the whole packing, summed in the order of the particles' packing
+        indices (``particles``: this part's indices of ``values``' particles, ascending): the
+        same sum, bit for bit, however the packing is split."""
+        return values.sum()
+
+    def union(self, values: np.ndarray) -> np.ndarray:
+        """The distinct values (sorted) over the whole packing."""
+        return np.unique(values)
+
+    def lowest(self, particles: np.ndarray, values: np.ndarray):
+        """``values`` at the particle of lowest packing index among ``particles`` (this part's
+        indices, ascending; None if there is none anywhere)."""
+        return values[0] if particles.size else None
+
+
 @dataclass(frozen=True)
 class BuildContext:
     """What a boundary may need from the scene, the packing and the law to make its rows."""
@@ -57,6 +91,7 @@ class BuildContext:
     capacity_j_k: np.ndarray       # (N,) C_p from the law
     young_pa: float                # real modulus and Poisson ratio (scene's, else packing's)
     poisson: float
+    whole: Whole = Whole()         # the packing whole here, or a part (a rank's particles)
 
     def error(self, where: str, what: str) -> SceneError:
         return SceneError(f"{self.scene.path}: {where}: {what}")
@@ -80,8 +115,10 @@ class Rows:
         self.exch_p, self.exch_g, self.exch_t, self.exch_b = [], [], [], []
         self.pow_p, self.pow_w, self.pow_b = [], [], []
         self.sources: list[tuple[int, Callable[[], Callable]]] = []
+        self.fixed_i, self.pow_i = [], []     # the boundary of each entry (none may be here)
 
     def hold(self, index: int, particles, temperature_k: float) -> None:
+        self.fixed_i.append(index)
         self.fixed_p.append(particles)
         self.fixed_t.append(np.full(particles.size, temperature_k))
         self.fixed_b.append(np.full(particles.size, index))
@@ -93,6 +130,7 @@ class Rows:
         self.exch_b.append(np.full(particles.size, index))
 
     def power(self, index: int, particles, power_w) -> None:
+        self.pow_i.append(index)
         self.pow_p.append(particles)
         self.pow_w.append(power_w)
         self.pow_b.append(np.full(particles.size, index))
@@ -132,7 +170,7 @@ def boundary_particles(scene, packing, on: str, where: str) -> np.ndarray:
 def members(ctx: BuildContext, on: str, where: str) -> np.ndarray:
     """:func:`boundary_particles`, refusing a wall or face that holds no particle."""
     p = boundary_particles(ctx.scene, ctx.packing, on, where)
-    if p.size == 0:
+    if ctx.whole.count(p.size) == 0:
         raise ctx.error(f"{where}.on", f"no particle belongs to {on!r} in {ctx.packing.path}")
     return p
 

@@ -40,7 +40,7 @@ class FluxBoundary(BoundaryKind):
         p = members(ctx, self.on, where)
         area = self.face_area(ctx, where)
         share = ctx.packing.radius[p] ** 2
-        rows.power(index, p, self.value * area * share / share.sum())
+        rows.power(index, p, self.value * area * share / ctx.whole.ordered_sum(share, p))
 
     def face_area(self, ctx: BuildContext, where: str) -> float:
         """A (m^2): the bed's section normal to the face's axis -- pi R^2 for a cylinder wall

@@ -80,8 +80,8 @@ class PhaseTemperatureBoundary(BoundaryKind):
         where = f"boundary[{index}]"
         phase = self.resolved_phase(ctx, where)
         particles = np.flatnonzero(np.asarray(ctx.packing.phase) == phase)
-        if particles.size == 0:
-            present = " ".join(map(str, np.unique(ctx.packing.phase)))
+        if ctx.whole.count(particles.size) == 0:
+            present = " ".join(map(str, ctx.whole.union(ctx.packing.phase)))
             raise ctx.error(f"{where}.phase" if self.phase is not None
                             else f"{where}.liggghts_type",
                             f"no particle of phase {phase} in {ctx.packing.path} (its phases: "

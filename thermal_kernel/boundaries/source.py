@@ -144,7 +144,7 @@ class SourceBoundary(BoundaryKind):
             reaches = np.any(src.time_inside(t0, t1, max_pieces=256) > 0)
         else:
             reaches = np.any(src.inside(t0))
-        if not reaches:
+        if not ctx.whole.any(reaches):
             moving = any(self.velocity_m_s)
             when = (f"between t = {t0:g} and {t1:g} s" if moving or t1 > t0
                     else f"at t = {t0:g} s")

@@ -208,16 +208,22 @@ class DistributedNetwork:
         self.A = self._mat(self.block)
         self.x = self.A.createVecRight()
         self.y = self.A.createVecLeft()
-        self._share_source()
+        self._share_source(built)
         self.setup_seconds = time.perf_counter() - t0
 
-    def _share_source(self):
-        """A source's power is a function of each particle alone: rank 0 sends each rank the
-        source restricted to its block (``source.restricted(particles)``), evaluated there
-        every step; the column it is booked under goes to every rank. A source without
-        ``restricted`` stays on rank 0, which evaluates it whole and scatters its powers."""
+    def _share_source(self, built=None):
+        """A source's power is a function of each particle alone: each rank evaluates the
+        source over its block every step -- the one it built (``built``, the per-rank build:
+        the kinds ran on its particles), or the whole source restricted to its block, which
+        rank 0 sends (``source.restricted(particles)``); the column it is booked under goes to
+        every rank. A source without ``restricted`` stays on rank 0, which evaluates it whole
+        and scatters its powers."""
         self.local_source, self.source_boundary = None, -1
         if not self.has_source:
+            return
+        if built is not None and built.local_source is not None:
+            self.local_source = built.local_source
+            self.source_boundary = int(built.meta["source_boundary"])
             return
         restricted = None
         if self.rank == 0:
