@@ -11,6 +11,10 @@ A new kind: a module here with its class (``kind``, fields, ``parse``, ``contrib
 docstring; ``unit``, ``example`` and ``example_name``, which ``tests/test_boundaries.py``
 checks against the docstring and the parser), one line in :data:`BOUNDARIES`, and its
 end-to-end test in ``tests/test_boundaries.py``. The solvers never change: they see rows, not kinds.
+A kind sees only ``ctx.packing``'s particles, which on the PETSc backend's ranks are one rank's
+(thermal_kernel/rank_build.py): a number it needs of every particle (a count for a "no particle"
+refusal, a sum, the phases present, "any"/"all") goes through ``ctx.whole``
+(:class:`~thermal_kernel.boundaries.base.Whole`), the identity in-process.
 """
 from __future__ import annotations
 
