@@ -237,6 +237,43 @@ def test_a_boundary_refused_on_the_ranks_is_the_in_process_line(tmp_path, capsys
     assert not (tmp_path / "o" / "thermal.h5").exists()
 
 
+def test_fewer_particles_than_ranks_give_the_in_process_answer(tmp_path):
+    """A chain of 3 spheres on 4 ranks (one rank's block empty: it reads no particle, holds no
+    contact, runs the boundary kinds on none and still joins every reduction): a held face
+    and a flux (its r^2 shares summed over the ranks) give the in-process steady
+    temperatures, which are the chain's series solution: T_k = T_0 + k q A / H, H the pipe
+    law's equal conductances."""
+    from thermal_kernel.packing import Packing, write_packing
+    r = np.full(3, 1e-3)
+    x = np.array([[1e-3, 5e-3, 5e-3], [2.9e-3, 5e-3, 5e-3], [4.8e-3, 5e-3, 5e-3]])
+    pair = np.array([[0, 1], [1, 2]])
+    branch = x[pair[:, 1]] - x[pair[:, 0]]
+    overlap = 2e-3 - np.linalg.norm(branch, axis=1)
+    lo, hi = np.zeros(3), np.array([5.8e-3, 1e-2, 1e-2])
+    write_packing(tmp_path / "chain.h5", Packing(
+        position=x, radius=r, phase=np.zeros(3, np.int32), pair=pair, overlap=overlap,
+        normal_force=overlap * 1e6, branch=branch, domain_lo=lo, domain_hi=hi,
+        attrs=dict(generator="test", seed=0, solid_fraction=float(
+            np.sum(4 / 3 * np.pi * r ** 3) / np.prod(hi - lo)), mean_coordination=4 / 3,
+            pressure_pa=float("nan"), young_pa=1e9, poisson=0.3, density=2500.0)))
+    scene = _scene(tmp_path, "chain", f'packing = "{tmp_path / "chain.h5"}"\nlaw = "pipe"\n'
+                   '[material]\nconductivity = 10.0\ndensity = 2500.0\nheat_capacity = 800.0\n'
+                   '[initial]\ntemperature = 300.0\n[[boundary]]\nkind = "temperature"\n'
+                   'on = "xmin"\nvalue = 400.0\n[[boundary]]\nkind = "flux"\non = "xmax"\n'
+                   'value = 1000.0\n[solver]\nmethod = "steady"\n')
+    inproc = _run(scene, tmp_path / "in")
+    petsc = _run(scene, tmp_path / "r4", ranks=4)
+    _assert_same(inproc, petsc, RTOL["steady"])
+    from thermal_kernel.packing import read_packing
+    from thermal_kernel.problem import build_problem
+    from thermal_kernel.scene import load_scene
+    h = build_problem(load_scene(scene), read_packing(tmp_path / "chain.h5"))[0].conductance_w_k
+    assert h[0] == h[1] > 0
+    t = petsc["T"][-1]
+    np.testing.assert_allclose(t - 400.0, np.arange(3) * 1000.0 * 1e-2 * 1e-2 / h[0],
+                               rtol=1e-10)
+
+
 # ------------------------------------------------------------------ the per-rank build
 def test_the_morton_order_sorted_on_the_ranks_is_the_whole_sort():
     """thermal_kernel/solvers/partition.py on 1-4 ranks (tests/mpi_partition_check.py, under
