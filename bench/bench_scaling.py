@@ -456,11 +456,16 @@ def build_memory_section(build) -> str:
     L.append(f"Fitted on the explicit rows (the build dominates their peak; a + w N + d N / R): "
              f"before, rank 0 needed w = {b['whole']:.0f} B per particle, not divided by the "
              f"ranks (the whole network), + d = {b['divided']:.0f} B per particle / R; after, "
-             f"rank 0 needs w = {a['whole']:.0f} B per particle (the particles, the law's "
-             f"capacities, the network's per-particle arrays) + d = {a['divided']:.0f} / R, the "
-             f"other ranks w = {o['whole']:.0f} + d = {o['divided']:.0f} / R (their contacts, "
-             "the law's inputs on them, their rows: they hold no array of every particle; "
-             "two N and three R do not separate w from d well), about "
+             f"rank 0 needs w = {a['whole']:.0f} B per particle"
+             + (" (zero within the fit's noise: the start, the temperatures and the capacities "
+                "the output gathers are a few tens of B per particle, the table below)"
+                if a["whole"] < 16 else " (what the output gathers: the start, the "
+                "temperatures, the capacities)")
+             + f" + d = {a['divided']:.0f} / R, the "
+             f"other ranks w = {o['whole']:.0f} + d = {o['divided']:.0f} / R (their particles, "
+             "contacts, the law's inputs on them, their rows: no rank holds an array of every "
+             "particle during the build; two N and three R do not separate w from d well), "
+             "about "
              f"{a['a'] / 1e9:.2f} GB of libraries apart. The steady rows add the solver's share "
              "(and, on rank 0, the gathered temperatures and the output).\n")
     return "\n".join(L) + "\n"
@@ -915,15 +920,16 @@ def _doc_projection(proj, build, bfit) -> list[str]:
               f"the whole network on its own ({s8['whole_gb_rank']:.0f} GB at 1e8, "
               f"{s9['whole_gb_rank']:.0f} GB at 1e9): a few 1e8 particles on a 256 GB node, "
               "not 1e9. Built on the ranks (every packing file's run, a `[neighbours]` "
-              "criterion included), rank 0 holds per-particle arrays only (the last-but-one "
-              f"column: {root_pp:.0f} B per particle, the larger of the fit on the build's "
-              f"measured peaks, {fit_pp:.0f}, and rank 0's traced part in `{step}`, "
-              f"{step_pp:.0f}, the table 'What rank 0 holds, step by step': "
-              f"{root_pp * 1e8 / 1e9:.0f} GB at 1e8, {root_pp * 1e9 / 1e9:.0f} GB at 1e9): 1e9 "
-              "then needs rank 0 on a node of that much memory (fewer ranks on its node), or "
-              "the next step (the reader's checks and the boundary kinds on blocks, the ledger, "
-              "checks and writer on partial sums), "
-              "which divides that column by the ranks too.\n")
+              "criterion included), no rank holds an array of every particle during the "
+              "build; rank 0 holds, beyond its share, what the single output file needs (the "
+              "start, one output time's temperatures while it writes them, the capacities "
+              f"at the end; the last-but-one column: {root_pp:.0f} B per particle, the larger "
+              f"of the fit on the build's measured peaks, {fit_pp:.0f}, and rank 0's traced "
+              f"part in `{step}`, {step_pp:.0f}, the table 'What rank 0 holds, step by step': "
+              f"{root_pp * 1e8 / 1e9:.0f} GB at 1e8, {root_pp * 1e9 / 1e9:.0f} GB at 1e9): "
+              "1e9 then needs rank 0 on a node with that much memory beside its share (fewer "
+              "ranks on its node); a writer in parallel HDF5 (h5py-mpi) would divide that "
+              "column by the ranks too.\n")
     return L
 
 
