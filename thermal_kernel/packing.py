@@ -394,15 +394,21 @@ GEOMETRY_RTOL = 1e-9
 BRANCH_RTOL = 1e-6
 
 
+def _first_too_deep(overlap, radius, scale) -> int | None:
+    """The first row whose overlap exceeds ``radius`` beyond round-off (``scale``: the
+    packing's centres' magnitude), or None."""
+    too_deep = overlap > radius * (1.0 + GEOMETRY_RTOL) + 8 * np.finfo(float).eps * scale
+    return int(np.flatnonzero(too_deep)[0]) if too_deep.any() else None
+
+
 def _check_contact_geometry(path, pair, ri, rj, dx, overlap, branch, extent, periodic, scale,
                             row0=0):
     """The contact rows' part of :func:`_check_geometry`, on per-contact values: the radii of
     the two spheres, ``dx`` = x_j - x_i, ``scale`` the packing's (:func:`contact_check_scales`)."""
     i, j = pair[:, 0], pair[:, 1]
     r_min = np.minimum(ri, rj)
-    too_deep = overlap > r_min * (1.0 + GEOMETRY_RTOL) + 8 * np.finfo(float).eps * scale
-    if too_deep.any():
-        c = int(np.flatnonzero(too_deep)[0])
+    c = _first_too_deep(overlap, r_min, scale)
+    if c is not None:
         _fail(path, "contacts/overlap",
               f"contact {c + row0} ({int(i[c])}, {int(j[c])}) has overlap "
               f"{overlap[c]:.6g} m, larger than the smaller radius {r_min[c]:.6g} m; "
@@ -500,9 +506,8 @@ def _check_centres(path, position, lo, hi, scale, row0=0):
 
 def _check_wall_depth(path, wall_particle, wall_overlap, r, scale, row0=0):
     """No wall overlap beyond its particle's radius ``r`` (per row)."""
-    too_deep = wall_overlap > r * (1.0 + GEOMETRY_RTOL) + 8 * np.finfo(float).eps * scale
-    if too_deep.any():
-        c = int(np.flatnonzero(too_deep)[0])
+    c = _first_too_deep(wall_overlap, r, scale)
+    if c is not None:
         _fail(path, "wall_contacts/overlap",
               f"row {c + row0} (particle {int(wall_particle[c])}) has overlap "
               f"{wall_overlap[c]:.6g} m, "
