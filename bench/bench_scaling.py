@@ -414,8 +414,8 @@ RANKS_SECTION = ROOT / "bench/results/ranks_same_answers_section.md"
 
 def build_fit(build):
     """Peak RSS of the explicit runs against N and R, least squares, bytes: a + whole N +
-    divided N / R for rank 0 before (it built the whole network), rank 0 after (it holds the
-    particles whole) and the other ranks after (the largest; rows with R >= 2)."""
+    divided N / R for rank 0 before (it built the whole network), rank 0 after (each rank
+    builds its own part) and the other ranks after (the largest; rows with R >= 2)."""
     out = {}
     for which, key, pick, ranks in (("before", "rss_before_gb", lambda v: v[0], 1),
                                     ("after", "rss_after_gb", lambda v: v[0], 1),
@@ -784,9 +784,9 @@ def _doc_build_stages(st) -> list[str]:
         total = sum(s["seconds"] for s in alone)
         L.append("Time: the steps rank 0 makes while the other ranks wait ("
                  + ", ".join(f"`{s['step']}`" for s in alone)
-                 + f") took {total:.2f} s on {r['ranks']} ranks, {total / r['n'] * 1e9:.0f} "
+                 + f") took {total:.3g} s on {r['ranks']} ranks, {total / r['n'] * 1e9:.0f} "
                  "ns per particle, not divided by the ranks: at 1e9 particles about "
-                 f"{total / r['n'] * 1e9 / 60:.1f} min of the build on rank 0 alone, "
+                 f"{total / r['n'] * 1e9 / 60:.2g} min of the build on rank 0 alone, "
                  "before the first step of the solve.\n")
     return L
 

@@ -323,7 +323,7 @@ def test_each_rank_builds_its_own_rows_as_the_whole_build_does(tmp_path, ranks):
     (every row kind) and the dense box with a ``[neighbours]`` criterion (the gap chosen for a
     bulk Z with collectives over the ranks' slices: the gap, rows kept and bulk Z's equal to the
     whole build's bit for bit; the terreros law, which reads the kept rows' neighbour counts).
-    Since the build reads per rank, no rank but 0 holds the whole packing.
+    Since the build reads per rank, no rank holds the whole packing.
     What could fail: a contact lost or counted twice between the slices and the owners, the
     law given other neighbour counts, a diagonal summed in another order, clusters numbered
     otherwise than in-process, a gap one ulp off or a tie split between ranks."""

@@ -230,7 +230,7 @@ def choose_neighbours_on_ranks(scene, comm, path, tol: float, n: int, m: int, n_
     collective over the mpi4py communicator ``comm``; each rank gives its slice of the file's
     contact rows only -- their ``ratio`` (:func:`distance_ratio`) and ``weight`` (how many of
     the row's two particles are bulk particles, 0-2) -- and ``n_bulk`` (the bulk particles,
-    counted by rank 0, which holds the particles). No rank holds every row: the whole build's
+    counted over the ranks' blocks of the particles). No rank holds every row: the whole build's
     choice is reproduced from collectives, bit for bit (``tests/mpi_rank_build_check.py``):
 
     - the bulk Z's are exact integer sums of ``weight`` over ``n_bulk``, as the whole build's
