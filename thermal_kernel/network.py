@@ -538,16 +538,22 @@ def tied_clusters(adjacency, reservoir) -> ClusterReport:
     return cluster_report(n_comp, label, reservoir)
 
 
+def untied_components(tied, sizes) -> tuple[np.ndarray, np.ndarray]:
+    """The components no reservoir ties (``tied``, ``sizes``: per component), as (floating
+    clusters: >= 2 particles, rattlers: 1), component ids ascending: :func:`cluster_report`'s,
+    and the PETSc backend's rank 0's counts (thermal_kernel/rank_build.py)."""
+    untied = np.flatnonzero(~np.asarray(tied, dtype=bool))
+    return untied[sizes[untied] >= 2], untied[sizes[untied] == 1]
+
+
 def cluster_report(n_comp: int, label: np.ndarray, reservoir) -> ClusterReport:
     """The :class:`ClusterReport` of components ``label`` (numbered 0..n_comp-1, in the order
-    of their first particle, as scipy's connected_components numbers them): found whole by
-    :func:`tied_clusters` or across ranks (thermal_kernel/rank_build.py)."""
+    of their first particle, as scipy's connected_components numbers them), found whole by
+    :func:`tied_clusters`."""
     tied = np.zeros(n_comp, dtype=bool)
     tied[label[np.asarray(reservoir, dtype=bool)]] = True
     sizes = np.bincount(label, minlength=n_comp)
-    untied = np.flatnonzero(~tied)
-    floating = untied[sizes[untied] >= 2]
-    rattler_comp = untied[sizes[untied] == 1]
+    floating, rattler_comp = untied_components(tied, sizes)
     if rattler_comp.size:       # a flag per component, read through the labels (isin sorts)
         is_rattler = np.zeros(n_comp, dtype=bool)
         is_rattler[rattler_comp] = True

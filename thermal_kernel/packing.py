@@ -586,9 +586,8 @@ def _check_contact_forces(path, pair, ri, rj, overlap, normal_force, branch, eps
               f"contact {c + row0} ({int(i[c])}, {int(j[c])}) has overlap {overlap[c]:.6g} m, "
               f"but its spheres give r_i + r_j - |branch| = {geo[c]:.6g} m; expected the "
               f"overlap of the two spheres (within {OVERLAP_RTOL:g} of the smaller radius)")
-    gap_force = (overlap <= 0) & (normal_force > 0)
-    if gap_force.any():
-        c = int(np.flatnonzero(gap_force)[0])
+    c = _first_gap_force(overlap, normal_force)
+    if c is not None:
         _fail(path, "contacts/normal_force",
               f"contact {c + row0} ({int(i[c])}, {int(j[c])}) is a gap (overlap "
               f"{overlap[c]:.6g} m) with a normal force of {normal_force[c]:.6g} N; "
@@ -661,10 +660,15 @@ def _check_wall_overlap(path, w, kind, point, normal, wall_radius, rows, particl
               f"expected r - distance (within {rtol:g} of the radius)")
 
 
+def _first_gap_force(overlap, normal_force) -> int | None:
+    """The first row that is a gap (overlap <= 0) yet carries a normal force, or None."""
+    gap_force = (overlap <= 0) & (normal_force > 0)
+    return int(np.flatnonzero(gap_force)[0]) if gap_force.any() else None
+
+
 def _check_wall_gap_force(path, wall_particle, wall_overlap, wall_normal_force):
-    gap_force = (wall_overlap <= 0) & (wall_normal_force > 0)
-    if gap_force.any():
-        c = int(np.flatnonzero(gap_force)[0])
+    c = _first_gap_force(wall_overlap, wall_normal_force)
+    if c is not None:
         _fail(path, "wall_contacts/normal_force",
               f"row {c} (particle {int(wall_particle[c])}) is a gap (overlap "
               f"{wall_overlap[c]:.6g} m) with a normal force of "

@@ -26,7 +26,7 @@ import numpy as np
 from . import packing as pk
 from .checkpoint import packing_sha256
 from .packing import Packing, PackingError
-from .solvers.partition import alltoallv, block_starts, exchange_counts
+from .solvers.partition import agree, alltoallv, block_starts, exchange_counts, fetch
 
 
 @dataclass
@@ -52,25 +52,9 @@ class PackingOnRanks:
 
 
 def _agree(comm, check):
-    """``check()`` on every rank, then every rank raises the lowest failing rank's error: a
-    PackingError with its message (the rank's own error if it is another kind), so that no rank
-    waits in a later collective for one that left. Returns ``check()``'s value."""
-    value, error = None, None
-    try:
-        value = check()
-    except Exception as e:              # noqa: BLE001 (re-raised below, on every rank)
-        error = e
-    faults = comm.allgather(None if error is None else
-                            (isinstance(error, PackingError), str(error) or type(error).__name__))
-    failed = [f for f in faults if f is not None]
-    if not failed:
-        return value
-    is_packing_error, message = failed[0]
-    if is_packing_error:
-        raise PackingError(message) from None
-    if error is not None:
-        raise error
-    raise RuntimeError(f"another rank failed reading the packing: {message}")
+    """``check()`` on every rank, every rank raising the lowest failing rank's error: a
+    PackingError with its message (:func:`~.solvers.partition.agree`)."""
+    return agree(comm, check, same=(PackingError,))
 
 
 def _rows_in_file(f, name) -> int:
@@ -103,17 +87,6 @@ def _sum_in_rank_order(comm, value) -> float:
     for part in comm.allgather(float(value)):
         total += part
     return total
-
-
-def _fetch(comm, ids, starts, columns):
-    """The values of the particles ``ids`` (any order, repeats allowed) from their directories'
-    ``columns`` (this rank's arrays over its block); arrays aligned with ``ids``."""
-    rank, size = comm.Get_rank(), comm.Get_size()
-    wanted, back = np.unique(np.asarray(ids, dtype=np.int64), return_inverse=True)
-    dest = np.searchsorted(starts, wanted, side="right") - 1     # sorted: grouped by rank
-    send_n, recv_n = exchange_counts(comm, dest, size)
-    asked = alltoallv(comm, wanted, send_n, recv_n) - starts[rank]
-    return [alltoallv(comm, np.asarray(c)[asked], recv_n, send_n)[back] for c in columns]
 
 
 def _bucket(position, size) -> np.ndarray:
@@ -203,7 +176,9 @@ def read_packing_on_ranks(path, comm) -> PackingOnRanks:
     wall_starts = block_starts(wall_particle.size, size)
     w0 = int(wall_starts[rank])
     mine = slice(w0, int(wall_starts[rank + 1]))
-    r_w, x_w = _fetch(comm, wall_particle[mine], starts, [radius, position])
+    wanted, back = np.unique(np.asarray(wall_particle[mine], dtype=np.int64),
+                             return_inverse=True)
+    r_w, x_w = (a[back] for a in fetch(comm, wanted, starts, [radius, position]))
 
     # _check_geometry: phases, centres, wall depths (no contact rows)
     _agree(comm, lambda: pk._check_phase(path, block["phase"], first))

@@ -95,7 +95,7 @@ def evaluate_law(scene: Scene, packing: Packing, keep: np.ndarray | None = None,
         capacity = np.asarray(law.capacity(particles, params), dtype=np.float64)
     if keep is not None:
         conductance = np.where(keep, conductance, 0.0)
-    _check_law_output(scene, law, conductance, capacity if check_capacity else np.ones(1),
+    _check_law_output(scene, law, conductance, capacity if check_capacity else None,
                       packing.contact_row)
     return law, params, particles, conductance, capacity
 
@@ -205,9 +205,9 @@ def capacity_refusal(scene: Scene, law, value, n_bad: int, n: int, first: int) -
 def _check_law_output(scene: Scene, law, conductance, capacity, contact_row=None) -> None:
     """A law's H and C computed from the scene's numbers, refused in one line naming the scene
     keys they came from (not the solvers' arrays) when a value is out of floating-point range:
-    H not finite or < 0, C not finite or <= 0."""
-    bad = bad_capacity(capacity)
-    if bad.any():
+    H not finite or < 0, C not finite or <= 0 (``capacity`` None: C is the caller's to check)."""
+    bad = None if capacity is None else bad_capacity(capacity)
+    if bad is not None and bad.any():
         k = int(np.flatnonzero(bad)[0])
         raise capacity_refusal(scene, law, capacity[k], int(bad.sum()), capacity.size, k)
     bad = ~np.isfinite(conductance) | (conductance < 0)

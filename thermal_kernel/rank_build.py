@@ -66,18 +66,14 @@ from .boundaries.base import Whole
 from .neighbours import choose_neighbours_on_ranks, dump_gap_tolerance_of, face_distance
 from .network import (ClusterCounts, NetworkSummary, ProblemSummary, UntiedParticles,
                       constant_flows, explicit_ratios, network_flags, particle_terms,
-                      principle_of, validate)
+                      principle_of, untied_components, validate)
 from .packing import (CONTACT_BLOCK_ROWS, Packing, PackingError, _check_pairs,
                       check_contact_rows, read_contact_rows)
 from .packing_ranks import read_packing_on_ranks
 from .problem import bad_capacity, boundary_problem, capacity_refusal, evaluate_law
 from .scene import SceneError
-from .solvers.partition import (Routes, alltoallv, block_starts, exchange_counts,
-                                 morton_blocks_on_ranks)
-
-class RankError(RuntimeError):
-    """Another rank's part of the build failed: its one-line message (each rank raises)."""
-
+from .solvers.partition import (RankError, Routes, agree, alltoallv, block_starts,
+                                 exchange_counts, fetch, morton_blocks_on_ranks)
 
 @dataclasses.dataclass
 class RankBuild:
@@ -97,38 +93,9 @@ class RankBuild:
     local_source: object = None     # the source over this rank's block (its places), or None
 
 
-def agree(comm, fn):
-    """``fn()`` on every rank; if it raised on any, every rank raises: the rank's own error, or
-    :class:`RankError` with the message of the lowest rank that failed (no rank waits in a
-    collective for one that left)."""
-    value, error = None, None
-    try:
-        value = fn()
-    except Exception as e:              # noqa: BLE001 (re-raised below, on every rank)
-        error = e
-    messages = comm.allgather(None if error is None else (str(error) or type(error).__name__))
-    if error is not None:
-        raise error
-    failed = [m for m in messages if m is not None]
-    if failed:
-        raise RankError(failed[0])
-    return value
-
-
 def _max():
     from mpi4py import MPI
     return MPI.MAX
-
-
-def _fetch(comm, ids, fblock, columns):
-    """The values of the particles ``ids`` (packing indices, sorted, unique) from their
-    directories (rank d holds the file's particles ``fblock[d]:fblock[d + 1]``); ``columns``
-    this rank's own arrays over its block. Arrays aligned with ``ids``."""
-    rank, size = comm.Get_rank(), comm.Get_size()
-    dest = np.searchsorted(fblock, ids, side="right") - 1      # sorted ids: grouped by rank
-    send_n, recv_n = exchange_counts(comm, dest, size)
-    asked = alltoallv(comm, np.asarray(ids, dtype=np.int64), send_n, recv_n) - fblock[rank]
-    return [alltoallv(comm, np.asarray(c)[asked], recv_n, send_n) for c in columns]
 
 
 def _sum_at_directories(comm, ids, values, fblock):
@@ -270,7 +237,7 @@ def _contacts_to_owners(scene, comm, head, starts, fblock, fb, own_new, n_bulk, 
     part = agree(comm, lambda: read_contact_rows(path, n, m, ms[rank], ms[rank + 1]))
     ends = np.unique(part["pair"])
     loc = np.searchsorted(ends, part["pair"])
-    pos_e, rad_e, ph_e, new_e, *bulk_e = _fetch(
+    pos_e, rad_e, ph_e, new_e, *bulk_e = fetch(
         comm, ends, fblock, [fb["position"], fb["radius"], fb["phase"], own_new]
         + ([] if own_bulk is None else [own_bulk]))      # the bulk flags: [neighbours] only
     bulk_e = bulk_e[0] if bulk_e else None
@@ -338,7 +305,7 @@ def _conducting_contacts(scene, comm, head, got, directory, fblock, conductance_
     rows are built. Returns the particles the contacts touch (packing indices, sorted), their
     places in the order, and the conducting contacts (i, j, H W/K, their places ni, nj)."""
     ids, inv = np.unique(got["pair"], return_inverse=True)
-    table = dict(zip(("radius", "phase", "nb", "new"), _fetch(
+    table = dict(zip(("radius", "phase", "nb", "new"), fetch(
         comm, ids, fblock, [directory.pop(k) for k in ("radius", "phase", "nb", "new")])))
     spheres = Packing(position=np.zeros((ids.size, 3)), radius=table["radius"],
                       phase=table["phase"], pair=inv.reshape(-1, 2),
@@ -526,7 +493,7 @@ def _owner_block(scene, comm, head, fb, nb_block, mine, fblock):
     (the lowest phase; the count over every rank and the lowest particle)."""
     by = np.argsort(mine, kind="stable")
     ids = mine[by]
-    pos, rad, phase, nb = _fetch(comm, ids, fblock, [fb["position"], fb["radius"],
+    pos, rad, phase, nb = fetch(comm, ids, fblock, [fb["position"], fb["radius"],
                                                      fb["phase"], nb_block])
     wp = np.asarray(head.wall_particle, dtype=np.int64)
     at = np.minimum(np.searchsorted(ids, wp), max(ids.size - 1, 0))
@@ -540,20 +507,18 @@ def _owner_block(scene, comm, head, fb, nb_block, mine, fblock):
         wall_normal_force=np.asarray(head.wall_normal_force)[hit],
         wall_contact_radius=(None if head.wall_contact_radius is None
                              else np.asarray(head.wall_contact_radius)[hit]))
-    phases = np.unique(np.concatenate(comm.allgather(np.unique(phase))))
-    agree(comm, lambda: [scene.material(int(p)) for p in phases])
+    whole = RanksWhole(comm, ids)
+    agree(comm, lambda: [scene.material(int(p)) for p in whole.union(phase)])
     law, params, pinput, _, capacity = agree(comm, lambda: evaluate_law(
         scene, block, None, nb, check_capacity=False))
     bad = bad_capacity(capacity)
-    n_bad = comm.allreduce(int(bad.sum()))
+    n_bad = whole.count(bad.sum())
     if n_bad:
         k = np.flatnonzero(bad)
-        first = min(g for g in comm.allgather(
-            (int(ids[k[0]]), float(capacity[k[0]])) if k.size else None) if g is not None)
-        raise capacity_refusal(scene, law, first[1], n_bad, comm.allreduce(int(ids.size)),
-                               first[0])
-    return SimpleNamespace(ids=ids, by=by, packing=block, law=law, params=params,
-                           pinput=pinput, capacity=capacity)
+        raise capacity_refusal(scene, law, whole.lowest(k, capacity[k]), n_bad,
+                               whole.count(ids.size), whole.lowest(k, ids[k]))
+    return SimpleNamespace(ids=ids, by=by, packing=block, whole=whole, law=law,
+                           params=params, pinput=pinput, capacity=capacity)
 
 
 def _owner_problem(scene, comm, blk, choice, n):
@@ -566,7 +531,7 @@ def _owner_problem(scene, comm, blk, choice, n):
     ranks (:func:`_summary_on_ranks`)."""
     problem, info = agree(comm, lambda: boundary_problem(
         scene, blk.packing, blk.law, blk.params, blk.pinput, blk.capacity, np.zeros(0),
-        choice, whole=RanksWhole(comm, blk.ids)))
+        choice, whole=blk.whole))
     v = agree(comm, lambda: validate(problem))
     terms = particle_terms(v)
     held_boundary = np.full(v["n"], -1, np.int32)
@@ -643,7 +608,7 @@ def _clusters_on_ranks(comm, adjacency, columns, lo, hi, mine, reservoir, starts
                                                            mine)
     offset = comm.exscan(int(n_comp)) or 0
     there, back = np.unique(cut_edges[:, 1], return_inverse=True)
-    (other,) = _fetch(comm, there, starts, [gid])
+    (other,) = fetch(comm, there, starts, [gid])
     edges = np.stack([cut_edges[:, 0], other[back.reshape(-1)]], axis=1)
     local = gid - offset
     tied_c = np.zeros(n_comp, dtype=bool)
@@ -666,10 +631,9 @@ def _clusters_on_ranks(comm, adjacency, columns, lo, hi, mine, reservoir, starts
         tied[label_c[np.concatenate([g[2] for g in got])]] = True
         sizes = np.zeros(k, dtype=np.int64)
         np.add.at(sizes, label_c, np.concatenate([g[3] for g in got]))
-        untied = np.flatnonzero(~tied)
-        floating = untied[sizes[untied] >= 2]
+        floating, rattlers = untied_components(tied, sizes)
         counts = ClusterCounts(n_components=int(k), floating_sizes=sizes[floating],
-                               n_rattlers=int(np.count_nonzero(sizes[untied] == 1)))
+                               n_rattlers=int(rattlers.size))
         bounds = np.concatenate([[0], np.cumsum([g[1].size for g in got])])
         reply = [(label_c[a:b], tied[label_c[a:b]]) for a, b in zip(bounds[:-1], bounds[1:])]
     label_c, tied_c = comm.scatter(reply, root=0)

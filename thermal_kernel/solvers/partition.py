@@ -85,6 +85,48 @@ def alltoallv(comm, send, send_n, recv_n):
     return recv
 
 
+def fetch(comm, ids, starts, columns):
+    """The values of the particles ``ids`` (packing indices, sorted, unique) from the ranks
+    holding their blocks (rank r holds ``starts[r]:starts[r + 1]``; ``columns`` this rank's
+    arrays over its block): arrays aligned with ``ids``. One Alltoallv for the asks, one a
+    column for the answers."""
+    rank, size = comm.Get_rank(), comm.Get_size()
+    dest = np.searchsorted(starts, ids, side="right") - 1      # sorted ids: grouped by rank
+    send_n, recv_n = exchange_counts(comm, dest, size)
+    asked = alltoallv(comm, np.asarray(ids, dtype=np.int64), send_n, recv_n) - starts[rank]
+    return [alltoallv(comm, np.asarray(c)[asked], recv_n, send_n) for c in columns]
+
+
+class RankError(RuntimeError):
+    """Another rank's part of a collective step failed: its one-line message (each rank
+    raises)."""
+
+
+def agree(comm, fn, same=()):
+    """``fn()`` on every rank; if it raised on any, every rank raises (no rank waits in a later
+    collective for one that left): the rank's own error, or :class:`RankError` with the
+    message of the lowest rank that failed. ``same``: exception classes raised alike on every
+    rank -- when the lowest failing rank's error is one of them, every rank raises that class
+    with its message (a reader's one error, whichever rank met it first)."""
+    value, error = None, None
+    try:
+        value = fn()
+    except Exception as e:              # noqa: BLE001 (re-raised below, on every rank)
+        error = e
+    faults = comm.allgather(None if error is None else (
+        next((i for i, cls in enumerate(same) if isinstance(error, cls)), -1),
+        str(error) or type(error).__name__))
+    failed = [f for f in faults if f is not None]
+    if not failed:
+        return value
+    kind, message = failed[0]
+    if kind >= 0:
+        raise same[kind](message) from None
+    if error is not None:
+        raise error
+    raise RankError(message)
+
+
 def gather_blocks(comm, block, starts):
     """Every rank's block ``starts[r]:starts[r + 1]`` gathered on rank 0 as one (N,) array
     (None elsewhere)."""
